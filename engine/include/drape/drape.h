@@ -1,0 +1,6 @@
+// Everything a program embedding drape needs.
+#pragma once
+
+#include <drape/sheet.h>
+#include <drape/types.h>
+#include <drape/world.h>

@@ -1,0 +1,31 @@
+// ObstacleDef: an impenetrable rigid obstacle given by an implicit inside–outside function
+// f (f > 0 outside, f < 0 inside, f = 0 on the surface) with an analytic gradient, and the
+// paper's repulsion potential E = c·exp(−f(x)/ξ) around it (§3, eq 9).
+// An ObstacleDef is a plain value; the world copies it when the obstacle is added.
+#pragma once
+
+#include <drape/types.h>
+
+namespace drape {
+
+enum class ObstacleShape {
+  Plane,      // local z = 0, outside is local +z
+  Sphere,     // radius = size.x
+  Ellipsoid,  // semi-axes size.x, size.y, size.z (Fig 9)
+  Torus,      // major radius size.x (centre to tube centre), minor radius size.y; axis local z (Figs 10–12)
+  Box,        // half extents size.x, size.y, size.z
+};
+
+struct ObstacleDef {
+  ObstacleShape shape = ObstacleShape::Sphere;
+  Vec3 center{};
+  Quat orientation{};
+  Vec3 size{0.5, 0.5, 0.5};  // m, meaning per shape (above)
+  double c = 1.0;            // J, strength of the potential
+  double xi = 0.01;          // ξ, m: how quickly the potential decays away from the surface
+  // false (default): the force is projected on the sheet's unit surface normal, as in eq (9);
+  // true: the full gradient −∇E is used.
+  bool full_gradient = false;
+};
+
+}  // namespace drape

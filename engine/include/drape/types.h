@@ -1,0 +1,53 @@
+// Small value types shared by the whole public API: vectors, rotations, ids, enums.
+// Everything here is a plain value; nothing owns engine storage.
+#pragma once
+
+#include <cstdint>
+#include <limits>
+#include <optional>
+#include <string_view>
+
+namespace drape {
+
+// A 3-vector in SI units (m, m/s, N, ...). Definitions use double; the world may store float.
+struct Vec3 {
+  double x = 0, y = 0, z = 0;
+  friend constexpr bool operator==(const Vec3&, const Vec3&) = default;
+};
+
+// A unit quaternion that rotates a sheet's local frame (grid in the local x–y plane,
+// normal along local +z) into the world frame. Identity: the sheet lies flat, facing +z.
+struct Quat {
+  double w = 1, x = 0, y = 0, z = 0;
+  friend constexpr bool operator==(const Quat&, const Quat&) = default;
+};
+
+Quat quat_from_axis_angle(Vec3 axis, double radians);
+Vec3 rotate(const Quat& q, Vec3 v);
+
+// Handles the world hands out. A handle is an index into the world's pool plus a
+// generation, so a handle to a removed object is detected instead of aliasing a new one.
+struct SheetId {
+  std::uint32_t index = std::numeric_limits<std::uint32_t>::max();
+  std::uint32_t generation = 0;
+  constexpr bool is_valid() const { return index != std::numeric_limits<std::uint32_t>::max(); }
+  friend constexpr bool operator==(SheetId, SheetId) = default;
+};
+
+struct ObstacleId {
+  std::uint32_t index = std::numeric_limits<std::uint32_t>::max();
+  std::uint32_t generation = 0;
+  constexpr bool is_valid() const { return index != std::numeric_limits<std::uint32_t>::max(); }
+  friend constexpr bool operator==(ObstacleId, ObstacleId) = default;
+};
+
+// Time integrators. Adding one: a value here, its name below, a function in integrate.cpp.
+enum class Integrator {
+  ForwardEuler,       // x += dt·v, v += dt·a (both from the old state): the paper's literal reading
+  SemiImplicitEuler,  // v += dt·a, then x += dt·v_new: symplectic, the default
+};
+
+std::string_view integrator_name(Integrator integrator);
+std::optional<Integrator> integrator_from_name(std::string_view name);
+
+}  // namespace drape

@@ -1,0 +1,20 @@
+// Read-only measurements of one sheet: energies, strain, finiteness, stable step.
+// Computed on demand, never inside the step.
+#pragma once
+
+#include <drape/world.h>
+
+#include "sheet_data.h"
+
+namespace drape::detail {
+
+template <class Real>
+SheetDiagnostics sheet_diagnostics(const Sheet<Real>& sheet, Vec3 gravity);
+
+template <class Real>
+bool sheet_finite(const Sheet<Real>& sheet);
+
+template <class Real>
+double sheet_stable_step(const Sheet<Real>& sheet);
+
+}  // namespace drape::detail

@@ -1,0 +1,39 @@
+// Force terms of one sheet. Each physical effect is one kernel over SoA arrays; a sheet
+// runs only the kernels of the terms it has (chosen per sheet, never per point).
+#pragma once
+
+#include "sheet_data.h"
+
+namespace drape::detail {
+
+template <class Real>
+struct ConstVec3Ptr {
+  const Real* x;
+  const Real* y;
+  const Real* z;
+};
+
+template <class Real>
+struct Vec3Ptr {
+  Real* x;
+  Real* y;
+  Real* z;
+  operator ConstVec3Ptr<Real>() const { return {x, y, z}; }
+};
+
+template <class Real>
+ConstVec3Ptr<Real> cptr(const Vec3Array<Real>& a) { return {a.x.data(), a.y.data(), a.z.data()}; }
+template <class Real>
+Vec3Ptr<Real> ptr(Vec3Array<Real>& a) { return {a.x.data(), a.y.data(), a.z.data()}; }
+
+// eq (6)–(7): writes (not adds) the elastic force of every spring into f, both endpoints.
+// `row` is scratch of n+1 values per component.
+template <class Real>
+void spring_forces(const Topology<Real>& topo, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row);
+
+// f = springs(x) − C·v + anchors(x): the total internal force of eq (4) without gravity,
+// which the integrators add as an acceleration.
+template <class Real>
+void sheet_forces(Sheet<Real>& sheet, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f);
+
+}  // namespace drape::detail

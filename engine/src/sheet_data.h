@@ -1,0 +1,80 @@
+// Internal storage of one sheet: the shared, immutable spring topology and the
+// per-instance structure-of-arrays buffers. Only engine/src sees these types.
+#pragma once
+
+#include <drape/sheet.h>
+#include <drape/types.h>
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+namespace drape::detail {
+
+// Edge buffer of a grid (paper Fig 1). Springs are stored in a fixed order so the force
+// kernel never reads a or b: first the horizontal springs row by row, spring i·n + j joining
+// (i, j)–(i, j+1); then the vertical ones, spring H + i·(n+1) + j joining (i, j)–(i+1, j),
+// with H = (m+1)·n. a/b are kept for code that walks edges generically (export, Jacobians).
+// Identical sheets share one Topology (Jolt's shared settings vs per-instance state).
+template <class Real>
+struct Topology {
+  std::uint32_t m = 0, n = 0;
+  std::vector<std::uint32_t> a, b;
+  std::vector<Real> rest_length;  // ℓ per spring, m
+  std::vector<Real> stiffness;    // k per spring, N/m
+
+  std::uint32_t cols() const { return n + 1; }
+  std::uint32_t rows() const { return m + 1; }
+  std::uint32_t points() const { return rows() * cols(); }
+  std::uint32_t horizontal_count() const { return rows() * n; }
+  std::uint32_t springs() const { return static_cast<std::uint32_t>(a.size()); }
+
+  friend bool operator==(const Topology&, const Topology&) = default;
+};
+
+template <class Real>
+struct Anchors {  // eq (8), structure of arrays
+  std::vector<std::uint32_t> point;
+  std::vector<Real> tx, ty, tz, stiffness;
+  bool empty() const { return point.empty(); }
+};
+
+template <class Real>
+struct Pins {
+  std::vector<std::uint32_t> point;
+  std::vector<Real> tx, ty, tz;
+  bool empty() const { return point.empty(); }
+};
+
+// Three parallel arrays, the unit every kernel reads and writes.
+template <class Real>
+struct Vec3Array {
+  std::vector<Real> x, y, z;
+  void resize(std::size_t count, Real value = Real(0)) {
+    x.assign(count, value);
+    y.assign(count, value);
+    z.assign(count, value);
+  }
+};
+
+template <class Real>
+struct Sheet {
+  std::shared_ptr<const Topology<Real>> topology;
+  Vec3Array<Real> position, velocity;
+  Vec3Array<Real> force;             // scratch of the force kernels
+  std::vector<Real> mass, inv_mass;  // per point
+  std::vector<Real> damping;         // per point; empty: the sheet has no damping term
+  Anchors<Real> anchors;
+  Pins<Real> pins;
+  Vec3Array<Real> row_scratch;       // one row of horizontal spring forces
+  std::vector<Real> integrator_scratch;  // extra state an integrator may keep
+
+  std::size_t size() const { return position.x.size(); }
+};
+
+// Builds a sheet from a validated definition. The topology is built fresh; the world
+// swaps in a shared equal one when it has it.
+template <class Real>
+Sheet<Real> build_sheet(const SheetDef& def);
+
+}  // namespace drape::detail

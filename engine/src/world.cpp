@@ -1,0 +1,209 @@
+// The World: a pool of sheets addressed by ids, and the substep that advances them.
+#include <drape/world.h>
+
+#include <oneapi/tbb/blocked_range.h>
+#include <oneapi/tbb/parallel_for.h>
+#include <oneapi/tbb/task_arena.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+#include "diagnostics.h"
+#include "integrate.h"
+#include "sheet_data.h"
+
+namespace drape {
+
+using detail::Sheet;
+using detail::Topology;
+
+template <class Real>
+struct BasicWorld<Real>::Impl {
+  struct Slot {
+    std::optional<Sheet<Real>> sheet;
+    std::uint32_t generation = 0;
+  };
+
+  WorldDef def;
+  tbb::task_arena arena;
+  std::vector<Slot> slots;
+  std::vector<std::uint32_t> free_slots;
+  std::vector<std::uint32_t> active;  // live slots in the order sheets were added
+  std::vector<std::shared_ptr<const Topology<Real>>> topologies;
+  std::uint64_t steps = 0;
+
+  explicit Impl(const WorldDef& d)
+      : def(d), arena(d.threads > 0 ? d.threads : tbb::task_arena::automatic) {}
+
+  Sheet<Real>& sheet(SheetId id) {
+    if (!contains(id)) throw std::invalid_argument("drape: unknown or removed SheetId " + std::to_string(id.index));
+    return *slots[id.index].sheet;
+  }
+  const Sheet<Real>& sheet(SheetId id) const { return const_cast<Impl*>(this)->sheet(id); }
+  bool contains(SheetId id) const {
+    return id.index < slots.size() && slots[id.index].sheet && slots[id.index].generation == id.generation;
+  }
+
+  // Dozens of identical sheets keep one edge buffer between them.
+  void share_topology(Sheet<Real>& s) {
+    std::erase_if(topologies, [](const auto& t) { return t.use_count() == 1; });
+    for (const auto& t : topologies)
+      if (*t == *s.topology) {
+        s.topology = t;
+        return;
+      }
+    topologies.push_back(s.topology);
+  }
+
+  // Parallel stage: every sheet writes only its own buffers, so the result does not
+  // depend on how TBB schedules them (bit-identical for any thread count).
+  void integrate_sheets(const detail::StepParams<Real>& params) {
+    arena.execute([&] {
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, active.size(), 1),
+                        [&](const tbb::blocked_range<std::size_t>& r) {
+                          for (std::size_t k = r.begin(); k != r.end(); ++k)
+                            detail::integrate(def.integrator, *slots[active[k]].sheet, params);
+                        });
+    });
+  }
+
+  void substep() {
+    const detail::StepParams<Real> params{static_cast<Real>(def.dt), static_cast<Real>(def.gravity.x),
+                                          static_cast<Real>(def.gravity.y), static_cast<Real>(def.gravity.z)};
+    // 1. host stage: bounds, broad-phase and contact work go here (nothing yet between sheets)
+    // 2. parallel stage: per-sheet forces, then integration
+    integrate_sheets(params);
+    ++steps;
+  }
+};
+
+template <class Real>
+BasicWorld<Real>::BasicWorld(const WorldDef& def) {
+  if (!(def.dt > 0) || !std::isfinite(def.dt)) throw std::invalid_argument("drape: WorldDef.dt must be positive and finite");
+  impl_ = std::make_unique<Impl>(def);
+}
+template <class Real>
+BasicWorld<Real>::~BasicWorld() = default;
+template <class Real>
+BasicWorld<Real>::BasicWorld(BasicWorld&&) noexcept = default;
+template <class Real>
+BasicWorld<Real>& BasicWorld<Real>::operator=(BasicWorld&&) noexcept = default;
+
+template <class Real>
+SheetId BasicWorld<Real>::add_sheet(const SheetDef& def) {
+  if (std::string problem = validate(def); !problem.empty()) throw std::invalid_argument("drape: sheet " + problem);
+  Sheet<Real> sheet = detail::build_sheet<Real>(def);
+  impl_->share_topology(sheet);
+  std::uint32_t index;
+  if (!impl_->free_slots.empty()) {
+    index = impl_->free_slots.back();
+    impl_->free_slots.pop_back();
+  } else {
+    index = static_cast<std::uint32_t>(impl_->slots.size());
+    impl_->slots.emplace_back();
+  }
+  auto& slot = impl_->slots[index];
+  slot.sheet = std::move(sheet);
+  impl_->active.push_back(index);
+  return {index, slot.generation};
+}
+
+template <class Real>
+void BasicWorld<Real>::remove_sheet(SheetId id) {
+  impl_->sheet(id);  // throws on a stale id
+  auto& slot = impl_->slots[id.index];
+  slot.sheet.reset();
+  ++slot.generation;
+  impl_->free_slots.push_back(id.index);
+  std::erase(impl_->active, id.index);
+}
+
+template <class Real>
+bool BasicWorld<Real>::contains(SheetId id) const { return impl_->contains(id); }
+template <class Real>
+std::size_t BasicWorld<Real>::sheet_count() const { return impl_->active.size(); }
+
+template <class Real>
+std::vector<SheetId> BasicWorld<Real>::sheets() const {
+  std::vector<SheetId> ids;
+  for (std::uint32_t index : impl_->active) ids.push_back({index, impl_->slots[index].generation});
+  return ids;
+}
+
+template <class Real>
+SheetView<Real> BasicWorld<Real>::view(SheetId id) const {
+  const auto& s = impl_->sheet(id);
+  return {s.topology->m, s.topology->n, s.position.x, s.position.y, s.position.z,
+          s.velocity.x,  s.velocity.y,  s.velocity.z};
+}
+
+template <class Real>
+SheetState<Real> BasicWorld<Real>::state(SheetId id) {
+  auto& s = impl_->sheet(id);
+  return {s.topology->m, s.topology->n, s.position.x, s.position.y, s.position.z,
+          s.velocity.x,  s.velocity.y,  s.velocity.z};
+}
+
+template <class Real>
+void BasicWorld<Real>::step(int substeps) {
+  for (int k = 0; k < substeps; ++k) impl_->substep();
+}
+
+template <class Real>
+const WorldDef& BasicWorld<Real>::def() const { return impl_->def; }
+template <class Real>
+void BasicWorld<Real>::set_integrator(Integrator integrator) { impl_->def.integrator = integrator; }
+template <class Real>
+void BasicWorld<Real>::set_dt(double dt) {
+  if (!(dt > 0) || !std::isfinite(dt)) throw std::invalid_argument("drape: dt must be positive and finite");
+  impl_->def.dt = dt;
+}
+template <class Real>
+double BasicWorld<Real>::time() const { return static_cast<double>(impl_->steps) * impl_->def.dt; }
+template <class Real>
+std::uint64_t BasicWorld<Real>::step_count() const { return impl_->steps; }
+
+template <class Real>
+SheetDiagnostics BasicWorld<Real>::diagnostics(SheetId id) const {
+  return detail::sheet_diagnostics(impl_->sheet(id), impl_->def.gravity);
+}
+
+template <class Real>
+Energies BasicWorld<Real>::energies() const {
+  Energies total;
+  for (SheetId id : sheets()) {
+    const Energies e = diagnostics(id).energy;
+    total.kinetic += e.kinetic;
+    total.spring += e.spring;
+    total.gravity += e.gravity;
+    total.anchor += e.anchor;
+  }
+  return total;
+}
+
+template <class Real>
+bool BasicWorld<Real>::all_finite() const {
+  return std::all_of(impl_->active.begin(), impl_->active.end(),
+                     [&](std::uint32_t index) { return detail::sheet_finite(*impl_->slots[index].sheet); });
+}
+
+template <class Real>
+double BasicWorld<Real>::stable_step_estimate(SheetId id) const {
+  return detail::sheet_stable_step(impl_->sheet(id));
+}
+
+template <class Real>
+double BasicWorld<Real>::stable_step_estimate() const {
+  double dt = std::numeric_limits<double>::infinity();
+  for (SheetId id : sheets()) dt = std::min(dt, stable_step_estimate(id));
+  return dt;
+}
+
+template class BasicWorld<double>;
+template class BasicWorld<float>;
+
+}  // namespace drape
