@@ -1,8 +1,10 @@
-// Integrators for M ẍ + C ẋ = f(x) − f_spr(x) (eq 4), M and C diagonal, so every update
-// is per point and linear in the number of points (paper §4).
+// Explicit integrators for M ẍ + C ẋ = f(x) − f_spr(x) (eq 4), M and C diagonal, so every
+// update is per point and linear in the number of points (paper §4). Implicit Euler lives
+// in implicit.cpp.
 #include "integrate.h"
 
 #include "forces.h"
+#include "implicit.h"
 
 namespace drape::detail {
 
@@ -52,6 +54,122 @@ void first_order_step(Sheet<Real>& s, const StepParams<Real>& p, AxisUpdate upda
   update(count, p.dt, p.gz, s.position.z.data(), s.velocity.z.data(), s.force.z.data(), inv_mass);
 }
 
+// a = f(x, v)/m + g into s.force, with pinned points held at zero acceleration so that
+// intermediate stages (Verlet's drift, RK4's stages) never move a pin.
+template <class Real>
+void accelerations(Sheet<Real>& s, const StepParams<Real>& p, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v) {
+  sheet_forces(s, x, v, ptr(s.force));
+  const std::size_t count = s.size();
+  const Real* inv_mass = s.inv_mass.data();
+  Real* f[3] = {s.force.x.data(), s.force.y.data(), s.force.z.data()};
+  const Real g[3] = {p.gx, p.gy, p.gz};
+  for (int k = 0; k < 3; ++k) {
+    Real* __restrict a = f[k];
+    for (std::size_t i = 0; i < count; ++i) a[i] = a[i] * inv_mass[i] + g[k];
+  }
+  for (std::uint32_t q : s.pins.point) f[0][q] = f[1][q] = f[2][q] = Real(0);
+}
+
+// Velocity Verlet (kick–drift–kick). The force at the start of the step is recomputed
+// rather than carried over from the previous step, because anything may have changed in
+// between (state writes, contacts gathered by the host stage, a switch of integrator).
+template <class Real>
+void velocity_verlet_step(Sheet<Real>& s, const StepParams<Real>& p) {
+  const std::size_t count = s.size();
+  const Real half = p.dt / Real(2);
+  Real* x[3] = {s.position.x.data(), s.position.y.data(), s.position.z.data()};
+  Real* v[3] = {s.velocity.x.data(), s.velocity.y.data(), s.velocity.z.data()};
+  const Real* a[3] = {s.force.x.data(), s.force.y.data(), s.force.z.data()};
+  accelerations(s, p, cptr(s.position), cptr(s.velocity));
+  for (int k = 0; k < 3; ++k) {
+    Real* __restrict xk = x[k];
+    Real* __restrict vk = v[k];
+    const Real* __restrict ak = a[k];
+    for (std::size_t i = 0; i < count; ++i) {
+      vk[i] += half * ak[i];
+      xk[i] += p.dt * vk[i];
+    }
+  }
+  // the damping term sees the half-step velocity: Verlet's second order holds for forces of x only
+  accelerations(s, p, cptr(s.position), cptr(s.velocity));
+  for (int k = 0; k < 3; ++k) {
+    Real* __restrict vk = v[k];
+    const Real* __restrict ak = a[k];
+    for (std::size_t i = 0; i < count; ++i) vk[i] += half * ak[i];
+  }
+}
+
+// Classical RK4 on the first-order system (x, v)' = (v, a(x, v)). Scratch, 12 values per
+// point in integrator_scratch: stage position and velocity, and the weighted sums of the
+// four slopes of x and of v. The sheet's own position/velocity hold the start state.
+template <class Real>
+void rk4_step(Sheet<Real>& s, const StepParams<Real>& p) {
+  const std::size_t count = s.size();
+  if (s.integrator_scratch.size() != 12 * count) s.integrator_scratch.assign(12 * count, Real(0));
+  Real* base = s.integrator_scratch.data();
+  auto block = [&](int k) { return base + std::size_t(k) * count; };
+  Real* xs[3] = {block(0), block(1), block(2)};
+  Real* vs[3] = {block(3), block(4), block(5)};
+  Real* sx[3] = {block(6), block(7), block(8)};
+  Real* sv[3] = {block(9), block(10), block(11)};
+  Real* x0[3] = {s.position.x.data(), s.position.y.data(), s.position.z.data()};
+  Real* v0[3] = {s.velocity.x.data(), s.velocity.y.data(), s.velocity.z.data()};
+  const Real* a[3] = {s.force.x.data(), s.force.y.data(), s.force.z.data()};
+  const Real h = p.dt, h2 = p.dt / Real(2);
+
+  // stage 1 at the start state
+  accelerations(s, p, cptr(s.position), cptr(s.velocity));
+  for (int k = 0; k < 3; ++k) {
+    const Real* __restrict xk = x0[k];
+    const Real* __restrict vk = v0[k];
+    const Real* __restrict ak = a[k];
+    Real* __restrict xsk = xs[k];
+    Real* __restrict vsk = vs[k];
+    Real* __restrict sxk = sx[k];
+    Real* __restrict svk = sv[k];
+    for (std::size_t i = 0; i < count; ++i) {
+      sxk[i] = vk[i];
+      svk[i] = ak[i];
+      xsk[i] = xk[i] + h2 * vk[i];
+      vsk[i] = vk[i] + h2 * ak[i];
+    }
+  }
+  // stages 2 and 3 (weight 2), each setting up the next stage at step `next` from x0, v0
+  for (const Real next : {h2, h}) {
+    accelerations(s, p, ConstVec3Ptr<Real>{xs[0], xs[1], xs[2]}, ConstVec3Ptr<Real>{vs[0], vs[1], vs[2]});
+    for (int k = 0; k < 3; ++k) {
+      const Real* __restrict xk = x0[k];
+      const Real* __restrict vk = v0[k];
+      const Real* __restrict ak = a[k];
+      Real* __restrict xsk = xs[k];
+      Real* __restrict vsk = vs[k];
+      Real* __restrict sxk = sx[k];
+      Real* __restrict svk = sv[k];
+      for (std::size_t i = 0; i < count; ++i) {
+        sxk[i] += Real(2) * vsk[i];
+        svk[i] += Real(2) * ak[i];
+        xsk[i] = xk[i] + next * vsk[i];
+        vsk[i] = vk[i] + next * ak[i];
+      }
+    }
+  }
+  // stage 4 and the weighted update
+  accelerations(s, p, ConstVec3Ptr<Real>{xs[0], xs[1], xs[2]}, ConstVec3Ptr<Real>{vs[0], vs[1], vs[2]});
+  const Real w = h / Real(6);
+  for (int k = 0; k < 3; ++k) {
+    Real* __restrict xk = x0[k];
+    Real* __restrict vk = v0[k];
+    const Real* __restrict ak = a[k];
+    const Real* __restrict vsk = vs[k];
+    const Real* __restrict sxk = sx[k];
+    const Real* __restrict svk = sv[k];
+    for (std::size_t i = 0; i < count; ++i) {
+      xk[i] += w * (sxk[i] + vsk[i]);
+      vk[i] += w * (svk[i] + ak[i]);
+    }
+  }
+}
+
 }  // namespace
 
 template <class Real>
@@ -59,6 +177,9 @@ void integrate(Integrator integrator, Sheet<Real>& s, const StepParams<Real>& p)
   switch (integrator) {
     case Integrator::ForwardEuler: first_order_step(s, p, forward_euler_axis<Real>); break;
     case Integrator::SemiImplicitEuler: first_order_step(s, p, semi_implicit_euler_axis<Real>); break;
+    case Integrator::VelocityVerlet: velocity_verlet_step(s, p); break;
+    case Integrator::RK4: rk4_step(s, p); break;
+    case Integrator::ImplicitEuler: implicit_euler_step(s, p); break;
   }
   apply_pins(s);
 }

@@ -57,6 +57,11 @@ struct Vec3Array {
   }
 };
 
+// Implicit Euler's assembled system and solver (implicit.h); built on a sheet's first
+// implicit step and reused by every later one.
+template <class Real>
+struct ImplicitScratch;
+
 template <class Real>
 struct Sheet {
   std::shared_ptr<const Topology<Real>> topology;
@@ -67,7 +72,10 @@ struct Sheet {
   Anchors<Real> anchors;
   Pins<Real> pins;
   Vec3Array<Real> row_scratch;       // one row of horizontal spring forces
-  std::vector<Real> integrator_scratch;  // extra state an integrator may keep
+  std::vector<Real> integrator_scratch;  // extra state an integrator may keep (RK4's stages)
+  // Shared between copies of a sheet only until one of them steps implicitly again: the
+  // integrator replaces a scratch it does not own alone (implicit.cpp).
+  std::shared_ptr<ImplicitScratch<Real>> implicit_scratch;
 
   std::size_t size() const { return position.x.size(); }
 };

@@ -9,23 +9,74 @@
 #include <cmath>
 #include <limits>
 #include <optional>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 
+#include "bounds.h"
 #include "diagnostics.h"
 #include "integrate.h"
 #include "sheet_data.h"
 
 namespace drape {
 
+std::string validate(const WorldDef& d) {
+  auto problem = [](const char* field, const char* what, double got) {
+    std::ostringstream out;
+    out << field << ' ' << what << " (got " << got << ')';
+    return out.str();
+  };
+  const auto finite = [](double v) { return std::isfinite(v); };
+  if (!(d.dt > 0) || !finite(d.dt)) return problem("dt", "must be positive and finite", d.dt);
+  if (!finite(d.gravity.x) || !finite(d.gravity.y) || !finite(d.gravity.z)) return "gravity must be finite";
+  if (!integrator_from_name(integrator_name(d.integrator))) return problem("integrator", "is not an integrator", double(d.integrator));
+  if (d.threads < 0) return problem("threads", "must be 0 (all cores) or positive", d.threads);
+  if (!(d.cg_tolerance > 0) || !finite(d.cg_tolerance)) return problem("cg_tolerance", "must be positive and finite", d.cg_tolerance);
+  if (d.cg_max_iterations < 1) return problem("cg_max_iterations", "must be at least 1", d.cg_max_iterations);
+  if (!(d.adaptive_safety > 0 && d.adaptive_safety <= 1)) return problem("adaptive_safety", "must be in (0, 1]", d.adaptive_safety);
+  if (!(d.guard_energy_growth > 1) || std::isnan(d.guard_energy_growth))
+    return problem("guard_energy_growth", "must be greater than 1", d.guard_energy_growth);
+  return {};
+}
+
+std::string describe(const StabilityReport& r) {
+  std::ostringstream out;
+  out.precision(3);
+  if (r.ok()) {
+    out << "stable at step " << r.step << " (t = " << r.time << " s), energy growth " << r.energy_growth;
+    return out.str();
+  }
+  out << "sheet " << r.sheet.index << ": ";
+  if (r.status == StabilityStatus::NonFinite)
+    out << "positions or velocities are not finite";
+  else
+    out << "energy grew " << r.energy_growth << "-fold";
+  out << " by step " << r.step << " (t = " << r.time << " s) with " << integrator_name(r.integrator) << " at dt = " << r.dt
+      << " s; ";
+  if (std::isfinite(r.stable_dt) && r.stable_dt > 0)
+    out << "stable below dt ~ " << r.stable_dt << " s (estimate), or ";
+  out << "use " << integrator_name(r.stable_integrator) << " at this dt";
+  return out.str();
+}
+
 using detail::Sheet;
 using detail::Topology;
 
 template <class Real>
 struct BasicWorld<Real>::Impl {
+  // The stability guard's memory of one sheet (see StabilityReport).
+  struct Guard {
+    bool has_reference = false;
+    double reference_energy = 0;  // E₀
+    double scale = 0;             // S: largest motion energy seen at earlier checks, ≥ floor
+    double floor = 0;             // work of gravity over the sheet's extent at the reference
+  };
+
   struct Slot {
     std::optional<Sheet<Real>> sheet;
     std::uint32_t generation = 0;
+    double omega_max = 0;  // rad/s, Gershgorin bound; fixed by masses and stiffnesses
+    Guard guard;
   };
 
   WorldDef def;
@@ -35,6 +86,12 @@ struct BasicWorld<Real>::Impl {
   std::vector<std::uint32_t> active;  // live slots in the order sheets were added
   std::vector<std::shared_ptr<const Topology<Real>>> topologies;
   std::uint64_t steps = 0;
+  // time = time_base + (steps − steps_base)·current_h: exact for runs of equal substeps
+  double time_base = 0, current_h = 0;
+  std::uint64_t steps_base = 0;
+  std::optional<StabilityReport> failure;  // set when the guard halted the world
+
+  void set_def(const WorldDef& d);
 
   explicit Impl(const WorldDef& d)
       : def(d), arena(d.threads > 0 ? d.threads : tbb::task_arena::automatic) {}
@@ -71,19 +128,136 @@ struct BasicWorld<Real>::Impl {
     });
   }
 
-  void substep() {
-    const detail::StepParams<Real> params{static_cast<Real>(def.dt), static_cast<Real>(def.gravity.x),
-                                          static_cast<Real>(def.gravity.y), static_cast<Real>(def.gravity.z)};
+  void substep(double h) {
+    const detail::StepParams<Real> params{static_cast<Real>(h), static_cast<Real>(def.gravity.x),
+                                          static_cast<Real>(def.gravity.y), static_cast<Real>(def.gravity.z),
+                                          def.cg_tolerance, def.cg_max_iterations};
     // 1. host stage: bounds, broad-phase and contact work go here (nothing yet between sheets)
     // 2. parallel stage: per-sheet forces, then integration
     integrate_sheets(params);
+    if (h != current_h) {
+      time_base = time();
+      steps_base = steps;
+      current_h = h;
+    }
     ++steps;
+  }
+
+  double time() const { return time_base + static_cast<double>(steps - steps_base) * current_h; }
+
+  double omega_max() const {
+    double w = 0;
+    for (std::uint32_t index : active) w = std::max(w, slots[index].omega_max);
+    return w;
+  }
+
+  // The longest substep allowed now: dt, or in adaptive mode the explicit integrator's
+  // critical step on the stiffest sheet times the safety factor.
+  double max_substep() const {
+    if (!def.adaptive || !integrator_is_explicit(def.integrator)) return def.dt;
+    const double h = def.adaptive_safety * integrator_critical_step(def.integrator, omega_max());
+    return std::isfinite(h) ? h : std::numeric_limits<double>::infinity();
+  }
+
+  // `seconds` in equal substeps of at most max_substep(), ending exactly at time + seconds.
+  void advance(double seconds) {
+    const double h_max = max_substep();
+    const double count = std::isfinite(h_max) ? std::max(1.0, std::ceil(seconds / h_max * (1 - 1e-12))) : 1.0;
+    const double h = seconds / count;
+    for (double k = 0; k < count; ++k) substep(h);
+  }
+
+  // Motion energy: what an unstable step inflates.
+  static double motion_energy(const Energies& e) { return e.kinetic + e.spring + e.anchor; }
+
+  void take_reference(Slot& slot) {
+    const auto& s = *slot.sheet;
+    const SheetDiagnostics d = detail::sheet_diagnostics(s, def.gravity);
+    const detail::Aabb box = detail::sheet_bounds(s);
+    double extent2 = 0, mass = 0;
+    for (int k = 0; k < 3; ++k) extent2 += (box.hi[k] - box.lo[k]) * (box.hi[k] - box.lo[k]);
+    for (Real m : s.mass) mass += m;
+    const double g = std::hypot(def.gravity.x, def.gravity.y, def.gravity.z);
+    slot.guard.has_reference = d.finite;
+    slot.guard.reference_energy = d.energy.total();
+    // With no gravity, no stress and no motion the scale would be 0: the smallest normal
+    // number keeps the ratio defined (such a sheet cannot move, so E − E₀ stays 0).
+    slot.guard.floor = std::max(mass * g * std::sqrt(extent2), std::numeric_limits<double>::min());
+    slot.guard.scale = std::max(motion_energy(d.energy), slot.guard.floor);
+  }
+
+  void take_references() {
+    for (std::uint32_t index : active)
+      if (!slots[index].guard.has_reference) take_reference(slots[index]);
+  }
+
+  // The guard: one pass over each sheet's points and springs. The motion energy of each
+  // sheet goes to `motion` (in `active` order) for finish_step to raise the scales with.
+  StabilityReport check(std::vector<double>* motion) const {
+    StabilityReport report;
+    report.step = steps;
+    report.time = time();
+    report.integrator = def.integrator;
+    report.dt = steps > 0 ? current_h : max_substep();
+    double largest_growth = 1;
+    bool any = false;
+    for (std::uint32_t index : active) {
+      const Slot& slot = slots[index];
+      const SheetDiagnostics d = detail::sheet_diagnostics(*slot.sheet, def.gravity);
+      if (motion) motion->push_back(motion_energy(d.energy));
+      StabilityStatus status = StabilityStatus::Stable;
+      double growth = 1;
+      if (!d.finite) {
+        status = StabilityStatus::NonFinite;
+        growth = std::numeric_limits<double>::infinity();
+      } else if (slot.guard.has_reference) {
+        growth = 1 + (d.energy.total() - slot.guard.reference_energy) / slot.guard.scale;
+        if (growth > def.guard_energy_growth) status = StabilityStatus::EnergyGrowth;
+      }
+      if (status == StabilityStatus::Stable) {
+        largest_growth = any ? std::max(largest_growth, growth) : growth;
+        any = true;
+      } else if (report.ok()) {
+        report.status = status;
+        report.sheet = {index, slot.generation};
+        report.energy_growth = growth;
+        report.stable_dt = def.adaptive_safety * integrator_critical_step(def.integrator, slot.omega_max);
+        report.stable_integrator = Integrator::ImplicitEuler;
+        for (Integrator i : integrators)
+          if (integrator_critical_step(i, slot.omega_max) > report.dt) {
+            report.stable_integrator = i;
+            break;
+          }
+      }
+    }
+    if (report.ok()) report.energy_growth = largest_growth;
+    return report;
+  }
+
+  StabilityReport finish_step() {
+    if (!def.guard) {
+      StabilityReport report;
+      report.step = steps;
+      report.time = time();
+      report.integrator = def.integrator;
+      report.dt = current_h;
+      return report;
+    }
+    std::vector<double> motion;
+    motion.reserve(active.size());
+    StabilityReport report = check(&motion);
+    for (std::size_t k = 0; k < active.size(); ++k) {
+      auto& guard = slots[active[k]].guard;
+      guard.scale = std::max(guard.scale, motion[k]);
+    }
+    if (!report.ok()) failure = report;
+    return report;
   }
 };
 
 template <class Real>
 BasicWorld<Real>::BasicWorld(const WorldDef& def) {
-  if (!(def.dt > 0) || !std::isfinite(def.dt)) throw std::invalid_argument("drape: WorldDef.dt must be positive and finite");
+  if (std::string problem = validate(def); !problem.empty()) throw std::invalid_argument("drape: WorldDef " + problem);
   impl_ = std::make_unique<Impl>(def);
 }
 template <class Real>
@@ -108,6 +282,9 @@ SheetId BasicWorld<Real>::add_sheet(const SheetDef& def) {
   }
   auto& slot = impl_->slots[index];
   slot.sheet = std::move(sheet);
+  slot.omega_max = 2.0 / detail::sheet_stable_step(*slot.sheet);
+  slot.guard = {};
+  impl_->take_reference(slot);
   impl_->active.push_back(index);
   return {index, slot.generation};
 }
@@ -144,26 +321,89 @@ SheetView<Real> BasicWorld<Real>::view(SheetId id) const {
 template <class Real>
 SheetState<Real> BasicWorld<Real>::state(SheetId id) {
   auto& s = impl_->sheet(id);
+  impl_->slots[id.index].guard.has_reference = false;  // the caller may write: a new reference
   return {s.topology->m, s.topology->n, s.position.x, s.position.y, s.position.z,
           s.velocity.x,  s.velocity.y,  s.velocity.z};
 }
 
 template <class Real>
-void BasicWorld<Real>::step(int substeps) {
-  for (int k = 0; k < substeps; ++k) impl_->substep();
+StabilityReport BasicWorld<Real>::step(int substeps) {
+  if (impl_->failure) return *impl_->failure;
+  impl_->take_references();
+  if (substeps > 0) {
+    if (impl_->def.adaptive && integrator_is_explicit(impl_->def.integrator)) {
+      impl_->advance(substeps * impl_->def.dt);
+    } else {
+      for (int k = 0; k < substeps; ++k) impl_->substep(impl_->def.dt);
+    }
+  }
+  return impl_->finish_step();
 }
 
 template <class Real>
+StabilityReport BasicWorld<Real>::advance(double seconds) {
+  if (!(seconds >= 0) || !std::isfinite(seconds))
+    throw std::invalid_argument("drape: advance() needs a non-negative finite time (got " + std::to_string(seconds) + ")");
+  if (impl_->failure) return *impl_->failure;
+  impl_->take_references();
+  if (seconds > 0) impl_->advance(seconds);
+  return impl_->finish_step();
+}
+
+template <class Real>
+StabilityReport BasicWorld<Real>::check() const { return impl_->check(nullptr); }
+template <class Real>
+bool BasicWorld<Real>::halted() const { return impl_->failure.has_value(); }
+template <class Real>
+double BasicWorld<Real>::substep_dt() const { return impl_->max_substep(); }
+
+template <class Real>
 const WorldDef& BasicWorld<Real>::def() const { return impl_->def; }
+// Changing how the world steps is the caller's answer to a halt: it lifts the halt, and
+// the guard takes fresh references at the next step.
 template <class Real>
-void BasicWorld<Real>::set_integrator(Integrator integrator) { impl_->def.integrator = integrator; }
+void BasicWorld<Real>::Impl::set_def(const WorldDef& d) {
+  if (std::string problem = validate(d); !problem.empty()) throw std::invalid_argument("drape: WorldDef " + problem);
+  def = d;
+  failure.reset();
+  for (std::uint32_t index : active) slots[index].guard.has_reference = false;
+}
+
 template <class Real>
-void BasicWorld<Real>::set_dt(double dt) {
-  if (!(dt > 0) || !std::isfinite(dt)) throw std::invalid_argument("drape: dt must be positive and finite");
-  impl_->def.dt = dt;
+void BasicWorld<Real>::set_integrator(Integrator integrator) {
+  WorldDef d = impl_->def;
+  d.integrator = integrator;
+  impl_->set_def(d);
 }
 template <class Real>
-double BasicWorld<Real>::time() const { return static_cast<double>(impl_->steps) * impl_->def.dt; }
+void BasicWorld<Real>::set_dt(double dt) {
+  WorldDef d = impl_->def;
+  d.dt = dt;
+  impl_->set_def(d);
+}
+template <class Real>
+void BasicWorld<Real>::set_adaptive(bool adaptive, double safety) {
+  WorldDef d = impl_->def;
+  d.adaptive = adaptive;
+  d.adaptive_safety = safety;
+  impl_->set_def(d);
+}
+template <class Real>
+void BasicWorld<Real>::set_cg(double tolerance, int max_iterations) {
+  WorldDef d = impl_->def;
+  d.cg_tolerance = tolerance;
+  d.cg_max_iterations = max_iterations;
+  impl_->set_def(d);
+}
+
+template <class Real>
+typename BasicWorld<Real>::SolverStats BasicWorld<Real>::solver_stats(SheetId id) const {
+  const detail::SolveStats stats = detail::implicit_solve_stats(impl_->sheet(id));
+  return {stats.iterations, stats.relative_residual};
+}
+
+template <class Real>
+double BasicWorld<Real>::time() const { return impl_->time(); }
 template <class Real>
 std::uint64_t BasicWorld<Real>::step_count() const { return impl_->steps; }
 
@@ -194,6 +434,11 @@ bool BasicWorld<Real>::all_finite() const {
 template <class Real>
 double BasicWorld<Real>::stable_step_estimate(SheetId id) const {
   return detail::sheet_stable_step(impl_->sheet(id));
+}
+
+template <class Real>
+double BasicWorld<Real>::critical_step(Integrator integrator) const {
+  return integrator_critical_step(integrator, impl_->omega_max());
 }
 
 template <class Real>

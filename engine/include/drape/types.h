@@ -41,13 +41,36 @@ struct ObstacleId {
   friend constexpr bool operator==(ObstacleId, ObstacleId) = default;
 };
 
-// Time integrators. Adding one: a value here, its name below, a function in integrate.cpp.
+// Time integrators. Adding one: a value here, its entry in `integrators` and in
+// integrator_name(), its stability factor in integrator_critical_step(), a function in
+// integrate.cpp.
 enum class Integrator {
-  ForwardEuler,       // x += dt·v, v += dt·a (both from the old state): the paper's literal reading
-  SemiImplicitEuler,  // v += dt·a, then x += dt·v_new: symplectic, the default
+  ForwardEuler,       // x += dt·v, v += dt·a (both from the old state): the paper's literal reading. Order 1.
+  SemiImplicitEuler,  // v += dt·a, then x += dt·v_new: symplectic, the default. Order 1.
+  VelocityVerlet,     // half kick, drift, half kick; two force evaluations per step. Order 2.
+  RK4,                // classical Runge–Kutta on (x, v); four force evaluations per step. Order 4.
+  ImplicitEuler,      // backward Euler linearised once per step (Baraff & Witkin 1998), CG solve. Order 1.
 };
+
+inline constexpr Integrator integrators[] = {Integrator::ForwardEuler, Integrator::SemiImplicitEuler,
+                                             Integrator::VelocityVerlet, Integrator::RK4,
+                                             Integrator::ImplicitEuler};
 
 std::string_view integrator_name(Integrator integrator);
 std::optional<Integrator> integrator_from_name(std::string_view name);
+
+// Global order of accuracy of the integrator's positions at a fixed time (1, 1, 2, 4, 1).
+int integrator_order(Integrator integrator);
+bool integrator_is_explicit(Integrator integrator);
+
+// Largest step the integrator takes stably when the stiffest mode has angular frequency
+// omega_max (rad/s), undamped:
+//   semi-implicit Euler and velocity Verlet: ω·dt < 2 (their stability interval);
+//   RK4: ω·dt < 2√2 (where its stability region crosses the imaginary axis);
+//   forward Euler: no step is stable without damping (the amplification is √(1 + ω²dt²) > 1);
+//     it returns the step at which the stiffest mode's energy at most doubles per simulated
+//     second, ln 2 / ω² (from (1 + ω²dt²)^(1/dt) ≈ exp(ω²dt));
+//   implicit Euler: +inf (unconditionally stable).
+double integrator_critical_step(Integrator integrator, double omega_max);
 
 }  // namespace drape

@@ -10,16 +10,39 @@
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <string>
 #include <vector>
 
 namespace drape {
 
 struct WorldDef {
-  double dt = 1e-3;                    // s, one substep
+  double dt = 1e-3;                    // s, one substep (with `adaptive`: the frame unit of step())
   Vec3 gravity{0.0, 0.0, -9.81};       // m/s²; z is up
   Integrator integrator = Integrator::SemiImplicitEuler;
   int threads = 0;                     // worker threads for step(); 0: all cores
+
+  // Implicit Euler's conjugate-gradient solve: stop at relative residual |r|/|b| below
+  // cg_tolerance or after cg_max_iterations iterations, whichever comes first.
+  double cg_tolerance = 1e-6;
+  int cg_max_iterations = 200;
+
+  // Adaptive stepping ("stable, as fast as possible"): an explicit integrator takes each
+  // substep as adaptive_safety × its critical step (integrator_critical_step() on the
+  // world's stiffest sheet), whatever dt says; step(n) then advances n·dt seconds in as many
+  // equal substeps as that needs. Implicit Euler keeps dt.
+  bool adaptive = false;
+  double adaptive_safety = 0.8;  // in (0, 1]
+
+  // Stability guard, run at the end of every step()/advance() call: a sheet whose state is
+  // not finite, or whose total energy grew by more than guard_energy_growth × its energy
+  // scale (see StabilityReport), halts the world and is reported.
+  bool guard = true;
+  double guard_energy_growth = 10.0;
 };
+
+// Throws nothing: an empty string when the definition is usable, else one message naming
+// the field, e.g. "cg_tolerance must be positive and finite (got 0)".
+std::string validate(const WorldDef& def);
 
 struct Energies {
   double kinetic = 0;  // ½ Σ m v²
@@ -53,6 +76,41 @@ struct SheetState {
   std::size_t size() const { return x.size(); }
 };
 
+enum class StabilityStatus {
+  Stable,        // every sheet finite, no energy growth beyond the guard's limit
+  EnergyGrowth,  // finite, but energy grew past WorldDef::guard_energy_growth: blowing up
+  NonFinite,     // a position or velocity is NaN or infinite
+};
+
+// What the stability guard found. For a failure: the first failing sheet (in the order the
+// sheets were added), when it was detected and how bad it was, and what would be stable.
+//
+// energy_growth is dimensionless: 1 + (E − E₀)/S, with E the sheet's total energy
+// (kinetic + spring + gravity + anchors), E₀ its value when the guard took its reference
+// (at add_sheet, or at the first step after state() was handed out), and S the sheet's
+// energy scale: the largest kinetic + spring + anchor energy seen at earlier checks, and at
+// least the work gravity does over the sheet's extent. 1 means energy conserved, values
+// below 1 mean dissipation; an unstable explicit step grows it geometrically.
+struct StabilityReport {
+  StabilityStatus status = StabilityStatus::Stable;
+  SheetId sheet;                // invalid when stable
+  std::uint64_t step = 0;       // substeps taken when detected
+  double time = 0;              // s, simulated, when detected
+  double energy_growth = 1;     // of the reported sheet (the largest over sheets when stable)
+  Integrator integrator = Integrator::SemiImplicitEuler;  // in use
+  double dt = 0;                // s, the substep in use
+  // The largest step the integrator in use takes stably on that sheet (estimate, safety
+  // applied); and an integrator stable at the step in use (implicit Euler when nothing
+  // explicit is).
+  double stable_dt = 0;
+  Integrator stable_integrator = Integrator::ImplicitEuler;
+  bool ok() const { return status == StabilityStatus::Stable; }
+};
+
+// One line for a person, e.g. "sheet 2: energy grew 3.1e+05-fold by step 1200 (t = 1.2 s)
+// with forward_euler at dt = 0.001 s; stable below dt ≈ 0.00021 s, or use implicit_euler".
+std::string describe(const StabilityReport& report);
+
 template <class Real>
 class BasicWorld {
  public:
@@ -75,12 +133,34 @@ class BasicWorld {
   SheetView<Real> view(SheetId id) const;
   SheetState<Real> state(SheetId id);
 
-  // Advances every sheet by `substeps` steps of def().dt.
-  void step(int substeps = 1);
+  // Advances every sheet by `substeps` steps of def().dt (with def().adaptive: by
+  // substeps·dt seconds in adaptive substeps, see WorldDef), then runs the stability guard
+  // when def().guard is on. A halted world (the guard failed) does not step until
+  // set_dt/set_integrator/set_adaptive; it returns the failure again.
+  StabilityReport step(int substeps = 1);
+  // Advances by `seconds` in equal substeps no longer than the step in use (def().dt, or the
+  // adaptive step), landing exactly on time() + seconds; then the guard as in step().
+  StabilityReport advance(double seconds);
+
+  // The guard's check of the present state, without stepping; cost O(points + springs).
+  StabilityReport check() const;
+  bool halted() const;
+
+  // The substep the next step()/advance() would take at most (dt, or the adaptive step).
+  double substep_dt() const;
 
   const WorldDef& def() const;
   void set_integrator(Integrator integrator);
   void set_dt(double dt);
+  void set_adaptive(bool adaptive, double safety = 0.8);
+  void set_cg(double tolerance, int max_iterations);
+
+  // Implicit Euler's last conjugate-gradient solve on this sheet (0, 0 before the first).
+  struct SolverStats {
+    int iterations = 0;
+    double relative_residual = 0;
+  };
+  SolverStats solver_stats(SheetId id) const;
   double time() const;                // s, simulated
   std::uint64_t step_count() const;   // substeps taken
 
@@ -90,8 +170,11 @@ class BasicWorld {
 
   // Largest step at which the explicit integrators stay stable on this sheet, from a
   // Gershgorin bound on the highest spring frequency: 2/ω_max, ω_max² ≤ max_i Σk_i·2/m_i.
+  // (The interval of semi-implicit Euler and Verlet; integrator_critical_step() scales it.)
   double stable_step_estimate(SheetId id) const;
   double stable_step_estimate() const;  // minimum over sheets; +inf for an empty world
+  // integrator_critical_step(integrator, ω_max) of the stiffest sheet; +inf for an empty world.
+  double critical_step(Integrator integrator) const;
 
  private:
   struct Impl;

@@ -1,0 +1,179 @@
+// Implicit Euler (Baraff & Witkin 1998): see implicit.h for the system solved.
+#include "implicit.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "forces.h"
+
+namespace drape::detail {
+
+namespace {
+
+// Value offset of entry (row, col) in a compressed row-major matrix; the entry must exist.
+template <class Matrix>
+int offset_of(const Matrix& a, int row, int col) {
+  const int* begin = a.innerIndexPtr() + a.outerIndexPtr()[row];
+  const int* end = a.innerIndexPtr() + a.outerIndexPtr()[row + 1];
+  return static_cast<int>(std::lower_bound(begin, end, col) - a.innerIndexPtr());
+}
+
+// The pattern depends only on the grid and the pins, so it is built once per sheet.
+template <class Real>
+void build_pattern(ImplicitScratch<Real>& sc, const Sheet<Real>& s) {
+  const auto& t = *s.topology;
+  const int n3 = static_cast<int>(3 * s.size());
+  std::vector<Eigen::Triplet<Real, int>> entries;
+  entries.reserve(9 * (s.size() + 2 * std::size_t(t.springs())));
+  auto block = [&](std::uint32_t p, std::uint32_t q) {
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) entries.emplace_back(int(3 * p) + r, int(3 * q) + c, Real(0));
+  };
+  for (std::uint32_t p = 0; p < s.size(); ++p) block(p, p);
+  for (std::uint32_t e = 0; e < t.springs(); ++e) {
+    block(t.a[e], t.b[e]);
+    block(t.b[e], t.a[e]);
+  }
+  sc.system.resize(n3, n3);
+  sc.system.setFromTriplets(entries.begin(), entries.end());
+  sc.system.makeCompressed();
+
+  sc.diagonal.resize(std::size_t(n3));
+  for (int row = 0; row < n3; ++row) sc.diagonal[std::size_t(row)] = offset_of(sc.system, row, row - row % 3);
+  sc.upper.resize(3 * std::size_t(t.springs()));
+  sc.lower.resize(3 * std::size_t(t.springs()));
+  for (std::uint32_t e = 0; e < t.springs(); ++e)
+    for (int r = 0; r < 3; ++r) {
+      sc.upper[3 * e + r] = offset_of(sc.system, int(3 * t.a[e]) + r, int(3 * t.b[e]));
+      sc.lower[3 * e + r] = offset_of(sc.system, int(3 * t.b[e]) + r, int(3 * t.a[e]));
+    }
+  sc.free.assign(s.size(), Real(1));
+  for (std::uint32_t p : s.pins.point) sc.free[p] = Real(0);
+  sc.rhs.setZero(n3);
+  sc.dv.setZero(n3);
+  sc.topology = s.topology.get();
+  sc.pin_count = s.pins.point.size();
+}
+
+}  // namespace
+
+template <class Real>
+void implicit_euler_step(Sheet<Real>& s, const StepParams<Real>& p) {
+  if (!s.implicit_scratch || s.implicit_scratch.use_count() > 1)
+    s.implicit_scratch = std::make_shared<ImplicitScratch<Real>>();
+  auto& sc = *s.implicit_scratch;
+  if (sc.topology != s.topology.get() || sc.pin_count != s.pins.point.size()) build_pattern(sc, s);
+
+  const auto& t = *s.topology;
+  const std::size_t count = s.size();
+  const Real dt = p.dt, dt2 = p.dt * p.dt;
+  const auto& x = s.position;
+  const auto& v = s.velocity;
+
+  // f(x, v) of every term, including those without a Jacobian (obstacles, contacts): they
+  // enter the right-hand side only, i.e. are treated explicitly.
+  sheet_forces(s, cptr(s.position), cptr(s.velocity), ptr(s.force));
+
+  Real* a = sc.system.valuePtr();
+  std::fill(a, a + sc.system.nonZeros(), Real(0));
+  Real* b = sc.rhs.data();
+  const Real g[3] = {p.gx, p.gy, p.gz};
+  const Real* f[3] = {s.force.x.data(), s.force.y.data(), s.force.z.data()};
+  // M − dt·∂f/∂v with ∂f/∂v = −C; b = dt·(f + M g) so far.
+  for (std::size_t q = 0; q < count; ++q) {
+    const Real diag = s.mass[q] + (s.damping.empty() ? Real(0) : dt * s.damping[q]);
+    for (int r = 0; r < 3; ++r) {
+      a[sc.diagonal[3 * q + r] + r] = diag;
+      b[3 * q + r] = dt * (f[r][q] + s.mass[q] * g[r]);
+    }
+  }
+  // Anchors (eq 8): ∂f/∂x = −k·I at the anchored point.
+  const auto& an = s.anchors;
+  for (std::size_t k = 0; k < an.point.size(); ++k) {
+    const std::uint32_t q = an.point[k];
+    const Real kk = an.stiffness[k] * sc.free[q];
+    const Real vq[3] = {v.x[q], v.y[q], v.z[q]};
+    for (int r = 0; r < 3; ++r) {
+      a[sc.diagonal[3 * q + r] + r] += dt2 * kk;
+      b[3 * q + r] -= dt2 * kk * vq[r];
+    }
+  }
+  // Springs (eq 6): with d = xa − xb, L = |d|, u = d/L, the Jacobian of the force on a is
+  //   ∂fa/∂xa = −k [u uᵀ + (1 − ℓ/L)(I − u uᵀ)] = −G.
+  // A compressed spring (L < ℓ) makes (1 − ℓ/L) negative and G indefinite, so the system
+  // could lose the positive definiteness CG needs: the transverse term is clamped at 0
+  // (Baraff & Witkin's and Choi & Ko's remedy). This only drops a destabilising part of the
+  // linearisation; the force itself on the right-hand side stays exact. A zero-length spring
+  // with ℓ = 0 is linear, G = k·I; with ℓ > 0 it has no direction and the kernel applies no
+  // force, so G = 0.
+  for (std::uint32_t e = 0; e < t.springs(); ++e) {
+    const std::uint32_t pa = t.a[e], pb = t.b[e];
+    const Real d[3] = {x.x[pa] - x.x[pb], x.y[pa] - x.y[pb], x.z[pa] - x.z[pb]};
+    const Real len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    const Real k = t.stiffness[e], rest = t.rest_length[e];
+    Real u[3] = {0, 0, 0};
+    Real transverse;
+    if (len > Real(0)) {
+      for (int r = 0; r < 3; ++r) u[r] = d[r] / len;
+      transverse = std::max(Real(0), Real(1) - rest / len);
+    } else {
+      transverse = rest == Real(0) ? Real(1) : Real(0);
+    }
+    Real gm[3][3];
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) gm[r][c] = k * ((Real(1) - transverse) * u[r] * u[c] + (r == c ? transverse : Real(0)));
+    const Real fa = sc.free[pa], fb = sc.free[pb];
+    const Real dv[3] = {v.x[pa] - v.x[pb], v.y[pa] - v.y[pb], v.z[pa] - v.z[pb]};
+    for (int r = 0; r < 3; ++r) {
+      Real* da = a + sc.diagonal[3 * pa + r];
+      Real* db = a + sc.diagonal[3 * pb + r];
+      Real* ab = a + sc.upper[3 * e + r];
+      Real* ba = a + sc.lower[3 * e + r];
+      Real jv = 0;  // (G·(va − vb))_r
+      for (int c = 0; c < 3; ++c) {
+        const Real h = dt2 * gm[r][c];
+        da[c] += fa * h;
+        db[c] += fb * h;
+        ab[c] -= fa * fb * h;
+        ba[c] -= fa * fb * h;
+        jv += gm[r][c] * dv[c];
+      }
+      // dt²·∂f/∂x·v: −G(va − vb) on a, +G(va − vb) on b
+      b[3 * pa + r] -= fa * dt2 * jv;
+      b[3 * pb + r] += fb * dt2 * jv;
+    }
+  }
+  // Pinned points: their rows keep only M (their columns are already dropped above) and
+  // their right-hand side is zero, so Δv = 0 there.
+  for (std::uint32_t q : s.pins.point)
+    for (int r = 0; r < 3; ++r) b[3 * q + r] = Real(0);
+
+  sc.cg.setTolerance(static_cast<Real>(p.cg_tolerance));
+  sc.cg.setMaxIterations(p.cg_max_iterations);
+  sc.cg.compute(sc.system);
+  sc.dv = sc.cg.solveWithGuess(sc.rhs, sc.dv);
+  sc.iterations = static_cast<int>(sc.cg.iterations());
+  sc.error = static_cast<double>(sc.cg.error());
+
+  const Real* dvp = sc.dv.data();
+  Real* vel[3] = {s.velocity.x.data(), s.velocity.y.data(), s.velocity.z.data()};
+  Real* pos[3] = {s.position.x.data(), s.position.y.data(), s.position.z.data()};
+  for (int r = 0; r < 3; ++r)
+    for (std::size_t q = 0; q < count; ++q) {
+      vel[r][q] += dvp[3 * q + r];
+      pos[r][q] += dt * vel[r][q];
+    }
+}
+
+template <class Real>
+SolveStats implicit_solve_stats(const Sheet<Real>& s) {
+  if (!s.implicit_scratch) return {};
+  return {s.implicit_scratch->iterations, s.implicit_scratch->error};
+}
+
+template SolveStats implicit_solve_stats<double>(const Sheet<double>&);
+template SolveStats implicit_solve_stats<float>(const Sheet<float>&);
+template void implicit_euler_step<double>(Sheet<double>&, const StepParams<double>&);
+template void implicit_euler_step<float>(Sheet<float>&, const StepParams<float>&);
+
+}  // namespace drape::detail

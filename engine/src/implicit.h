@@ -1,0 +1,40 @@
+// Implicit (backward) Euler linearised once per step, after Baraff & Witkin, "Large steps in
+// cloth simulation" (SIGGRAPH 1998): one Newton step of
+//   M Δv = dt·f(x + dt(v + Δv), v + Δv)
+// with f expanded to first order, i.e. the symmetric system
+//   (M − dt·∂f/∂v − dt²·∂f/∂x) Δv = dt·(f + dt·∂f/∂x·v),
+// assembled as an Eigen sparse matrix and solved by conjugate gradient.
+#pragma once
+
+#include <Eigen/IterativeLinearSolvers>
+#include <Eigen/SparseCore>
+#include <vector>
+
+#include "integrate.h"
+
+namespace drape::detail {
+
+template <class Real>
+struct ImplicitScratch {
+  using Matrix = Eigen::SparseMatrix<Real, Eigen::RowMajor, int>;
+  using Vector = Eigen::Matrix<Real, Eigen::Dynamic, 1>;
+
+  // The topology and pins the pattern below was built for: a scratch is rebuilt when either changes.
+  const Topology<Real>* topology = nullptr;
+  std::size_t pin_count = 0;
+
+  Matrix system;                  // 3N×3N, fixed pattern: 3×3 block per point and per spring end pair
+  std::vector<int> diagonal;      // per scalar row 3p+r: value offset of entry (3p+r, 3p)
+  std::vector<int> upper, lower;  // per spring e and r: offsets of (3a+r, 3b) and (3b+r, 3a)
+  std::vector<Real> free;         // per point: 1, or 0 for a pinned point (its rows and columns are dropped)
+  Vector rhs, dv;                 // dv: last solution, the next solve's initial guess
+  Eigen::ConjugateGradient<Matrix, Eigen::Lower | Eigen::Upper, Eigen::DiagonalPreconditioner<Real>> cg;
+
+  int iterations = 0;  // of the last solve
+  double error = 0;    // relative residual of the last solve
+};
+
+template <class Real>
+void implicit_euler_step(Sheet<Real>& sheet, const StepParams<Real>& params);
+
+}  // namespace drape::detail
