@@ -34,8 +34,9 @@ struct WorldDef {
   double adaptive_safety = 0.8;  // in (0, 1]
 
   // Stability guard, run at the end of every step()/advance() call: a sheet whose state is
-  // not finite, or whose total energy grew by more than guard_energy_growth × its energy
-  // scale (see StabilityReport), halts the world and is reported.
+  // not finite, or (explicit integrators) whose total energy grew by more than
+  // guard_energy_growth × its energy scale (see StabilityReport), halts the world and is
+  // reported. Cost: one pass over points and springs per call, not per substep.
   bool guard = true;
   double guard_energy_growth = 10.0;
 };
@@ -89,8 +90,10 @@ enum class StabilityStatus {
 // (kinetic + spring + gravity + anchors), E₀ its value when the guard took its reference
 // (at add_sheet, or at the first step after state() was handed out), and S the sheet's
 // energy scale: the largest kinetic + spring + anchor energy seen at earlier checks, and at
-// least the work gravity does over the sheet's extent. 1 means energy conserved, values
-// below 1 mean dissipation; an unstable explicit step grows it geometrically.
+// least the work gravity does over the sheet's extent (≥ 1 mm). 1 means energy conserved,
+// values below 1 mean dissipation; an unstable explicit step grows it geometrically.
+// Implicit Euler is halted only by non-finite state: at steps that move points by a sizeable
+// part of a spring its linearisation can add energy for a step, which then decays.
 struct StabilityReport {
   StabilityStatus status = StabilityStatus::Stable;
   SheetId sheet;                // invalid when stable
