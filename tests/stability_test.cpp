@@ -197,6 +197,36 @@ TEST(Guard, StableRunsAreNotFlagged) {
   }
 }
 
+// A slow blow-up (forward Euler, energy ×~1.3 per frame) is caught as soon as the energy
+// passes the limit, measured against the energy the run started with, not against what
+// it has grown to since.
+TEST(Guard, SlowGeometricGrowthIsCaughtAtTheLimit) {
+  drape::WorldDef wd;
+  wd.gravity = {0, 0, 0};
+  wd.integrator = Integrator::ForwardEuler;
+  drape::World world(wd);
+  drape::SheetDef d;
+  d.m = d.n = 6;
+  d.stiffness = 100.0;
+  d.pins = drape::corner_points(d.m, d.n);
+  d.rest_length_h = d.rest_length_v = 0.15;  // prestress: the sheet vibrates
+  world.add_sheet(d);
+  world.set_dt(0.05 * world.stable_step_estimate());
+  const double e0 = world.energies().total();
+  drape::StabilityReport report;
+  double last_ratio = 1;
+  int frames = 0;
+  for (; frames < 100000 && report.ok(); ++frames) {
+    report = world.step(1);
+    if (report.ok()) last_ratio = world.energies().total() / e0;
+  }
+  ASSERT_FALSE(report.ok()) << "forward Euler must be caught";
+  EXPECT_EQ(report.status, drape::StabilityStatus::EnergyGrowth);
+  EXPECT_GT(frames, 3) << "the growth should have been slow";
+  EXPECT_LE(last_ratio, wd.guard_energy_growth);  // every passing frame was below the limit
+  EXPECT_LT(world.energies().total() / e0, 2 * wd.guard_energy_growth);  // and it stopped soon after
+}
+
 TEST(Guard, ReportsNonFiniteStateWrittenByTheCaller) {
   drape::World world;
   drape::SheetDef d;

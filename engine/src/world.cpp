@@ -68,7 +68,7 @@ struct BasicWorld<Real>::Impl {
   struct Guard {
     bool has_reference = false;
     double reference_energy = 0;  // E₀
-    double scale = 0;             // S: largest motion energy seen at earlier checks, ≥ floor
+    double scale = 0;             // S: motion energy at the reference, ≥ floor
     double floor = 0;             // work of gravity over the sheet's extent at the reference
   };
 
@@ -194,9 +194,8 @@ struct BasicWorld<Real>::Impl {
       if (!slots[index].guard.has_reference) take_reference(slots[index]);
   }
 
-  // The guard: one pass over each sheet's points and springs. The motion energy of each
-  // sheet goes to `motion` (in `active` order) for finish_step to raise the scales with.
-  StabilityReport check(std::vector<double>* motion) const {
+  // The guard: one pass over each sheet's points and springs.
+  StabilityReport check() const {
     StabilityReport report;
     report.step = steps;
     report.time = time();
@@ -207,7 +206,6 @@ struct BasicWorld<Real>::Impl {
     for (std::uint32_t index : active) {
       const Slot& slot = slots[index];
       const SheetDiagnostics d = detail::sheet_diagnostics(*slot.sheet, def.gravity);
-      if (motion) motion->push_back(motion_energy(d.energy));
       StabilityStatus status = StabilityStatus::Stable;
       double growth = 1;
       if (!d.finite) {
@@ -251,13 +249,7 @@ struct BasicWorld<Real>::Impl {
       report.dt = current_h;
       return report;
     }
-    std::vector<double> motion;
-    motion.reserve(active.size());
-    StabilityReport report = check(&motion);
-    for (std::size_t k = 0; k < active.size(); ++k) {
-      auto& guard = slots[active[k]].guard;
-      guard.scale = std::max(guard.scale, motion[k]);
-    }
+    StabilityReport report = check();
     if (!report.ok()) failure = report;
     return report;
   }
@@ -359,7 +351,7 @@ StabilityReport BasicWorld<Real>::advance(double seconds) {
 }
 
 template <class Real>
-StabilityReport BasicWorld<Real>::check() const { return impl_->check(nullptr); }
+StabilityReport BasicWorld<Real>::check() const { return impl_->check(); }
 template <class Real>
 bool BasicWorld<Real>::halted() const { return impl_->failure.has_value(); }
 template <class Real>

@@ -88,9 +88,10 @@ enum class StabilityStatus {
 //
 // energy_growth is dimensionless: 1 + (E − E₀)/S, with E the sheet's total energy
 // (kinetic + spring + gravity + anchors), E₀ its value when the guard took its reference
-// (at add_sheet, or at the first step after state() was handed out), and S the sheet's
-// energy scale: the largest kinetic + spring + anchor energy seen at earlier checks, and at
-// least the work gravity does over the sheet's extent (≥ 1 mm). 1 means energy conserved,
+// (at add_sheet, or at the first step after state() was handed out or the world's stepping
+// changed), and S the sheet's energy scale at that reference: its kinetic + spring + anchor
+// energy, and at least the work gravity does over the sheet's extent (≥ 1 mm). Energy that
+// only changes form (a sheet falling) leaves E − E₀ near 0 however large it gets. 1 means energy conserved,
 // values below 1 mean dissipation; an unstable explicit step grows it geometrically.
 // Implicit Euler is halted only by non-finite state: at steps that move points by a sizeable
 // part of a spring its linearisation can add energy for a step, which then decays.

@@ -1,0 +1,402 @@
+// drape-accuracy: measures the speed/accuracy trade of every integrator and precision on
+// reference problems whose answers do not come from the engine, and the stability region
+// of each integrator. Writes CSV files; tools/accuracy_report.py turns them into
+// docs/accuracy.md and plots. Usage: drape-accuracy OUT_DIR [--quick]
+//
+// Problems:
+//   oscillator  two points and one spring, released from a stretch; analytic solution.
+//               error: |separation − exact| at t = 1 s, relative to the amplitude.
+//   rope        a 1×20 strip pinned at both ends, damped, settles under gravity; the
+//               reference is the static equilibrium found here by Newton's method on the
+//               total potential (Eigen, dense). error: max point distance after 8 s / span.
+//   fig5        the paper's Fig 5 set-up, a 31×31-point (961) square sheet anchored at its
+//               corners (eq 8), falling under gravity; reference: RK4 in double at 1e-5 s.
+//               error: max point distance at t = 1 s / sheet width.
+#include <drape/drape.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace {
+
+using drape::Integrator;
+using Clock = std::chrono::steady_clock;
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+struct Positions {
+  std::vector<double> x, y, z;
+};
+
+template <class World>
+Positions positions(const World& world, drape::SheetId id) {
+  const auto v = world.view(id);
+  Positions p;
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    p.x.push_back(v.x[i]);
+    p.y.push_back(v.y[i]);
+    p.z.push_back(v.z[i]);
+  }
+  return p;
+}
+
+double max_distance(const Positions& a, const Positions& b) {
+  double d = 0;
+  for (std::size_t i = 0; i < a.x.size(); ++i)
+    d = std::max(d, std::hypot(a.x[i] - b.x[i], a.y[i] - b.y[i], a.z[i] - b.z[i]));
+  return d;
+}
+
+// One timed run: round(seconds/dt) steps of exactly dt, in frames of about 1/60 s (the
+// guard runs once per frame, as a scene runner would use it). Stops at the first guard
+// failure.
+struct Run {
+  bool stable = true;
+  double wall = 0;  // s
+  double simulated = 0;
+  std::uint64_t steps = 0;
+};
+
+template <class World>
+Run timed_run(World& world, double seconds) {
+  Run r;
+  const double dt = world.def().dt;
+  const long total = std::lround(seconds / dt);
+  const long per_frame = std::max(1L, std::lround(1.0 / 60 / dt));
+  const auto start = Clock::now();
+  for (long done = 0; done < total; done += per_frame) {
+    if (!world.step(static_cast<int>(std::min(per_frame, total - done))).ok()) {
+      r.stable = false;
+      break;
+    }
+  }
+  r.wall = std::chrono::duration<double>(Clock::now() - start).count();
+  r.simulated = world.time();
+  r.steps = world.step_count();
+  if (!world.all_finite()) r.stable = false;
+  return r;
+}
+
+drape::WorldDef world_def(Integrator integrator, double dt) {
+  drape::WorldDef wd;
+  wd.integrator = integrator;
+  wd.dt = dt;
+  wd.threads = 1;
+  wd.cg_tolerance = 1e-8;  // a float solve stops at its iteration cap instead; that cost is real
+  return wd;
+}
+
+// ---- oscillator ---------------------------------------------------------------------
+
+struct Oscillator {
+  double k = 100.0, m1 = 1.0, m2 = 3.0, rest = 0.8, width = 1.0;
+  double omega() const { return std::sqrt(k * (m1 + m2) / (m1 * m2)); }
+  double separation(double t) const { return rest + (width - rest) * std::cos(omega() * t); }
+  drape::SheetDef sheet() const {
+    drape::SheetDef d;
+    d.m = 0;
+    d.n = 1;
+    d.width = width;
+    d.rest_length_h = rest;
+    d.point_masses = {m1, m2};
+    d.stiffness = k;
+    return d;
+  }
+};
+
+// ---- rope: static equilibrium by Newton's method on the potential --------------------
+
+struct Rope {
+  std::uint32_t segments = 20;
+  double span = 1.0, slack = 1.25;  // rest length of the whole rope = slack · span
+  double mass = 0.1, k = 500.0, damping_rate = 3.0, g = 9.81;
+  double point_mass() const { return mass / (segments + 1); }
+  double rest() const { return slack * span / segments; }
+  drape::SheetDef sheet() const {
+    drape::SheetDef d;
+    d.m = 0;
+    d.n = segments;
+    d.width = span;
+    d.mass = mass;
+    d.stiffness = k;
+    d.rest_length_h = rest();
+    d.damping = damping_rate * point_mass();
+    d.pins = {0, segments};
+    return d;
+  }
+};
+
+// E(z) = Σ ½k(|x_{i+1} − x_i| − ℓ)² + Σ m g z_i over the free points, the rope in the x–z
+// plane (the symmetric problem keeps y = 0). Newton with a backtracking line search and a
+// Levenberg shift while the Hessian is not positive definite.
+Positions rope_equilibrium(const Rope& r) {
+  const int n = static_cast<int>(r.segments), free = n - 1;
+  const double h = r.span / n, rest = r.rest(), m = r.point_mass();
+  auto point = [&](const Eigen::VectorXd& q, int i) -> Eigen::Vector2d {
+    if (i == 0) return {-r.span / 2, 0.0};
+    if (i == n) return {r.span / 2, 0.0};
+    return {q[2 * (i - 1)], q[2 * (i - 1) + 1]};
+  };
+  auto energy = [&](const Eigen::VectorXd& q) {
+    double e = 0;
+    for (int i = 0; i < n; ++i) {
+      const double len = (point(q, i + 1) - point(q, i)).norm();
+      e += 0.5 * r.k * (len - rest) * (len - rest);
+    }
+    for (int i = 1; i < n; ++i) e += m * r.g * point(q, i)[1];
+    return e;
+  };
+  Eigen::VectorXd q(2 * free);
+  for (int i = 1; i < n; ++i) {  // a deep parabola: every segment starts stretched
+    const double x = -r.span / 2 + i * h, u = 2 * x / r.span;
+    q[2 * (i - 1)] = x;
+    q[2 * (i - 1) + 1] = -0.6 * r.span * (1 - u * u);
+  }
+  for (int it = 0; it < 200; ++it) {
+    Eigen::VectorXd grad = Eigen::VectorXd::Zero(2 * free);
+    Eigen::MatrixXd hess = Eigen::MatrixXd::Zero(2 * free, 2 * free);
+    for (int i = 1; i < n; ++i) grad[2 * (i - 1) + 1] += m * r.g;
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Vector2d d = point(q, i + 1) - point(q, i);
+      const double len = d.norm();
+      const Eigen::Vector2d u = d / len;
+      const Eigen::Vector2d gb = r.k * (len - rest) * u;  // ∂E/∂x_{i+1}
+      const Eigen::Matrix2d kb =
+          r.k * (u * u.transpose() + (1 - rest / len) * (Eigen::Matrix2d::Identity() - u * u.transpose()));
+      const int a = i - 1, b = i;  // free indices of the two ends (−1 / n−1: pinned)
+      const bool fa = i >= 1, fb = i + 1 <= n - 1;
+      if (fb) grad.segment<2>(2 * b) += gb;
+      if (fa) grad.segment<2>(2 * a) -= gb;
+      if (fb) hess.block<2, 2>(2 * b, 2 * b) += kb;
+      if (fa) hess.block<2, 2>(2 * a, 2 * a) += kb;
+      if (fa && fb) {
+        hess.block<2, 2>(2 * a, 2 * b) -= kb;
+        hess.block<2, 2>(2 * b, 2 * a) -= kb;
+      }
+    }
+    if (grad.norm() < 1e-13 * r.k) break;
+    Eigen::VectorXd step;
+    for (double shift = 0;; shift = shift == 0 ? 1e-6 * r.k : 10 * shift) {
+      Eigen::LLT<Eigen::MatrixXd> llt(hess + shift * Eigen::MatrixXd::Identity(2 * free, 2 * free));
+      if (llt.info() == Eigen::Success) {
+        step = -llt.solve(grad);
+        break;
+      }
+    }
+    double t = 1, e0 = energy(q);
+    while (energy(q + t * step) > e0 && t > 1e-12) t /= 2;
+    q += t * step;
+  }
+  Positions p;
+  for (int i = 0; i <= n; ++i) {
+    const Eigen::Vector2d x = point(q, i);
+    p.x.push_back(x[0]);
+    p.y.push_back(0.0);
+    p.z.push_back(x[1]);
+  }
+  return p;
+}
+
+// ---- fig 5 ----------------------------------------------------------------------------
+
+drape::SheetDef fig5_sheet() {
+  drape::SheetDef d;
+  d.m = d.n = 30;  // 961 points: the "1000-point cloth"
+  d.width = d.height = 1.0;
+  d.mass = 1.0;
+  d.stiffness = 200.0;
+  d.damping = 0.002;
+  d.anchors = drape::anchors_at(drape::corner_points(d.m, d.n), 1000.0);
+  return d;
+}
+
+// ---- output -----------------------------------------------------------------------------
+
+struct Row {
+  std::string problem, integrator, precision;
+  double dt;
+  Run run;
+  double error;
+};
+
+void write_runs(const std::string& path, const std::vector<Row>& rows) {
+  std::ofstream out(path);
+  out << "problem,integrator,precision,dt,steps,simulated_s,wall_s,wall_per_simulated_s,stable,error\n";
+  out.precision(10);
+  for (const auto& r : rows)
+    out << r.problem << ',' << r.integrator << ',' << r.precision << ',' << r.dt << ',' << r.run.steps << ','
+        << r.run.simulated << ',' << r.run.wall << ',' << (r.run.simulated > 0 ? r.run.wall / r.run.simulated : kNaN)
+        << ',' << (r.run.stable ? 1 : 0) << ',' << (r.run.stable ? r.error : kNaN) << '\n';
+}
+
+template <class World>
+const char* precision_name() {
+  return sizeof(typename World::Scalar) == 8 ? "float64" : "float32";
+}
+
+template <class World>
+void oscillator_runs(std::vector<Row>& rows, const std::vector<double>& steps) {
+  const Oscillator o;
+  for (Integrator i : drape::integrators)
+    for (double dt : steps) {
+      auto wd = world_def(i, dt);
+      wd.gravity = {0, 0, 0};
+      wd.cg_tolerance = sizeof(typename World::Scalar) == 8 ? 1e-13 : 1e-7;
+      World world(wd);
+      const auto id = world.add_sheet(o.sheet());
+      Run run = timed_run(world, 1.0);
+      const auto v = world.view(id);
+      const double err = std::abs(double(v.x[1]) - double(v.x[0]) - o.separation(world.time())) / (o.width - o.rest);
+      rows.push_back({"oscillator", std::string(drape::integrator_name(i)), precision_name<World>(), dt, run, err});
+    }
+}
+
+template <class World>
+void rope_runs(std::vector<Row>& rows, const std::vector<double>& steps, const Rope& rope, const Positions& ref) {
+  for (Integrator i : drape::integrators)
+    for (double dt : steps) {
+      World world(world_def(i, dt));
+      const auto id = world.add_sheet(rope.sheet());
+      Run run = timed_run(world, 8.0);
+      rows.push_back({"rope", std::string(drape::integrator_name(i)), precision_name<World>(), dt, run,
+                      max_distance(positions(world, id), ref) / rope.span});
+    }
+}
+
+template <class World>
+void fig5_runs(std::vector<Row>& rows, const std::vector<double>& steps, const Positions& ref) {
+  for (Integrator i : drape::integrators)
+    for (double dt : steps) {
+      World world(world_def(i, dt));
+      const auto id = world.add_sheet(fig5_sheet());
+      Run run = timed_run(world, 1.0);
+      rows.push_back({"fig5", std::string(drape::integrator_name(i)), precision_name<World>(), dt, run,
+                      max_distance(positions(world, id), ref) / 1.0});
+    }
+}
+
+// Largest stable step by bisection in log(dt): a step is stable when 400 steps (or 2 s)
+// pass the guard. A 16×16 sheet anchored at its corners with stiffness k everywhere.
+template <class World>
+bool stable_at(Integrator integrator, double k, double dt) {
+  auto wd = world_def(integrator, dt);
+  wd.cg_max_iterations = 100;
+  World world(wd);
+  drape::SheetDef d;
+  d.m = d.n = 15;
+  d.mass = 1.0;
+  d.stiffness = k;
+  d.damping = 0.001;
+  d.anchors = drape::anchors_at(drape::corner_points(d.m, d.n), k);
+  d.rest_length_h = d.rest_length_v = 0.95 / 15;  // slight prestress excites the stiff modes
+  world.add_sheet(d);
+  const int steps = static_cast<int>(std::min(400.0, std::ceil(2.0 / dt)));
+  for (int done = 0; done < steps; done += 20)
+    if (!world.step(std::min(20, steps - done)).ok()) return false;
+  return world.all_finite();
+}
+
+template <class World>
+void stability_region(std::ofstream& out, const std::vector<double>& stiffnesses) {
+  for (Integrator i : drape::integrators)
+    for (double k : stiffnesses) {
+      double estimate;
+      {
+        World world(world_def(i, 1e-3));
+        drape::SheetDef d;
+        d.m = d.n = 15;
+        d.mass = 1.0;
+        d.stiffness = k;
+        d.anchors = drape::anchors_at(drape::corner_points(d.m, d.n), k);
+        world.add_sheet(d);
+        estimate = world.critical_step(i);
+      }
+      const double lo_bound = 1e-9, hi_bound = 1.0;
+      double lo = lo_bound, hi = hi_bound;
+      if (stable_at<World>(i, k, hi)) {
+        lo = hi;
+      } else if (!stable_at<World>(i, k, lo)) {
+        hi = lo;
+      } else {
+        while (hi / lo > 1.05) {
+          const double mid = std::sqrt(lo * hi);
+          (stable_at<World>(i, k, mid) ? lo : hi) = mid;
+        }
+      }
+      out << precision_name<World>() << ',' << drape::integrator_name(i) << ',' << k << ',' << estimate << ',' << lo
+          << ',' << (lo >= hi_bound ? 1 : 0) << '\n';
+    }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2) {
+    std::cerr << "usage: drape-accuracy OUT_DIR [--quick]\n";
+    return 2;
+  }
+  const std::string dir = argv[1];
+  const bool quick = argc > 2 && std::strcmp(argv[2], "--quick") == 0;
+  {
+    std::ofstream probe(dir + "/accuracy_meta.csv");
+    if (!probe) {
+      std::cerr << "drape-accuracy: cannot write to directory " << dir << "\n";
+      return 1;
+    }
+    probe << "key,value\n";
+    probe << "compiler,\"" << __VERSION__ << "\"\n";
+    probe << "build_type," << DRAPE_BUILD_TYPE << "\n";
+    probe << "flags,\"" << DRAPE_CXX_FLAGS << "\"\n";
+    probe << "threads,1\n";
+  }
+
+  std::vector<Row> rows;
+  std::cerr << "oscillator...\n";
+  const std::vector<double> osc_steps = quick ? std::vector<double>{1e-2, 1e-3}
+                                              : std::vector<double>{1e-1, 5e-2, 2e-2, 1e-2, 5e-3, 2e-3, 1e-3,
+                                                                    5e-4, 2e-4, 1e-4, 5e-5, 2e-5, 1e-5};
+  oscillator_runs<drape::World>(rows, osc_steps);
+  oscillator_runs<drape::WorldF>(rows, osc_steps);
+
+  std::cerr << "rope...\n";
+  const Rope rope;
+  const Positions rope_ref = rope_equilibrium(rope);
+  const std::vector<double> rope_steps = quick ? std::vector<double>{1e-3}
+                                               : std::vector<double>{1.0 / 60, 1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2e-4};
+  rope_runs<drape::World>(rows, rope_steps, rope, rope_ref);
+  rope_runs<drape::WorldF>(rows, rope_steps, rope, rope_ref);
+
+  std::cerr << "fig5 reference...\n";
+  Positions fig5_ref;
+  {
+    drape::World ref(world_def(Integrator::RK4, quick ? 1e-4 : 1e-5));
+    const auto id = ref.add_sheet(fig5_sheet());
+    ref.step(quick ? 10000 : 100000);
+    fig5_ref = positions(ref, id);
+  }
+  std::cerr << "fig5...\n";
+  const std::vector<double> fig5_steps =
+      quick ? std::vector<double>{1e-3}
+            : std::vector<double>{1.0 / 60, 1e-2, 4e-3, 2e-3, 1e-3, 5e-4, 2e-4, 1e-4, 5e-5};
+  fig5_runs<drape::World>(rows, fig5_steps, fig5_ref);
+  fig5_runs<drape::WorldF>(rows, fig5_steps, fig5_ref);
+  write_runs(dir + "/accuracy_runs.csv", rows);
+
+  std::cerr << "stability region...\n";
+  std::ofstream out(dir + "/accuracy_stability.csv");
+  out << "precision,integrator,k,estimate_dt,largest_stable_dt,at_search_limit\n";
+  out.precision(6);
+  const std::vector<double> ks = quick ? std::vector<double>{1, 1e4} : std::vector<double>{1, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8};
+  stability_region<drape::World>(out, ks);
+  stability_region<drape::WorldF>(out, ks);
+  return 0;
+}
