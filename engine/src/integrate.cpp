@@ -117,39 +117,33 @@ void rk4_step(Sheet<Real>& s, const StepParams<Real>& p) {
   const Real* a[3] = {s.force.x.data(), s.force.y.data(), s.force.z.data()};
   const Real h = p.dt, h2 = p.dt / Real(2);
 
-  // stage 1 at the start state
-  accelerations(s, p, cptr(s.position), cptr(s.velocity));
-  for (int k = 0; k < 3; ++k) {
-    const Real* __restrict xk = x0[k];
-    const Real* __restrict vk = v0[k];
-    const Real* __restrict ak = a[k];
-    Real* __restrict xsk = xs[k];
-    Real* __restrict vsk = vs[k];
-    Real* __restrict sxk = sx[k];
-    Real* __restrict svk = sv[k];
-    for (std::size_t i = 0; i < count; ++i) {
-      sxk[i] = vk[i];
-      svk[i] = ak[i];
-      xsk[i] = xk[i] + h2 * vk[i];
-      vsk[i] = vk[i] + h2 * ak[i];
-    }
-  }
-  // stages 2 and 3 (weight 2), each setting up the next stage at step `next` from x0, v0
-  for (const Real next : {h2, h}) {
-    accelerations(s, p, ConstVec3Ptr<Real>{xs[0], xs[1], xs[2]}, ConstVec3Ptr<Real>{vs[0], vs[1], vs[2]});
+  // Stages 1–3: slope (v_s, a_s) at the stage state; add it with weight 1, 2, 2; set up the
+  // next stage at x0 + next·v_s, v0 + next·a_s. Stage 1's state is the start state itself.
+  std::fill(base + 6 * count, base + 12 * count, Real(0));
+  const Real weights[3] = {Real(1), Real(2), Real(2)};
+  const Real nexts[3] = {h2, h2, h};
+  for (int stage = 0; stage < 3; ++stage) {
+    Real* const* stage_v = stage == 0 ? v0 : vs;
+    if (stage == 0)
+      accelerations(s, p, cptr(s.position), cptr(s.velocity));
+    else
+      accelerations(s, p, ConstVec3Ptr<Real>{xs[0], xs[1], xs[2]}, ConstVec3Ptr<Real>{vs[0], vs[1], vs[2]});
+    const Real weight = weights[stage], next = nexts[stage];
     for (int k = 0; k < 3; ++k) {
       const Real* __restrict xk = x0[k];
       const Real* __restrict vk = v0[k];
       const Real* __restrict ak = a[k];
-      Real* __restrict xsk = xs[k];
-      Real* __restrict vsk = vs[k];
+      const Real* cv = stage_v[k];  // may be vs[k], written below in the same iteration only
+      Real* xsk = xs[k];
+      Real* vsk = vs[k];
       Real* __restrict sxk = sx[k];
       Real* __restrict svk = sv[k];
       for (std::size_t i = 0; i < count; ++i) {
-        sxk[i] += Real(2) * vsk[i];
-        svk[i] += Real(2) * ak[i];
-        xsk[i] = xk[i] + next * vsk[i];
-        vsk[i] = vk[i] + next * ak[i];
+        const Real vi = cv[i], ai = ak[i];
+        sxk[i] += weight * vi;
+        svk[i] += weight * ai;
+        xsk[i] = xk[i] + next * vi;
+        vsk[i] = vk[i] + next * ai;
       }
     }
   }
