@@ -8,6 +8,10 @@
 
 namespace drape::detail {
 
+// Energies only: what the stability guard needs every frame (no strain pass).
+template <class Real>
+Energies sheet_energies(const Sheet<Real>& sheet, Vec3 gravity);
+
 template <class Real>
 SheetDiagnostics sheet_diagnostics(const Sheet<Real>& sheet, Vec3 gravity);
 

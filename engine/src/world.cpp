@@ -172,21 +172,21 @@ struct BasicWorld<Real>::Impl {
 
   void take_reference(Slot& slot) {
     const auto& s = *slot.sheet;
-    const SheetDiagnostics d = detail::sheet_diagnostics(s, def.gravity);
+    const Energies energy = detail::sheet_energies(s, def.gravity);
     const detail::Aabb box = detail::sheet_bounds(s);
     double extent2 = 0, mass = 0;
     for (int k = 0; k < 3; ++k) extent2 += (box.hi[k] - box.lo[k]) * (box.hi[k] - box.lo[k]);
     for (Real m : s.mass) mass += m;
     const double g = std::hypot(def.gravity.x, def.gravity.y, def.gravity.z);
-    slot.guard.has_reference = d.finite;
-    slot.guard.reference_energy = d.energy.total();
+    slot.guard.has_reference = detail::sheet_finite(s) && std::isfinite(energy.total());
+    slot.guard.reference_energy = energy.total();
     // The extent counts at least 1 mm so that a sheet collapsed to a point still has a
     // scale under gravity. With no gravity, no stress and no motion the scale would be 0:
     // the smallest normal number keeps the ratio defined (such a sheet cannot move, so
     // E − E₀ stays 0).
     const double extent = std::max(std::sqrt(extent2), 1e-3);
     slot.guard.floor = std::max(mass * g * extent, std::numeric_limits<double>::min());
-    slot.guard.scale = std::max(motion_energy(d.energy), slot.guard.floor);
+    slot.guard.scale = std::max(motion_energy(energy), slot.guard.floor);
   }
 
   void take_references() {
@@ -205,14 +205,14 @@ struct BasicWorld<Real>::Impl {
     bool any = false;
     for (std::uint32_t index : active) {
       const Slot& slot = slots[index];
-      const SheetDiagnostics d = detail::sheet_diagnostics(*slot.sheet, def.gravity);
+      const Energies energy = detail::sheet_energies(*slot.sheet, def.gravity);
       StabilityStatus status = StabilityStatus::Stable;
       double growth = 1;
-      if (!d.finite) {
+      if (!detail::sheet_finite(*slot.sheet) || !std::isfinite(energy.total())) {
         status = StabilityStatus::NonFinite;
         growth = std::numeric_limits<double>::infinity();
       } else if (slot.guard.has_reference) {
-        growth = 1 + (d.energy.total() - slot.guard.reference_energy) / slot.guard.scale;
+        growth = 1 + (energy.total() - slot.guard.reference_energy) / slot.guard.scale;
         // Implicit Euler cannot grow geometrically; its one linearised Newton step can inject
         // energy for a step when a point moves a sizeable part of a spring in one step (the
         // linearisation misses the geometric stiffening), which its damping then removes.
