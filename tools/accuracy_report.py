@@ -98,7 +98,8 @@ def main():
     w(f"- Machine: {cpu_model()}, {os.cpu_count()} logical cores, {platform.system()} {platform.release()}")
     w(f"- Compiler: GCC/Clang `{meta.get('compiler', '?')}`, build type {meta.get('build_type', '?')}, "
       f"flags `{meta.get('flags', '?').strip()}`")
-    w(f"- Threads: {meta.get('threads', '?')} (wall times are single-core)")
+    w(f"- Threads: {meta.get('threads', '?')} (wall times are single-core; a run under 0.3 s is repeated up to "
+      "5 times and its fastest time kept, so other load on the machine shows less)")
     w(f"- Implicit Euler's CG: relative residual {meta.get('cg_tolerance', '?')}, at most "
       f"{meta.get('cg_max_iterations', '?')} iterations (Jacobi preconditioner)")
     w(f"- Date: {datetime.datetime.now(datetime.timezone.utc).strftime('%Y-%m-%d %H:%M UTC')}\n")

@@ -86,6 +86,20 @@ Run timed_run(World& world, double seconds) {
   return r;
 }
 
+// Wall times on a shared machine are noisy: a measurement that took under 0.3 s is repeated
+// (at most 5 times; the simulation itself is deterministic) and its fastest time kept.
+template <class Measure>
+Run fastest(Measure measure) {
+  Run best = measure();
+  double spent = best.wall;
+  for (int repeat = 1; repeat < 5 && spent < 0.3; ++repeat) {
+    const Run again = measure();
+    spent += again.wall;
+    best.wall = std::min(best.wall, again.wall);
+  }
+  return best;
+}
+
 drape::WorldDef world_def(Integrator integrator, double dt) {
   drape::WorldDef wd;
   wd.integrator = integrator;
@@ -251,11 +265,15 @@ void oscillator_runs(std::vector<Row>& rows, const std::vector<double>& steps) {
       auto wd = world_def(i, dt);
       wd.gravity = {0, 0, 0};
       wd.cg_tolerance = sizeof(typename World::Scalar) == 8 ? 1e-13 : 1e-7;
-      World world(wd);
-      const auto id = world.add_sheet(o.sheet());
-      Run run = timed_run(world, 1.0);
-      const auto v = world.view(id);
-      const double err = std::abs(double(v.x[1]) - double(v.x[0]) - o.separation(world.time())) / (o.width - o.rest);
+      double err = 0;
+      const Run run = fastest([&] {
+        World world(wd);
+        const auto id = world.add_sheet(o.sheet());
+        const Run r = timed_run(world, 1.0);
+        const auto v = world.view(id);
+        err = std::abs(double(v.x[1]) - double(v.x[0]) - o.separation(world.time())) / (o.width - o.rest);
+        return r;
+      });
       rows.push_back({"oscillator", std::string(drape::integrator_name(i)), precision_name<World>(), dt, run, err});
     }
 }
@@ -264,11 +282,15 @@ template <class World>
 void rope_runs(std::vector<Row>& rows, const std::vector<double>& steps, const Rope& rope, const Positions& ref) {
   for (Integrator i : drape::integrators)
     for (double dt : steps) {
-      World world(world_def(i, dt));
-      const auto id = world.add_sheet(rope.sheet());
-      Run run = timed_run(world, 8.0);
-      rows.push_back({"rope", std::string(drape::integrator_name(i)), precision_name<World>(), dt, run,
-                      max_distance(positions(world, id), ref) / rope.span});
+      double err = 0;
+      const Run run = fastest([&] {
+        World world(world_def(i, dt));
+        const auto id = world.add_sheet(rope.sheet());
+        const Run r = timed_run(world, 8.0);
+        err = max_distance(positions(world, id), ref) / rope.span;
+        return r;
+      });
+      rows.push_back({"rope", std::string(drape::integrator_name(i)), precision_name<World>(), dt, run, err});
     }
 }
 
@@ -276,11 +298,15 @@ template <class World>
 void fig5_runs(std::vector<Row>& rows, const std::vector<double>& steps, const Positions& ref) {
   for (Integrator i : drape::integrators)
     for (double dt : steps) {
-      World world(world_def(i, dt));
-      const auto id = world.add_sheet(fig5_sheet());
-      Run run = timed_run(world, 1.0);
-      rows.push_back({"fig5", std::string(drape::integrator_name(i)), precision_name<World>(), dt, run,
-                      max_distance(positions(world, id), ref) / 1.0});
+      double err = 0;
+      const Run run = fastest([&] {
+        World world(world_def(i, dt));
+        const auto id = world.add_sheet(fig5_sheet());
+        const Run r = timed_run(world, 1.0);
+        err = max_distance(positions(world, id), ref) / 1.0;
+        return r;
+      });
+      rows.push_back({"fig5", std::string(drape::integrator_name(i)), precision_name<World>(), dt, run, err});
     }
 }
 
@@ -316,16 +342,21 @@ bool stable_at(Integrator integrator, double k, double dt) {
 // costs with each integrator.
 template <class World>
 std::pair<Run, int> frame_cost(Integrator integrator, double k, double largest_stable) {
-  auto wd = world_def(integrator, std::min(1.0 / 60, 0.9 * largest_stable));
-  World world(wd);
-  const auto id = world.add_sheet(region_sheet(k));
-  Run r;
-  const auto start = Clock::now();
-  for (int f = 0; f < 60 && r.stable; ++f) r.stable = world.advance((f + 1) / 60.0 - world.time()).ok();
-  r.wall = std::chrono::duration<double>(Clock::now() - start).count();
-  r.simulated = world.time();
-  r.steps = world.step_count();
-  return {r, world.solver_stats(id).iterations};
+  const auto wd = world_def(integrator, std::min(1.0 / 60, 0.9 * largest_stable));
+  int cg = 0;
+  const Run run = fastest([&] {
+    World world(wd);
+    const auto id = world.add_sheet(region_sheet(k));
+    Run r;
+    const auto start = Clock::now();
+    for (int f = 0; f < 60 && r.stable; ++f) r.stable = world.advance((f + 1) / 60.0 - world.time()).ok();
+    r.wall = std::chrono::duration<double>(Clock::now() - start).count();
+    r.simulated = world.time();
+    r.steps = world.step_count();
+    cg = world.solver_stats(id).iterations;
+    return r;
+  });
+  return {run, cg};
 }
 
 template <class World>
