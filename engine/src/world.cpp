@@ -228,8 +228,9 @@ struct BasicWorld<Real>::Impl {
         report.sheet = {index, slot.generation};
         report.energy_growth = growth;
         report.stable_dt = def.adaptive_safety * integrator_critical_step(def.integrator, slot.omega_max);
+        // the cheapest integrator stable at this step; forward Euler is never suggested
         report.stable_integrator = Integrator::ImplicitEuler;
-        for (Integrator i : integrators)
+        for (Integrator i : {Integrator::SemiImplicitEuler, Integrator::RK4})
           if (integrator_critical_step(i, slot.omega_max) > report.dt) {
             report.stable_integrator = i;
             break;

@@ -104,8 +104,8 @@ struct StabilityReport {
   Integrator integrator = Integrator::SemiImplicitEuler;  // in use
   double dt = 0;                // s, the substep in use
   // The largest step the integrator in use takes stably on that sheet (estimate, safety
-  // applied); and an integrator stable at the step in use (implicit Euler when nothing
-  // explicit is).
+  // applied); and the cheapest integrator stable at the step in use (semi-implicit Euler,
+  // RK4, else implicit Euler; forward Euler is never suggested).
   double stable_dt = 0;
   Integrator stable_integrator = Integrator::ImplicitEuler;
   bool ok() const { return status == StabilityStatus::Stable; }
