@@ -152,7 +152,7 @@ TEST(Integrators, ImplicitEulerIsStableAtTenTimesTheExplicitCriticalStep) {
     wd.integrator = integrator;
     drape::World world(wd);
     drape::SheetDef d;
-    d.m = d.n = 16;
+    d.m = d.n = 12;
     d.stiffness = 1e5;
     d.pins = drape::corner_points(d.m, d.n);
     const auto id = world.add_sheet(d);
@@ -164,7 +164,7 @@ TEST(Integrators, ImplicitEulerIsStableAtTenTimesTheExplicitCriticalStep) {
     world.step(0);  // the guard's reference: the bumped state
     const double e0 = world.energies().total();
     drape::StabilityReport report;
-    for (int frame = 0; frame < 20 && report.ok(); ++frame) report = world.step(10);
+    for (int frame = 0; frame < 12 && report.ok(); ++frame) report = world.step(10);
     return std::pair{report, world.all_finite() ? world.energies().total() / e0 : INFINITY};
   };
   const auto [implicit_report, implicit_energy] = run(Integrator::ImplicitEuler);
@@ -231,10 +231,11 @@ TEST(Integrators, FloatAndDoubleAgreeOnTheFig5SheetToOnePartIn1e4) {
 
 // Forward Euler's bounded-growth step is ~1e-6 s here, and in float every x += dt·v then
 // rounds away a visible part of the increment: it agrees only relative to the sheet's
-// size (1 m), not to its 1e-3 m displacement. Measured and documented in docs/accuracy.md.
+// size (1 m), not to its 1e-4 m displacement. The same rounding floor shows in the float32
+// runs at small steps in docs/accuracy.md.
 TEST(Integrators, ForwardEulerFloatAgreesWithDoubleRelativeToTheSheetSize) {
-  const Agreement a = float_against_double(Integrator::ForwardEuler, 0.01);
-  ASSERT_GT(a.max_displacement, 2e-4) << "the sheet must have fallen";
+  const Agreement a = float_against_double(Integrator::ForwardEuler, 0.004);
+  ASSERT_GT(a.max_displacement, 5e-5) << "the sheet must have fallen";
   EXPECT_LT(a.max_difference / 1.0, 1e-4);
 }
 
