@@ -1,0 +1,359 @@
+// The wireframe renderer: PNG files, where lines land (checked against a pinhole projection
+// written here from the camera's definition), hidden lines, file errors and camera strings.
+#include "render/render.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <numbers>
+#include <string>
+#include <unistd.h>
+#include <vector>
+
+namespace {
+
+namespace fs = std::filesystem;
+using drape::Vec3;
+using namespace drape::render;
+
+constexpr std::array<std::uint8_t, 3> white{255, 255, 255};
+
+// The pinhole model of render.h's header comment, from scratch: vertical field of view,
+// image y downwards, pixel (px, py) covering [px, px+1) × [py, py+1).
+struct Pinhole {
+  double ex, ey, ez;     // eye
+  double f[3], r[3], u[3];
+  double focal, cx, cy;
+
+  Pinhole(const Camera& c, int w, int h) : ex(c.eye.x), ey(c.eye.y), ez(c.eye.z) {
+    double fw[3] = {c.target.x - ex, c.target.y - ey, c.target.z - ez};
+    const double fl = std::sqrt(fw[0] * fw[0] + fw[1] * fw[1] + fw[2] * fw[2]);
+    for (double& v : fw) v /= fl;
+    const double up[3] = {c.up.x, c.up.y, c.up.z};
+    double rw[3] = {fw[1] * up[2] - fw[2] * up[1], fw[2] * up[0] - fw[0] * up[2], fw[0] * up[1] - fw[1] * up[0]};
+    const double rl = std::sqrt(rw[0] * rw[0] + rw[1] * rw[1] + rw[2] * rw[2]);
+    for (double& v : rw) v /= rl;
+    const double uw[3] = {rw[1] * fw[2] - rw[2] * fw[1], rw[2] * fw[0] - rw[0] * fw[2], rw[0] * fw[1] - rw[1] * fw[0]};
+    for (int k = 0; k < 3; ++k) f[k] = fw[k], r[k] = rw[k], u[k] = uw[k];
+    focal = (h / 2.0) / std::tan(c.fov_deg / 2 * std::numbers::pi / 180);
+    cx = w / 2.0;
+    cy = h / 2.0;
+  }
+  // Continuous image position of a world point in front of the camera.
+  std::pair<double, double> project(Vec3 p) const {
+    const double d[3] = {p.x - ex, p.y - ey, p.z - ez};
+    const double x = d[0] * r[0] + d[1] * r[1] + d[2] * r[2];
+    const double y = d[0] * u[0] + d[1] * u[1] + d[2] * u[2];
+    const double z = d[0] * f[0] + d[1] * f[1] + d[2] * f[2];
+    return {cx + focal * x / z, cy - focal * y / z};
+  }
+  // Distance from `c` to the ray through the centre of pixel (px, py).
+  double ray_distance(int px, int py, Vec3 c) const {
+    const double x = (px + 0.5 - cx) / focal, y = (cy - (py + 0.5)) / focal;
+    double d[3];
+    for (int k = 0; k < 3; ++k) d[k] = f[k] + x * r[k] + y * u[k];
+    const double dl = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    const double v[3] = {c.x - ex, c.y - ey, c.z - ez};
+    const double along = (v[0] * d[0] + v[1] * d[1] + v[2] * d[2]) / dl;
+    const double vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+    return std::sqrt(std::max(0.0, vv - along * along));
+  }
+};
+
+// A flat sheet of m×n cells spanning [x0, x0+w] × [y0, y0+h] at height z0, tilted about x
+// by `tilt` radians around (x0, y0, z0): point (i, j) is row i (along y), column j (along x).
+struct TestSheet {
+  std::uint32_t m, n;
+  std::vector<double> x, y, z;
+  TestSheet(std::uint32_t m_, std::uint32_t n_, double x0, double y0, double z0, double w, double h, double tilt)
+      : m(m_), n(n_) {
+    for (std::uint32_t i = 0; i <= m; ++i)
+      for (std::uint32_t j = 0; j <= n; ++j) {
+        const double ly = h * i / m;
+        x.push_back(x0 + w * j / n);
+        y.push_back(y0 + ly * std::cos(tilt));
+        z.push_back(z0 + ly * std::sin(tilt));
+      }
+  }
+  Vec3 point(std::uint32_t i, std::uint32_t j) const {
+    const std::size_t k = i * (n + 1) + j;
+    return {x[k], y[k], z[k]};
+  }
+  SheetMesh mesh() const { return {m, n, x, y, z}; }
+};
+
+bool is_background(const Image& img, int px, int py) { return img.pixel(px, py) == white; }
+
+fs::path scratch_dir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("drape_render_test_" + std::to_string(::getpid()) + "_" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+TEST(Render, PngWrittenThenReadBackHasSameSizeAndPixels) {
+  const fs::path dir = scratch_dir("roundtrip");
+  Image img(37, 23);
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x)
+      img.set_pixel(x, y, {std::uint8_t(7 * x), std::uint8_t(11 * y), std::uint8_t((x * y) % 256)});
+  const std::string path = (dir / "a.png").string();
+  write_png(img, path);
+  const Image back = read_png(path);
+  EXPECT_EQ(back.width, 37);
+  EXPECT_EQ(back.height, 23);
+  EXPECT_EQ(back.rgb, img.rgb);
+  // Only the final file is left: the temporary was renamed, not copied.
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator{}), 1);
+  fs::remove_all(dir);
+}
+
+TEST(Render, SheetPointsAreDrawnWhereThePinholeProjectsThemAndNothingElse) {
+  const TestSheet sheet(3, 4, -1.0, -0.6, 0.0, 2.0, 1.5, 0.4);
+  Camera cam;
+  cam.eye = {0.7, -3.5, 2.2};
+  cam.target = {0.1, 0.2, 0.1};
+  cam.fov_deg = 40;
+  const int w = 320, h = 240;
+  const std::vector<SheetMesh> sheets{sheet.mesh()};
+  const Image img = render_wireframe(sheets, {}, cam, w, h);
+  ASSERT_EQ(img.width, w);
+  ASSERT_EQ(img.height, h);
+  const Pinhole pin(cam, w, h);
+
+  double lo_x = w, hi_x = 0, lo_y = h, hi_y = 0;
+  for (std::uint32_t i = 0; i <= sheet.m; ++i)
+    for (std::uint32_t j = 0; j <= sheet.n; ++j) {
+      const auto [sx, sy] = pin.project(sheet.point(i, j));
+      ASSERT_TRUE(sx >= 0 && sx < w && sy >= 0 && sy < h) << "test set-up: point off the picture";
+      EXPECT_FALSE(is_background(img, int(sx), int(sy))) << "grid point (" << i << ", " << j << ") at " << sx << ", " << sy;
+      lo_x = std::min(lo_x, sx), hi_x = std::max(hi_x, sx), lo_y = std::min(lo_y, sy), hi_y = std::max(hi_y, sy);
+    }
+  // The middle of each cell is far from every grid line: background.
+  for (std::uint32_t i = 0; i < sheet.m; ++i)
+    for (std::uint32_t j = 0; j < sheet.n; ++j) {
+      const Vec3 a = sheet.point(i, j), b = sheet.point(i + 1, j + 1);
+      const auto [sx, sy] = pin.project({(a.x + b.x) / 2, (a.y + b.y) / 2, (a.z + b.z) / 2});
+      EXPECT_TRUE(is_background(img, int(sx), int(sy))) << "cell (" << i << ", " << j << ") centre is drawn";
+    }
+  // Everything more than two pixels outside the sheet's projected box is background.
+  int drawn_outside = 0;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      if ((x < lo_x - 2 || x > hi_x + 2 || y < lo_y - 2 || y > hi_y + 2) && !is_background(img, x, y)) ++drawn_outside;
+  EXPECT_EQ(drawn_outside, 0);
+}
+
+TEST(Render, SphereOutlineIsDrawnOnItsSilhouetteInTheObstacleColour) {
+  drape::ObstacleDef sphere;
+  sphere.shape = drape::ObstacleShape::Sphere;
+  sphere.center = {0.3, -0.2, 0.4};
+  sphere.size = {0.6, 0, 0};
+  Camera cam;
+  cam.eye = {2.5, -3.0, 1.8};
+  cam.target = {0.0, 0.0, 0.0};  // the sphere is off the optical axis: its outline is not a circle
+  cam.fov_deg = 35;
+  const int w = 240, h = 200;
+  const std::vector<drape::ObstacleDef> obstacles{sphere};
+  const Image img = render_wireframe({}, obstacles, cam, w, h);
+  const Pinhole pin(cam, w, h);
+
+  std::vector<char> hit(static_cast<std::size_t>(w) * h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) hit[y * w + x] = pin.ray_distance(x, y, sphere.center) < sphere.size.x;
+  int boundary_pairs = 0, bluish = 0, drawn = 0;
+  for (int y = 2; y < h - 2; ++y)
+    for (int x = 2; x < w - 2; ++x) {
+      // Outside, at least two pixels from the silhouette: nothing is drawn.
+      bool near_hit = false;
+      for (int dy = -2; dy <= 2; ++dy)
+        for (int dx = -2; dx <= 2; ++dx) near_hit |= hit[(y + dy) * w + x + dx] != 0;
+      if (!near_hit) {
+        EXPECT_TRUE(is_background(img, x, y)) << "drawn at " << x << ", " << y << " outside the sphere";
+      }
+      // Across the silhouette (a hit pixel next to a miss pixel), the outline is drawn.
+      for (const auto& [dx, dy] : {std::pair{1, 0}, std::pair{0, 1}}) {
+        if (hit[y * w + x] == hit[(y + dy) * w + x + dx]) continue;
+        ++boundary_pairs;
+        const bool seen = !is_background(img, x, y) || !is_background(img, x + dx, y + dy);
+        EXPECT_TRUE(seen) << "silhouette not drawn between " << x << ", " << y << " and " << x + dx << ", " << y + dy;
+      }
+      if (img.pixel(x, y)[0] < 200) {  // well covered by a line, not a faint anti-aliased edge
+        ++drawn;
+        const auto c = img.pixel(x, y);
+        bluish += c[2] > c[0] + 20;
+      }
+    }
+  EXPECT_GT(boundary_pairs, 200);
+  EXPECT_EQ(bluish, drawn) << "obstacle lines should all be in the obstacle colour";
+}
+
+TEST(Render, ObstacleHidesSheetLinesBehindIt) {
+  // A sheet far behind a sphere, seen through the sphere's centre.
+  const TestSheet sheet(6, 6, -1.5, 2.0, -1.5, 3.0, 3.0, std::numbers::pi / 2);
+  drape::ObstacleDef sphere;
+  sphere.shape = drape::ObstacleShape::Sphere;
+  sphere.center = {0, 0, 0};
+  sphere.size = {0.8, 0, 0};
+  Camera cam;
+  cam.eye = {0, -5, 0};
+  cam.target = {0, 0, 0};
+  const int w = 200, h = 200;
+  const std::vector<SheetMesh> sheets{sheet.mesh()};
+  const std::vector<drape::ObstacleDef> obstacles{sphere};
+  const Image with = render_wireframe(sheets, obstacles, cam, w, h);
+  const Image without = render_wireframe(sheets, {}, cam, w, h);
+  const Pinhole pin(cam, w, h);
+  auto sheet_grey = [](std::array<std::uint8_t, 3> c) { return c[0] < 200 && std::abs(int(c[0]) - int(c[2])) < 15; };
+  int hidden = 0, visible = 0;
+  for (std::uint32_t i = 0; i <= sheet.m; ++i)
+    for (std::uint32_t j = 0; j <= sheet.n; ++j) {
+      const auto [sx, sy] = pin.project(sheet.point(i, j));
+      const int px = int(sx), py = int(sy);
+      ASSERT_TRUE(sheet_grey(without.pixel(px, py))) << "test set-up: sheet line not drawn without the sphere";
+      if (pin.ray_distance(px, py, sphere.center) < 0.8 * sphere.size.x) {
+        EXPECT_FALSE(sheet_grey(with.pixel(px, py))) << "sheet point (" << i << ", " << j << ") shows through";
+        ++hidden;
+      } else if (pin.ray_distance(px, py, sphere.center) > 1.2 * sphere.size.x) {
+        EXPECT_TRUE(sheet_grey(with.pixel(px, py))) << "sheet point (" << i << ", " << j << ") wrongly hidden";
+        ++visible;
+      }
+    }
+  EXPECT_GE(hidden, 4);
+  EXPECT_GE(visible, 20);
+}
+
+TEST(Render, DefaultCameraFramesAllContent) {
+  const TestSheet sheet(10, 10, -0.5, -0.5, 1.2, 1.0, 1.0, 0.0);
+  drape::ObstacleDef torus;
+  torus.shape = drape::ObstacleShape::Torus;
+  torus.center = {0.2, 0.1, 0.3};
+  torus.size = {0.6, 0.15, 0};
+  const std::vector<SheetMesh> sheets{sheet.mesh()};
+  const std::vector<drape::ObstacleDef> obstacles{torus};
+  const Bounds box = scene_bounds(sheets, obstacles);
+  // Hand-computed box: the torus reaches 0.75 around its centre in x, y and 0.15 in z.
+  EXPECT_DOUBLE_EQ(box.lo.x, -0.55);
+  EXPECT_DOUBLE_EQ(box.hi.x, 0.95);
+  EXPECT_DOUBLE_EQ(box.lo.y, -0.65);
+  EXPECT_DOUBLE_EQ(box.hi.y, 0.85);
+  EXPECT_DOUBLE_EQ(box.lo.z, 0.15);
+  EXPECT_DOUBLE_EQ(box.hi.z, 1.2);
+  const int w = 400, h = 300;
+  const Camera cam = Camera::looking_at_bounds(box, double(w) / h);
+  EXPECT_EQ(validate(cam), "");
+  EXPECT_GT(cam.eye.z, cam.target.z) << "the default view looks down on the scene";
+  const Pinhole pin(cam, w, h);
+  for (int k = 0; k < 8; ++k) {
+    const Vec3 p{k & 1 ? box.hi.x : box.lo.x, k & 2 ? box.hi.y : box.lo.y, k & 4 ? box.hi.z : box.lo.z};
+    const auto [sx, sy] = pin.project(p);
+    EXPECT_TRUE(sx > 0 && sx < w && sy > 0 && sy < h) << "box corner " << k << " at " << sx << ", " << sy;
+  }
+}
+
+TEST(Render, WritePngIntoMissingFolderThrowsNamingThePathAndWritesNothing) {
+  const fs::path dir = scratch_dir("missing");
+  const std::string path = (dir / "no_such_folder" / "out.png").string();
+  try {
+    write_png(Image(4, 4), path);
+    FAIL() << "no exception";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("No such file or directory"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(dir / "no_such_folder"));
+  EXPECT_TRUE(fs::is_empty(dir));
+  fs::remove_all(dir);
+}
+
+TEST(Render, WritePngOntoADirectoryThrowsAndLeavesNoFile) {
+  const fs::path dir = scratch_dir("isdir");
+  fs::create_directory(dir / "target.png");
+  const std::string path = (dir / "target.png").string();
+  try {
+    write_png(Image(4, 4), path);
+    FAIL() << "no exception";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("directory"), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(fs::is_directory(dir / "target.png"));
+  EXPECT_TRUE(fs::is_empty(dir / "target.png"));
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator{}), 1) << "a temporary file was left";
+  fs::remove_all(dir);
+}
+
+TEST(Render, ReadPngOfANonPngThrowsNamingThePath) {
+  const fs::path dir = scratch_dir("notpng");
+  const std::string path = (dir / "x.png").string();
+  { std::FILE* f = std::fopen(path.c_str(), "w"); std::fputs("not a png", f); std::fclose(f); }
+  try {
+    (void)read_png(path);
+    FAIL() << "no exception";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+  }
+  EXPECT_THROW((void)read_png((dir / "absent.png").string()), std::runtime_error);
+  fs::remove_all(dir);
+}
+
+TEST(Render, CameraStringSetsGivenKeysAndKeepsTheOthers) {
+  Camera base;
+  base.eye = {9, 9, 9};
+  base.target = {1, 1, 1};
+  const Camera c = parse_camera(" eye=4,-3.5,2 ; fov=50;", base);
+  EXPECT_EQ(c.eye, (Vec3{4, -3.5, 2}));
+  EXPECT_EQ(c.target, (Vec3{1, 1, 1}));
+  EXPECT_EQ(c.up, (Vec3{0, 0, 1}));
+  EXPECT_EQ(c.fov_deg, 50);
+  const Camera d = parse_camera("target=0,0,1;up=0,1,0;eye=0,0,5e0", base);
+  EXPECT_EQ(d.eye, (Vec3{0, 0, 5}));
+  EXPECT_EQ(d.up, (Vec3{0, 1, 0}));
+  EXPECT_EQ(parse_camera("", base).eye, base.eye);
+}
+
+TEST(Render, CameraStringErrorsNameTheProblem) {
+  const std::pair<const char*, const char*> cases[] = {
+      {"eye=1,2", "three numbers"},
+      {"eye=1,2,3,4", "three numbers"},
+      {"eye=1,x,3", "\"x\" is not a number"},
+      {"eye=1,,3", "is not a number"},
+      {"fov=nan", "not finite"},
+      {"fov=200", "between 0 and 180"},
+      {"fov=0", "between 0 and 180"},
+      {"zoom=3", "unknown key \"zoom\""},
+      {"eye 1,2,3", "is not key=value"},
+      {"fov=30;fov=40", "given twice"},
+      {"eye=1,1,1;target=1,1,1", "same point"},
+      {"eye=0,0,5;target=0,0,0;up=0,0,1", "parallel"},
+      {"up=0,0,0", "zero vector"},
+  };
+  for (const auto& [spec, expected] : cases) {
+    try {
+      (void)parse_camera(spec);
+      ADD_FAILURE() << "no error for \"" << spec << "\"";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(expected), std::string::npos)
+          << "\"" << spec << "\" gave: " << e.what();
+    }
+  }
+}
+
+TEST(Render, RejectsBadSizeAndMismatchedSheet) {
+  const TestSheet sheet(2, 2, 0, 0, 0, 1, 1, 0);
+  const std::vector<SheetMesh> good{sheet.mesh()};
+  EXPECT_THROW(render_wireframe(good, {}, Camera{}, 0, 10), std::invalid_argument);
+  EXPECT_THROW(render_wireframe(good, {}, Camera{}, 10, 20000), std::invalid_argument);
+  SheetMesh bad = sheet.mesh();
+  bad.m = 3;
+  const std::vector<SheetMesh> bads{bad};
+  try {
+    render_wireframe(bads, {}, Camera{}, 10, 10);
+    FAIL() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("sheet 0"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
