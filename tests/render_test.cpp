@@ -227,6 +227,26 @@ TEST(Render, ObstacleHidesSheetLinesBehindIt) {
   EXPECT_EQ(outside_same, outside) << "the sphere changed sheet lines it does not cover";
 }
 
+TEST(Render, PartsBehindTheCameraAreClippedNotMirrored) {
+  // A floor sheet 1 m below the eye that runs from behind the camera to far in front of it.
+  // Every point of it in front of the eye projects below the horizon (the middle row).
+  const TestSheet floor(4, 2, -1.0, -9.0, -1.0, 2.0, 20.0, 0.0);
+  Camera cam;
+  cam.eye = {0, -5, 0};
+  cam.target = {0, 0, 0};
+  const int w = 160, h = 120;
+  const std::vector<SheetMesh> sheets{floor.mesh()};
+  const Image img = render_wireframe(sheets, {}, cam, w, h);
+  int below = 0;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      if (is_background(img, x, y)) continue;
+      EXPECT_GE(y, h / 2 - 1) << "drawn above the horizon at " << x << ", " << y;
+      ++below;
+    }
+  EXPECT_GT(below, 100);
+}
+
 TEST(Render, DefaultCameraFramesAllContent) {
   const TestSheet sheet(10, 10, -0.5, -0.5, 1.2, 1.0, 1.0, 0.0);
   drape::ObstacleDef torus;
