@@ -240,6 +240,33 @@ TEST(Render, ObstacleHidesSheetLinesBehindIt) {
   EXPECT_EQ(outside_same, outside) << "the sphere changed sheet lines it does not cover";
 }
 
+TEST(Render, OpaqueSheetHidesObstacleBehindIt) {
+  // A sheet standing between the eye and a sphere, covering the sphere's whole outline.
+  const TestSheet sheet(5, 5, -2.0, -2.0, -2.0, 4.0, 4.0, std::numbers::pi / 2);
+  drape::ObstacleDef sphere;
+  sphere.shape = drape::ObstacleShape::Sphere;
+  sphere.size = {0.7, 0, 0};
+  Camera cam;
+  cam.eye = {0.3, -7, 0.4};
+  cam.target = {0, 0, 0};
+  const std::vector<SheetMesh> sheets{sheet.mesh()};
+  const std::vector<drape::ObstacleDef> obstacles{sphere};
+  auto bluish_pixels = [&](bool opaque) {
+    RenderOptions opt;
+    opt.opaque_sheets = opaque;
+    const Image img = render_wireframe(sheets, obstacles, cam, 160, 160, opt);
+    int count = 0;
+    for (int y = 0; y < img.height; ++y)
+      for (int x = 0; x < img.width; ++x) {
+        const auto c = img.pixel(x, y);
+        count += c[2] > c[0] + 20;
+      }
+    return count;
+  };
+  EXPECT_GT(bluish_pixels(false), 100) << "test set-up: a see-through sheet shows the sphere";
+  EXPECT_EQ(bluish_pixels(true), 0);
+}
+
 TEST(Render, PartsBehindTheCameraAreClippedNotMirrored) {
   // A floor sheet 1 m below the eye that runs from behind the camera to far in front of it.
   // Every point of it in front of the eye projects below the horizon (the middle row).

@@ -302,6 +302,10 @@ class Canvas {
   std::vector<Rgb> line_color_;
 };
 
+// Every hiding surface's depth goes into the canvas before any line is drawn, so each
+// drawing function runs twice: once for its surfaces, once for its lines.
+enum class Pass { Surfaces, Lines };
+
 // ---------------------------------------------------------------------------------------
 // Obstacles. Curved ones are parametric surfaces P(u, v) with outward normals N(u, v):
 // u ∈ [0, 2π) is periodic; v ∈ [0, π] from pole to pole (sphere, ellipsoid) or periodic
@@ -342,18 +346,19 @@ struct CurvedSurface {
   }
 };
 
-void draw_curved(Canvas& canvas, const CurvedSurface& s, std::array<std::uint8_t, 3> color, bool fill) {
+void draw_curved(Canvas& canvas, const CurvedSurface& s, std::array<std::uint8_t, 3> color, Pass pass) {
   const int nu = s.nu, nv = s.nv;
   std::vector<Vec3> grid(static_cast<std::size_t>(nu + 1) * (nv + 1));
   for (int j = 0; j <= nv; ++j)
     for (int i = 0; i <= nu; ++i) grid[j * (nu + 1) + i] = s.point(s.u_at(i), s.v_at(j));
   auto at = [&](int i, int j) { return grid[j * (nu + 1) + i]; };
-  if (fill) {
+  if (pass == Pass::Surfaces) {
     for (int j = 0; j < nv; ++j)
       for (int i = 0; i < nu; ++i) {
         canvas.fill_triangle(at(i, j), at(i + 1, j), at(i + 1, j + 1));
         canvas.fill_triangle(at(i, j), at(i + 1, j + 1), at(i, j + 1));
       }
+    return;
   }
   // Wire curves: constant u (meridians / tube rings) and constant v (parallels / rings
   // along the tube), drawn through every fill-mesh vertex so they look smooth.
@@ -400,19 +405,20 @@ void draw_curved(Canvas& canvas, const CurvedSurface& s, std::array<std::uint8_t
   }
 }
 
-void draw_box(Canvas& canvas, const ObstacleDef& o, std::array<std::uint8_t, 3> color, bool fill) {
+void draw_box(Canvas& canvas, const ObstacleDef& o, std::array<std::uint8_t, 3> color, Pass pass) {
   Vec3 c[8];
   for (int k = 0; k < 8; ++k) {
     const Vec3 local{k & 1 ? o.size.x : -o.size.x, k & 2 ? o.size.y : -o.size.y, k & 4 ? o.size.z : -o.size.z};
     c[k] = o.center + rotate(o.orientation, local);
   }
-  if (fill) {
+  if (pass == Pass::Surfaces) {
     // Faces as corner-index quads (bit 0: x, bit 1: y, bit 2: z).
     const int faces[6][4] = {{0, 1, 3, 2}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 3, 7, 6}, {0, 2, 6, 4}, {1, 3, 7, 5}};
     for (const auto& f : faces) {
       canvas.fill_triangle(c[f[0]], c[f[1]], c[f[2]]);
       canvas.fill_triangle(c[f[0]], c[f[2]], c[f[3]]);
     }
+    return;
   }
   for (int a = 0; a < 8; ++a)
     for (int bit = 1; bit < 8; bit <<= 1)
@@ -422,7 +428,7 @@ void draw_box(Canvas& canvas, const ObstacleDef& o, std::array<std::uint8_t, 3> 
 // An infinite plane is drawn as a square grid patch under the rest of the content: centred
 // on the content's centre projected onto the plane, 1.2 content diagonals across.
 void draw_plane(Canvas& canvas, const ObstacleDef& o, const Bounds& content, std::array<std::uint8_t, 3> color,
-                bool fill) {
+                Pass pass) {
   const Vec3 ex = rotate(o.orientation, {1, 0, 0}), ey = rotate(o.orientation, {0, 1, 0}),
              nz = rotate(o.orientation, {0, 0, 1});
   Vec3 mid = o.center;
@@ -434,9 +440,10 @@ void draw_plane(Canvas& canvas, const ObstacleDef& o, const Bounds& content, std
   }
   constexpr int cells = 12;
   auto at = [&](double a, double b) { return mid + (a * half) * ex + (b * half) * ey; };
-  if (fill) {
+  if (pass == Pass::Surfaces) {
     canvas.fill_triangle(at(-1, -1), at(1, -1), at(1, 1));
     canvas.fill_triangle(at(-1, -1), at(1, 1), at(-1, 1));
+    return;
   }
   for (int k = 0; k <= cells; ++k) {
     const double t = -1 + 2.0 * k / cells;
@@ -446,27 +453,28 @@ void draw_plane(Canvas& canvas, const ObstacleDef& o, const Bounds& content, std
 }
 
 void draw_obstacle(Canvas& canvas, const ObstacleDef& o, const Bounds& content, std::array<std::uint8_t, 3> color,
-                   bool fill) {
+                   Pass pass) {
   switch (o.shape) {
-    case ObstacleShape::Plane: draw_plane(canvas, o, content, color, fill); break;
+    case ObstacleShape::Plane: draw_plane(canvas, o, content, color, pass); break;
     case ObstacleShape::Sphere:
     case ObstacleShape::Ellipsoid:
-      draw_curved(canvas, CurvedSurface{o, false, 96, 48, 8, 8}, color, fill);
+      draw_curved(canvas, CurvedSurface{o, false, 96, 48, 8, 8}, color, pass);
       break;
-    case ObstacleShape::Torus: draw_curved(canvas, CurvedSurface{o, true, 144, 48, 6, 12}, color, fill); break;
-    case ObstacleShape::Box: draw_box(canvas, o, color, fill); break;
+    case ObstacleShape::Torus: draw_curved(canvas, CurvedSurface{o, true, 144, 48, 6, 12}, color, pass); break;
+    case ObstacleShape::Box: draw_box(canvas, o, color, pass); break;
   }
 }
 
-void draw_sheet(Canvas& canvas, const SheetMesh& s, std::array<std::uint8_t, 3> color, bool fill) {
+void draw_sheet(Canvas& canvas, const SheetMesh& s, std::array<std::uint8_t, 3> color, Pass pass) {
   const std::uint32_t cols = s.n + 1;
   auto at = [&](std::uint32_t i, std::uint32_t j) { return sheet_point(s, static_cast<std::size_t>(i) * cols + j); };
-  if (fill) {
+  if (pass == Pass::Surfaces) {
     for (std::uint32_t i = 0; i < s.m; ++i)
       for (std::uint32_t j = 0; j < s.n; ++j) {
         canvas.fill_triangle(at(i, j), at(i, j + 1), at(i + 1, j + 1));
         canvas.fill_triangle(at(i, j), at(i + 1, j + 1), at(i + 1, j));
       }
+    return;
   }
   // Fig 1: the grid lines are the springs, horizontal (along j) and vertical (along i).
   for (std::uint32_t i = 0; i <= s.m; ++i)
@@ -670,12 +678,11 @@ Image render_wireframe(std::span<const SheetMesh> sheets, std::span<const Obstac
 
   const Bounds content = scene_bounds(sheets, obstacles);
   Canvas canvas(camera, width, height, options, content);
-  // Every hiding surface's depth first, so each line is tested against all of them.
-  for (const ObstacleDef& o : obstacles) draw_obstacle(canvas, o, content, options.obstacle_color, true);
+  for (const ObstacleDef& o : obstacles) draw_obstacle(canvas, o, content, options.obstacle_color, Pass::Surfaces);
   if (options.opaque_sheets)
-    for (const SheetMesh& s : sheets) draw_sheet(canvas, s, options.sheet_color, true);
-  for (const ObstacleDef& o : obstacles) draw_obstacle(canvas, o, content, options.obstacle_color, false);
-  for (const SheetMesh& s : sheets) draw_sheet(canvas, s, options.sheet_color, false);
+    for (const SheetMesh& s : sheets) draw_sheet(canvas, s, options.sheet_color, Pass::Surfaces);
+  for (const ObstacleDef& o : obstacles) draw_obstacle(canvas, o, content, options.obstacle_color, Pass::Lines);
+  for (const SheetMesh& s : sheets) draw_sheet(canvas, s, options.sheet_color, Pass::Lines);
   return canvas.resolve(width, height);
 }
 
