@@ -392,7 +392,7 @@ TEST(Render, RejectsBadSizeAndMismatchedSheet) {
   const TestSheet sheet(2, 2, 0, 0, 0, 1, 1, 0);
   const std::vector<SheetMesh> good{sheet.mesh()};
   EXPECT_THROW(render_wireframe(good, {}, Camera{}, 0, 10), std::invalid_argument);
-  EXPECT_THROW(render_wireframe(good, {}, Camera{}, 10, 20000), std::invalid_argument);
+  EXPECT_THROW(render_wireframe(good, {}, Camera{}, 10, 9000), std::invalid_argument);
   SheetMesh bad = sheet.mesh();
   bad.m = 3;
   const std::vector<SheetMesh> bads{bad};

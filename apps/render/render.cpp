@@ -99,10 +99,6 @@ Vec3 sheet_point(const SheetMesh& s, std::size_t k) { return {s.x[k], s.y[k], s.
 // The canvas: a supersampled depth buffer for filled surfaces and a colour + depth buffer
 // for lines, with the camera transform that maps world points onto it.
 
-struct Rgb {
-  double r, g, b;
-};
-
 class Canvas {
  public:
   Canvas(const Camera& cam, int width, int height, const RenderOptions& opt, const Bounds& content)
@@ -116,7 +112,7 @@ class Canvas {
     half_width_ = 0.5 * std::max(opt.line_width, 1e-3) * ss_;
     surface_.assign(static_cast<std::size_t>(w_) * h_, 0.0f);
     line_depth_.assign(static_cast<std::size_t>(w_) * h_, 0.0f);
-    line_color_.assign(static_cast<std::size_t>(w_) * h_, {0, 0, 0});
+    line_color_.assign(static_cast<std::size_t>(w_) * h_, opt.background);
 
     // Depth range of the content, for fading far lines.
     z_near_ = std::numeric_limits<double>::infinity();
@@ -172,12 +168,7 @@ class Canvas {
         for (int sy = 0; sy < ss_; ++sy) {
           for (int sx = 0; sx < ss_; ++sx) {
             const std::size_t k = static_cast<std::size_t>(py * ss_ + sy) * w_ + (px * ss_ + sx);
-            const bool lit = line_depth_[k] > 0.0f;
-            const Rgb c = lit ? line_color_[k] : Rgb{double(opt_.background[0]), double(opt_.background[1]),
-                                                      double(opt_.background[2])};
-            acc[0] += c.r;
-            acc[1] += c.g;
-            acc[2] += c.b;
+            for (int ch = 0; ch < 3; ++ch) acc[ch] += line_color_[k][ch];
           }
         }
         img.set_pixel(px, py,
@@ -219,18 +210,33 @@ class Canvas {
     const int y0 = std::max(0, static_cast<int>(std::floor(std::min({a.y, b.y, c.y}))));
     const int y1 = std::min(h_ - 1, static_cast<int>(std::ceil(std::max({a.y, b.y, c.y}))));
     const double sign = area > 0 ? 1.0 : -1.0;
+    // Edge k is inside where e_k(px, py) = sign·((q.x − p.x)(py − p.y) − (q.y − p.y)(px − p.x)) ≥ 0:
+    // linear in px along a row, so each row's covered span is found, not searched for.
+    const Screen pts[3] = {a, b, c};
     for (int y = y0; y <= y1; ++y) {
       const double py = y + 0.5;
-      for (int x = x0; x <= x1; ++x) {
-        const double px = x + 0.5;
-        const double e0 = sign * ((b.x - a.x) * (py - a.y) - (b.y - a.y) * (px - a.x));
-        const double e1 = sign * ((c.x - b.x) * (py - b.y) - (c.y - b.y) * (px - b.x));
-        const double e2 = sign * ((a.x - c.x) * (py - c.y) - (a.y - c.y) * (px - c.x));
-        if (e0 < 0 || e1 < 0 || e2 < 0) continue;
-        const double w = a.w + dwdx * (px - a.x) + dwdy * (py - a.y);
+      double lo = x0 + 0.5, hi = x1 + 0.5;
+      for (int k = 0; k < 3; ++k) {
+        const Screen& p = pts[k];
+        const Screen& q = pts[(k + 1) % 3];
+        const double slope = -sign * (q.y - p.y);  // de/dpx
+        const double at_p = sign * (q.x - p.x) * (py - p.y);
+        if (slope == 0) {
+          if (at_p < 0) hi = lo - 1;
+        } else if (slope > 0) {
+          lo = std::max(lo, p.x - at_p / slope);
+        } else {
+          hi = std::min(hi, p.x - at_p / slope);
+        }
+      }
+      if (!(hi >= lo)) continue;
+      const int first = std::max(x0, static_cast<int>(std::ceil(lo - 0.5)));
+      const int last = std::min(x1, static_cast<int>(std::floor(hi - 0.5)));
+      float* row = surface_.data() + static_cast<std::size_t>(y) * w_;
+      for (int x = first; x <= last; ++x) {
+        const double w = a.w + dwdx * (x + 0.5 - a.x) + dwdy * (py - a.y);
         const float stored = static_cast<float>(w * (1 - 1e-4) - offset);
-        float& cell = surface_[static_cast<std::size_t>(y) * w_ + x];
-        cell = std::max(cell, stored);
+        row[x] = std::max(row[x], stored);
       }
     }
   }
@@ -289,7 +295,9 @@ class Canvas {
     line_depth_[k] = wf;
     // Depth cue: far lines fade towards the background.
     const double t = std::clamp((1.0 / w - z_near_) / (z_far_ - z_near_), 0.0, 1.0) * opt_.depth_fade;
-    auto mix = [&](int ch) { return color[ch] + t * (opt_.background[ch] - color[ch]); };
+    auto mix = [&](int ch) {
+      return static_cast<std::uint8_t>(std::lround(color[ch] + t * (opt_.background[ch] - color[ch])));
+    };
     line_color_[k] = {mix(0), mix(1), mix(2)};
   }
 
@@ -299,7 +307,7 @@ class Canvas {
   double focal_ = 1, near_ = 1e-6, half_width_ = 1, z_near_ = 0, z_far_ = 1;
   std::vector<float> surface_;
   std::vector<float> line_depth_;  // 0: no line drawn at this sample
-  std::vector<Rgb> line_color_;
+  std::vector<std::array<std::uint8_t, 3>> line_color_;  // background where no line
 };
 
 // Every hiding surface's depth goes into the canvas before any line is drawn, so each
@@ -667,17 +675,22 @@ void Image::set_pixel(int px, int py, std::array<std::uint8_t, 3> c) {
 Image render_wireframe(std::span<const SheetMesh> sheets, std::span<const ObstacleDef> obstacles,
                        const Camera& camera, int width, int height, const RenderOptions& options) {
   if (std::string problem = validate(camera); !problem.empty()) throw std::invalid_argument("render: " + problem);
-  constexpr int max_side = 16384;
+  constexpr int max_side = 8192;
   if (width < 1 || height < 1 || width > max_side || height > max_side)
     throw std::invalid_argument("render: image size " + std::to_string(width) + "x" + std::to_string(height) +
-                                " is outside 1..16384 pixels per side");
+                                " is outside 1..8192 pixels per side");
   if (options.supersampling < 1 || options.supersampling > 8)
     throw std::invalid_argument("render: supersampling must be 1..8 (got " + std::to_string(options.supersampling) +
                                 ")");
   for (std::size_t k = 0; k < sheets.size(); ++k) check_sheet(sheets[k], k);
 
+  // About 11 bytes per sample: keep the buffers under ~64 M samples by supersampling less.
+  RenderOptions opt = options;
+  const double pixels = double(width) * height;
+  while (opt.supersampling > 1 && pixels * opt.supersampling * opt.supersampling > 64e6) --opt.supersampling;
+
   const Bounds content = scene_bounds(sheets, obstacles);
-  Canvas canvas(camera, width, height, options, content);
+  Canvas canvas(camera, width, height, opt, content);
   for (const ObstacleDef& o : obstacles) draw_obstacle(canvas, o, content, options.obstacle_color, Pass::Surfaces);
   if (options.opaque_sheets)
     for (const SheetMesh& s : sheets) draw_sheet(canvas, s, options.sheet_color, Pass::Surfaces);

@@ -80,7 +80,8 @@ struct RenderOptions {
   std::array<std::uint8_t, 3> sheet_color{25, 25, 30};
   std::array<std::uint8_t, 3> obstacle_color{30, 90, 185};
   double line_width = 1.0;    // output pixels
-  int supersampling = 3;      // samples per pixel along each axis (anti-aliasing); 1: none
+  int supersampling = 3;      // samples per pixel along each axis (anti-aliasing), 1..8; 1: none.
+                              // Lowered for huge pictures so the buffers stay under ~64 M samples.
   double depth_fade = 0.55;   // far lines are blended this much towards the background
   bool opaque_sheets = true;  // sheets hide what is behind them (hidden-line drawing)
 };
@@ -89,7 +90,7 @@ struct RenderOptions {
 // latitude curves and the outline for spheres and ellipsoids, tube rings and the outline for
 // the torus, edges for the box, a grid patch for a plane). Obstacles, and sheets when
 // options.opaque_sheets, hide the lines behind them. Throws std::invalid_argument for a bad
-// camera, size (1..16384 pixels per side) or sheet (span sizes not (m+1)·(n+1)).
+// camera, size (1..8192 pixels per side) or sheet (span sizes not (m+1)·(n+1)).
 Image render_wireframe(std::span<const SheetMesh> sheets, std::span<const ObstacleDef> obstacles,
                        const Camera& camera, int width, int height, const RenderOptions& options = {});
 
