@@ -308,11 +308,17 @@ TEST(Render, DefaultCameraFramesAllContent) {
   EXPECT_EQ(validate(cam), "");
   EXPECT_GT(cam.eye.z, cam.target.z) << "the default view looks down on the scene";
   const Pinhole pin(cam, w, h);
+  double x_lo = w, x_hi = 0, y_lo = h, y_hi = 0;
   for (int k = 0; k < 8; ++k) {
     const Vec3 p{k & 1 ? box.hi.x : box.lo.x, k & 2 ? box.hi.y : box.lo.y, k & 4 ? box.hi.z : box.lo.z};
     const auto [sx, sy] = pin.project(p);
     EXPECT_TRUE(sx > 0 && sx < w && sy > 0 && sy < h) << "box corner " << k << " at " << sx << ", " << sy;
+    x_lo = std::min(x_lo, sx), x_hi = std::max(x_hi, sx), y_lo = std::min(y_lo, sy), y_hi = std::max(y_hi, sy);
   }
+  // Tight and centred: the box spans most of the picture one way, with equal margins.
+  EXPECT_TRUE(x_hi - x_lo > 0.85 * w || y_hi - y_lo > 0.85 * h) << x_lo << ".." << x_hi << ", " << y_lo << ".." << y_hi;
+  EXPECT_NEAR(x_lo, w - x_hi, 2.0);
+  EXPECT_NEAR(y_lo, h - y_hi, 2.0);
 }
 
 TEST(Render, WritePngIntoMissingFolderThrowsNamingThePathAndWritesNothing) {

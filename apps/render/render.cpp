@@ -582,28 +582,44 @@ Camera Camera::looking_at_bounds(const Bounds& box, double aspect, double fov_de
   const Vec3 dir{std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el)};
   const Vec3 right = normalized(cross(-1.0 * dir, {0, 0, 1})), up = cross(right, -1.0 * dir);
   const double tan_v = std::tan(fov_deg * pi / 360), tan_h = tan_v * aspect;
-  // The bounding sphere fits at this distance; then move in while the box's eight corners
-  // still fall inside 92% of the picture, so flat scenes are not framed loosely.
+  // The bounding sphere fits at this distance. Then, a few times: move in while the box's
+  // eight corners still fall inside 92% of the picture (flat scenes are not framed loosely),
+  // and shift the aim sideways so the corners' picture is centred.
   const double far = radius / std::sin(std::min(std::atan(tan_v), std::atan(tan_h)));
+  Vec3 aim = center;
+  auto corner = [&](int k) {
+    return Vec3{k & 1 ? b.hi.x : b.lo.x, k & 2 ? b.hi.y : b.lo.y, k & 4 ? b.hi.z : b.lo.z};
+  };
   auto fits = [&](double d) {
     for (int k = 0; k < 8; ++k) {
-      const Vec3 p{k & 1 ? b.hi.x : b.lo.x, k & 2 ? b.hi.y : b.lo.y, k & 4 ? b.hi.z : b.lo.z};
-      const Vec3 rel = p - (center + d * dir);
+      const Vec3 rel = corner(k) - (aim + d * dir);
       const double z = -dot(rel, dir);
       if (!(z > 0) || std::abs(dot(rel, right)) > 0.92 * tan_h * z || std::abs(dot(rel, up)) > 0.92 * tan_v * z)
         return false;
     }
     return true;
   };
-  double lo = 0, hi = far;
-  if (!fits(hi)) hi = far / 0.92;
-  for (int it = 0; it < 50; ++it) {
-    const double mid = 0.5 * (lo + hi);
-    (fits(mid) ? hi : lo) = mid;
+  double distance = far;
+  for (int round = 0; round < 4; ++round) {
+    double lo = 0, hi = 2 * far;
+    for (int it = 0; it < 50; ++it) {
+      const double mid = 0.5 * (lo + hi);
+      (fits(mid) ? hi : lo) = mid;
+    }
+    distance = hi;
+    if (round == 3) break;  // the last fit stands
+    double x_lo = 1e300, x_hi = -1e300, y_lo = 1e300, y_hi = -1e300;
+    for (int k = 0; k < 8; ++k) {
+      const Vec3 rel = corner(k) - (aim + distance * dir);
+      const double z = -dot(rel, dir);
+      x_lo = std::min(x_lo, dot(rel, right) / z), x_hi = std::max(x_hi, dot(rel, right) / z);
+      y_lo = std::min(y_lo, dot(rel, up) / z), y_hi = std::max(y_hi, dot(rel, up) / z);
+    }
+    aim = aim + (0.5 * (x_lo + x_hi) * distance) * right + (0.5 * (y_lo + y_hi) * distance) * up;
   }
   Camera cam;
-  cam.target = center;
-  cam.eye = center + hi * dir;
+  cam.target = aim;
+  cam.eye = aim + distance * dir;
   cam.up = {0, 0, 1};
   cam.fov_deg = fov_deg;
   return cam;
