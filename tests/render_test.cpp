@@ -48,14 +48,19 @@ struct Pinhole {
     const double z = d[0] * f[0] + d[1] * f[1] + d[2] * f[2];
     return {cx + focal * x / z, cy - focal * y / z};
   }
-  // Distance from `c` to the ray through the centre of pixel (px, py).
-  double ray_distance(int px, int py, Vec3 c) const {
+  // Unit direction of the ray from the eye through the centre of pixel (px, py).
+  Vec3 direction(int px, int py) const {
     const double x = (px + 0.5 - cx) / focal, y = (cy - (py + 0.5)) / focal;
     double d[3];
     for (int k = 0; k < 3; ++k) d[k] = f[k] + x * r[k] + y * u[k];
     const double dl = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    return {d[0] / dl, d[1] / dl, d[2] / dl};
+  }
+  // Distance from `c` to the ray through the centre of pixel (px, py).
+  double ray_distance(int px, int py, Vec3 c) const {
+    const Vec3 d = direction(px, py);
     const double v[3] = {c.x - ex, c.y - ey, c.z - ez};
-    const double along = (v[0] * d[0] + v[1] * d[1] + v[2] * d[2]) / dl;
+    const double along = v[0] * d.x + v[1] * d.y + v[2] * d.z;
     const double vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
     return std::sqrt(std::max(0.0, vv - along * along));
   }
@@ -158,6 +163,51 @@ TEST(Render, SheetPointsAreDrawnWhereThePinholeProjectsThemAndNothingElse) {
   EXPECT_EQ(drawn_outside, 0);
 }
 
+// Renders one obstacle alone and compares it with `hits(origin, direction)`, an independent
+// ray test through each pixel's centre: the outline is drawn wherever a hit pixel borders a
+// missed one; nothing is drawn two pixels or more outside; all lines have the obstacle colour.
+template <class HitTest>
+void expect_outline_on_silhouette(const drape::ObstacleDef& obstacle, const Camera& cam, HitTest hits) {
+  const int w = 240, h = 200;
+  const std::vector<drape::ObstacleDef> obstacles{obstacle};
+  const Image img = render_wireframe({}, obstacles, cam, w, h);
+  const Pinhole pin(cam, w, h);
+  std::vector<char> hit(static_cast<std::size_t>(w) * h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) hit[y * w + x] = hits(Vec3{pin.ex, pin.ey, pin.ez}, pin.direction(x, y));
+  int boundary_pairs = 0, missed = 0, stray = 0, bluish = 0, drawn = 0;
+  std::string first_problem;
+  for (int y = 2; y < h - 2; ++y)
+    for (int x = 2; x < w - 2; ++x) {
+      bool near_hit = false;
+      for (int dy = -2; dy <= 2; ++dy)
+        for (int dx = -2; dx <= 2; ++dx) near_hit |= hit[(y + dy) * w + x + dx] != 0;
+      if (!near_hit && !is_background(img, x, y)) {
+        if (stray++ == 0) first_problem += "drawn outside at " + std::to_string(x) + "," + std::to_string(y) + "; ";
+      }
+      for (const auto& [dx, dy] : {std::pair{1, 0}, std::pair{0, 1}}) {
+        if (hit[y * w + x] == hit[(y + dy) * w + x + dx]) continue;
+        ++boundary_pairs;
+        if (is_background(img, x, y) && is_background(img, x + dx, y + dy) && missed++ == 0)
+          first_problem += "outline missing at " + std::to_string(x) + "," + std::to_string(y) + "; ";
+      }
+      if (img.pixel(x, y)[0] < 200) {  // well covered by a line, not a faint anti-aliased edge
+        ++drawn;
+        const auto c = img.pixel(x, y);
+        bluish += c[2] > c[0] + 20;
+      }
+    }
+  EXPECT_GT(boundary_pairs, 200) << "test set-up: the obstacle should be large in the picture";
+  EXPECT_EQ(missed, 0) << first_problem;
+  EXPECT_EQ(stray, 0) << first_problem;
+  EXPECT_EQ(bluish, drawn) << "obstacle lines should all be in the obstacle colour";
+}
+
+// The rotation that takes world vectors into the obstacle's frame (the inverse quaternion).
+Vec3 to_local(const drape::ObstacleDef& o, Vec3 v) {
+  return drape::rotate({o.orientation.w, -o.orientation.x, -o.orientation.y, -o.orientation.z}, v);
+}
+
 TEST(Render, SphereOutlineIsDrawnOnItsSilhouetteInTheObstacleColour) {
   drape::ObstacleDef sphere;
   sphere.shape = drape::ObstacleShape::Sphere;
@@ -166,40 +216,57 @@ TEST(Render, SphereOutlineIsDrawnOnItsSilhouetteInTheObstacleColour) {
   Camera cam;
   cam.eye = {2.5, -3.0, 1.8};
   cam.target = {0.0, 0.0, 0.0};  // the sphere is off the optical axis: its outline is not a circle
-  cam.fov_deg = 35;
-  const int w = 240, h = 200;
-  const std::vector<drape::ObstacleDef> obstacles{sphere};
-  const Image img = render_wireframe({}, obstacles, cam, w, h);
-  const Pinhole pin(cam, w, h);
+  expect_outline_on_silhouette(sphere, cam, [&](Vec3 o, Vec3 d) {
+    // Distance from the centre to the ray (d is a unit vector) below the radius.
+    const Vec3 v{sphere.center.x - o.x, sphere.center.y - o.y, sphere.center.z - o.z};
+    const double along = v.x * d.x + v.y * d.y + v.z * d.z;
+    return v.x * v.x + v.y * v.y + v.z * v.z - along * along < sphere.size.x * sphere.size.x;
+  });
+}
 
-  std::vector<char> hit(static_cast<std::size_t>(w) * h);
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x) hit[y * w + x] = pin.ray_distance(x, y, sphere.center) < sphere.size.x;
-  int boundary_pairs = 0, bluish = 0, drawn = 0;
-  for (int y = 2; y < h - 2; ++y)
-    for (int x = 2; x < w - 2; ++x) {
-      // Outside, at least two pixels from the silhouette: nothing is drawn.
-      bool near_hit = false;
-      for (int dy = -2; dy <= 2; ++dy)
-        for (int dx = -2; dx <= 2; ++dx) near_hit |= hit[(y + dy) * w + x + dx] != 0;
-      if (!near_hit) {
-        EXPECT_TRUE(is_background(img, x, y)) << "drawn at " << x << ", " << y << " outside the sphere";
-      }
-      // Across the silhouette (a hit pixel next to a miss pixel), the outline is drawn.
-      for (const auto& [dx, dy] : {std::pair{1, 0}, std::pair{0, 1}}) {
-        if (hit[y * w + x] == hit[(y + dy) * w + x + dx]) continue;
-        ++boundary_pairs;
-        const bool seen = !is_background(img, x, y) || !is_background(img, x + dx, y + dy);
-        EXPECT_TRUE(seen) << "silhouette not drawn between " << x << ", " << y << " and " << x + dx << ", " << y + dy;
-      }
-      if (img.pixel(x, y)[0] < 200) {  // well covered by a line, not a faint anti-aliased edge
-        ++drawn;
-        const auto c = img.pixel(x, y);
-        bluish += c[2] > c[0] + 20;
-      }
+TEST(Render, TurnedEllipsoidOutlineIsDrawnOnItsSilhouette) {
+  drape::ObstacleDef ellipsoid;
+  ellipsoid.shape = drape::ObstacleShape::Ellipsoid;
+  ellipsoid.center = {0.1, 0.2, -0.1};
+  ellipsoid.size = {0.9, 0.5, 0.3};
+  ellipsoid.orientation = drape::quat_from_axis_angle({1, 2, 3}, 0.7);
+  Camera cam;
+  cam.eye = {2.0, -3.0, 2.0};
+  expect_outline_on_silhouette(ellipsoid, cam, [&](Vec3 o, Vec3 d) {
+    // In the frame where the ellipsoid is the unit sphere, the ray meets |o + t·d| = 1.
+    const Vec3 s = ellipsoid.size;
+    Vec3 lo = to_local(ellipsoid, {o.x - ellipsoid.center.x, o.y - ellipsoid.center.y, o.z - ellipsoid.center.z});
+    Vec3 ld = to_local(ellipsoid, d);
+    lo = {lo.x / s.x, lo.y / s.y, lo.z / s.z};
+    ld = {ld.x / s.x, ld.y / s.y, ld.z / s.z};
+    const double a = ld.x * ld.x + ld.y * ld.y + ld.z * ld.z;
+    const double b = 2 * (lo.x * ld.x + lo.y * ld.y + lo.z * ld.z);
+    const double c = lo.x * lo.x + lo.y * lo.y + lo.z * lo.z - 1;
+    return b * b - 4 * a * c > 0;
+  });
+}
+
+TEST(Render, TiltedTorusOutlineIncludingItsHoleIsDrawnOnItsSilhouette) {
+  drape::ObstacleDef torus;
+  torus.shape = drape::ObstacleShape::Torus;
+  torus.center = {0, 0, 0};
+  torus.size = {0.7, 0.25, 0};
+  torus.orientation = drape::quat_from_axis_angle({1, 0.3, 0}, 0.5);
+  Camera cam;
+  cam.eye = {0.8, -1.6, 3.2};  // looking down through the hole
+  expect_outline_on_silhouette(torus, cam, [&](Vec3 o, Vec3 d) {
+    // Sphere tracing with the torus's exact distance function.
+    const Vec3 lo = to_local(torus, o), ld = to_local(torus, d);
+    double t = 0;
+    for (int it = 0; it < 400 && t < 20; ++it) {
+      const Vec3 p{lo.x + t * ld.x, lo.y + t * ld.y, lo.z + t * ld.z};
+      const double ring = std::hypot(p.x, p.y) - torus.size.x;
+      const double dist = std::hypot(ring, p.z) - torus.size.y;
+      if (dist < 1e-7) return true;
+      t += dist;
     }
-  EXPECT_GT(boundary_pairs, 200);
-  EXPECT_EQ(bluish, drawn) << "obstacle lines should all be in the obstacle colour";
+    return false;
+  });
 }
 
 TEST(Render, ObstacleHidesSheetLinesBehindIt) {
