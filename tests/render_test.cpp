@@ -269,6 +269,48 @@ TEST(Render, TiltedTorusOutlineIncludingItsHoleIsDrawnOnItsSilhouette) {
   });
 }
 
+TEST(Render, BoxCornersFacingTheEyeAreDrawnAndTheHiddenCornerIsNot) {
+  drape::ObstacleDef box;
+  box.shape = drape::ObstacleShape::Box;
+  box.center = {0.1, -0.1, 0.2};
+  box.size = {0.6, 0.4, 0.3};
+  box.orientation = drape::quat_from_axis_angle({0.3, -0.5, 1}, 0.6);
+  Camera cam;
+  cam.eye = {2.2, -2.6, 1.9};
+  cam.target = box.center;
+  const int w = 240, h = 200;
+  const std::vector<drape::ObstacleDef> obstacles{box};
+  const Image img = render_wireframe({}, obstacles, cam, w, h);
+  const Pinhole pin(cam, w, h);
+  const Vec3 axes[3] = {drape::rotate(box.orientation, {1, 0, 0}), drape::rotate(box.orientation, {0, 1, 0}),
+                        drape::rotate(box.orientation, {0, 0, 1})};
+  const double half[3] = {box.size.x, box.size.y, box.size.z};
+  int visible = 0, hidden = 0;
+  for (int k = 0; k < 8; ++k) {
+    Vec3 p = box.center;
+    bool faces_eye = false;  // a corner of a convex box is seen iff one of its 3 faces faces the eye
+    for (int a = 0; a < 3; ++a) {
+      const double sgn = (k >> a) & 1 ? 1.0 : -1.0;
+      p = {p.x + sgn * half[a] * axes[a].x, p.y + sgn * half[a] * axes[a].y, p.z + sgn * half[a] * axes[a].z};
+    }
+    for (int a = 0; a < 3; ++a) {
+      const double sgn = (k >> a) & 1 ? 1.0 : -1.0;
+      const Vec3 n{sgn * axes[a].x, sgn * axes[a].y, sgn * axes[a].z};
+      faces_eye |= n.x * (p.x - cam.eye.x) + n.y * (p.y - cam.eye.y) + n.z * (p.z - cam.eye.z) < 0;
+    }
+    const auto [sx, sy] = pin.project(p);
+    if (faces_eye) {
+      EXPECT_FALSE(is_background(img, int(sx), int(sy))) << "visible corner " << k << " not drawn";
+      ++visible;
+    } else {
+      EXPECT_TRUE(is_background(img, int(sx), int(sy))) << "hidden corner " << k << " drawn";
+      ++hidden;
+    }
+  }
+  EXPECT_EQ(visible, 7) << "test set-up: a general view of a box shows seven corners";
+  EXPECT_EQ(hidden, 1);
+}
+
 TEST(Render, ObstacleHidesSheetLinesBehindIt) {
   // A sheet far behind a sphere, seen through the sphere's centre.
   const TestSheet sheet(6, 6, -1.5, 2.0, -1.5, 3.0, 3.0, std::numbers::pi / 2);
