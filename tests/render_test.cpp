@@ -481,6 +481,34 @@ TEST(Render, CameraStringSetsGivenKeysAndKeepsTheOthers) {
   EXPECT_EQ(parse_camera("", base).eye, base.eye);
 }
 
+TEST(Render, SheetMeshOfAWorldSheetSharesItsPoints) {
+  drape::World world;
+  drape::SheetDef def;
+  def.m = 3;
+  def.n = 5;
+  const drape::SheetId id = world.add_sheet(def);
+  const drape::SheetView<double> view = world.view(id);
+  const SheetMesh mesh = sheet_mesh(view);
+  EXPECT_EQ(mesh.m, 3u);
+  EXPECT_EQ(mesh.n, 5u);
+  EXPECT_EQ(mesh.x.data(), view.x.data());
+  EXPECT_EQ(mesh.z.size(), 24u);
+}
+
+TEST(Render, FormattedCameraParsesBackExactly) {
+  Camera c;
+  c.eye = {0.1, -1.0 / 3.0, 2e-7};
+  c.target = {-4.25, 1e10, 0};
+  c.up = {0.2, 0.3, 0.9};
+  c.fov_deg = 33.333333333333336;
+  const std::string text = format_camera(c);
+  const Camera back = parse_camera(text, Camera{});
+  EXPECT_EQ(back.eye, c.eye) << text;
+  EXPECT_EQ(back.target, c.target) << text;
+  EXPECT_EQ(back.up, c.up) << text;
+  EXPECT_EQ(back.fov_deg, c.fov_deg) << text;
+}
+
 TEST(Render, CameraStringErrorsNameTheProblem) {
   const std::pair<const char*, const char*> cases[] = {
       {"eye=1,2", "three numbers"},

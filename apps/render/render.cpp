@@ -672,6 +672,16 @@ Camera parse_camera(std::string_view spec, const Camera& base) {
   return cam;
 }
 
+std::string format_camera(const Camera& c) {
+  auto num = [](double v) {
+    char buf[32];
+    const auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v);
+    return ec == std::errc{} ? std::string(buf, end) : std::string("nan");
+  };
+  auto vec = [&](Vec3 v) { return num(v.x) + "," + num(v.y) + "," + num(v.z); };
+  return "eye=" + vec(c.eye) + ";target=" + vec(c.target) + ";up=" + vec(c.up) + ";fov=" + num(c.fov_deg);
+}
+
 Image::Image(int w, int h, std::array<std::uint8_t, 3> fill) : width(w), height(h) {
   if (w < 0 || h < 0) throw std::invalid_argument("image size must not be negative");
   rgb.resize(static_cast<std::size_t>(w) * h * 3);

@@ -12,6 +12,7 @@
 
 #include <drape/obstacle.h>
 #include <drape/types.h>
+#include <drape/world.h>
 
 #include <array>
 #include <cstdint>
@@ -28,6 +29,9 @@ struct SheetMesh {
   std::uint32_t m = 0, n = 0;
   std::span<const double> x, y, z;
 };
+
+// A double-precision world's sheet, without copying (the view must outlive the render).
+inline SheetMesh sheet_mesh(const SheetView<double>& v) { return {v.m, v.n, v.x, v.y, v.z}; }
 
 // An axis-aligned box in world coordinates (m). Empty until something is added.
 struct Bounds {
@@ -64,6 +68,10 @@ std::string validate(const Camera& camera);
 // automatic framing. Throws std::invalid_argument with one message naming the key, the text
 // and the problem; the result is validated as a whole.
 Camera parse_camera(std::string_view spec, const Camera& base = {});
+
+// The camera as a string parse_camera() reads back exactly (shortest round-trip numbers),
+// e.g. for a program to print the automatic framing so a user can start from it.
+std::string format_camera(const Camera& camera);
 
 // An RGB picture, 8 bits per channel, rows top to bottom, no padding.
 struct Image {
