@@ -145,8 +145,8 @@ TEST(Obstacles, ForceScaleIsMinusEnergySlopeAlsoPastTheCap) {
   d.max_exponent = 6;
   for (double f : {0.05, 0.01, 0.0, -0.03, -0.059, -0.061, -0.2, -3.0}) {
     const double h = 1e-7;
-    const double slope = (drape::detail::potential_energy(d, f + h) - drape::detail::potential_energy(d, f - h)) / (2 * h);
-    const double scale = drape::detail::potential_force_scale(d, f);
+    const double slope = (drape::detail::potential_energy(d, f + h, 6.0) - drape::detail::potential_energy(d, f - h, 6.0)) / (2 * h);
+    const double scale = drape::detail::potential_force_scale(d, f, 6.0);
     EXPECT_NEAR(scale, -slope, 1e-5 * std::abs(slope)) << "f " << f;
     EXPECT_LE(scale, d.c / d.xi * std::exp(d.max_exponent) * (1 + 1e-12));
   }
@@ -337,6 +337,27 @@ TEST(Obstacles, PointStartedInsideOrArrivingFastIsPushedOutWithoutNaN) {
   }
   EXPECT_GT(world.view(id).z[0], 0);
   EXPECT_GT(world.view(id).vz[0], 0);
+}
+
+// Deep inside, the force is the bound: (c/ξ)·e^max_exponent for a heavy point, and m·ξ/dt²
+// (the potential no stiffer than m/dt²) for a light one, whichever is smaller.
+TEST(Obstacles, ForceDeepInsideIsBoundedByCapAndByWhatTheStepResolves) {
+  for (double mass : {10.0, 1e-3}) {
+    drape::WorldDef wd;
+    wd.gravity = {0, 0, 0};
+    wd.dt = 1e-3;
+    drape::World world(wd);
+    const auto id = world.add_sheet(point_def({0, 0, -1.0}, mass));
+    ObstacleDef plane;
+    plane.shape = ObstacleShape::Plane;
+    plane.c = 0.01;
+    plane.xi = 0.01;
+    world.add_obstacle(plane);
+    world.step();
+    const double force = world.view(id).vz[0] * mass / wd.dt;
+    const double expected = std::min(plane.c / plane.xi * std::exp(plane.max_exponent), mass * plane.xi / (wd.dt * wd.dt));
+    EXPECT_NEAR(force, expected, 1e-9 * expected) << "mass " << mass;
+  }
 }
 
 // Only sheets whose bounding box comes within reach (30 ξ) pay for an obstacle.

@@ -114,7 +114,7 @@ void sheet_forces(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Ve
     f.z[p] += an.stiffness[a] * (an.tz[a] - x.z[p]);
   }
   // eq (9): only obstacles the host stage found near this sheet
-  for (const Obstacle* o : s.near_obstacles) obstacle_forces(*s.topology, *o, x, f);
+  for (const NearObstacle& o : s.near_obstacles) obstacle_forces(*s.topology, o, x, f);
 }
 
 template void spring_forces<double>(const Topology<double>&, ConstVec3Ptr<double>, Vec3Ptr<double>, Vec3Ptr<double>);

@@ -130,7 +130,7 @@ inline ImplicitSample sample(const Obstacle& o, const double p[3]) {
 
 // One loop per shape, chosen once per obstacle: no shape branch per point.
 template <LocalFn fn, class Real>
-void repel(const Topology<Real>& t, const Obstacle& o, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f) {
+void repel(const Topology<Real>& t, const Obstacle& o, double cap, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f) {
   const std::uint32_t m = t.m, n = t.n, cols = t.cols();
   const bool project = !o.def.full_gradient;
   for (std::uint32_t i = 0; i <= m; ++i) {
@@ -139,7 +139,7 @@ void repel(const Topology<Real>& t, const Obstacle& o, ConstVec3Ptr<Real> x, Vec
       const std::uint32_t p = i * cols + j;
       const double pos[3] = {double(x.x[p]), double(x.y[p]), double(x.z[p])};
       const ImplicitSample s = sample<fn>(o, pos);
-      const double scale = potential_force_scale(o.def, s.f);  // −dE/df ≥ 0: push along +∇f
+      const double scale = potential_force_scale(o.def, s.f, cap);  // −dE/df ≥ 0: push along +∇f
       double F[3] = {scale * s.grad[0], scale * s.grad[1], scale * s.grad[2]};
       if (project) {
         // eq (9): keep only the part along the sheet's unit normal, the cross product of the
@@ -214,14 +214,18 @@ ImplicitSample implicit_at(const Obstacle& o, const double p[3]) {
   return {};
 }
 
-double potential_energy(const ObstacleDef& d, double f) {
-  const double e = -f / d.xi;
-  if (e <= d.max_exponent) return d.c * std::exp(e);
-  return d.c * std::exp(d.max_exponent) * (1.0 + (e - d.max_exponent));
+double exponent_cap(const ObstacleDef& d, double lightest_mass, double dt) {
+  return std::min(d.max_exponent, std::log(lightest_mass * d.xi * d.xi / (d.c * dt * dt)));
 }
 
-double potential_force_scale(const ObstacleDef& d, double f) {
-  return d.c / d.xi * std::exp(std::min(-f / d.xi, d.max_exponent));
+double potential_energy(const ObstacleDef& d, double f, double cap) {
+  const double e = -f / d.xi;
+  if (e <= cap) return d.c * std::exp(e);
+  return d.c * std::exp(cap) * (1.0 + (e - cap));
+}
+
+double potential_force_scale(const ObstacleDef& d, double f, double cap) {
+  return d.c / d.xi * std::exp(std::min(-f / d.xi, cap));
 }
 
 bool may_touch(const Obstacle& o, const Aabb& box) {
@@ -236,30 +240,32 @@ bool may_touch(const Obstacle& o, const Aabb& box) {
 }
 
 template <class Real>
-void obstacle_forces(const Topology<Real>& t, const Obstacle& o, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f) {
+void obstacle_forces(const Topology<Real>& t, const NearObstacle& near, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f) {
+  const Obstacle& o = *near.obstacle;
+  const double cap = near.exponent_cap;
   switch (o.def.shape) {
-    case ObstacleShape::Plane: repel<plane_f>(t, o, x, f); break;
-    case ObstacleShape::Sphere: repel<sphere_f>(t, o, x, f); break;
-    case ObstacleShape::Ellipsoid: repel<ellipsoid_f>(t, o, x, f); break;
-    case ObstacleShape::Torus: repel<torus_f>(t, o, x, f); break;
-    case ObstacleShape::Box: repel<box_f>(t, o, x, f); break;
+    case ObstacleShape::Plane: repel<plane_f>(t, o, cap, x, f); break;
+    case ObstacleShape::Sphere: repel<sphere_f>(t, o, cap, x, f); break;
+    case ObstacleShape::Ellipsoid: repel<ellipsoid_f>(t, o, cap, x, f); break;
+    case ObstacleShape::Torus: repel<torus_f>(t, o, cap, x, f); break;
+    case ObstacleShape::Box: repel<box_f>(t, o, cap, x, f); break;
   }
 }
 
 template <class Real>
-double obstacle_energy(const Sheet<Real>& s, const Obstacle& o) {
+double obstacle_energy(const Sheet<Real>& s, const Obstacle& o, double cap) {
   double e = 0;
   for (std::size_t p = 0; p < s.size(); ++p) {
     const double pos[3] = {double(s.position.x[p]), double(s.position.y[p]), double(s.position.z[p])};
-    e += potential_energy(o.def, implicit_at(o, pos).f);
+    e += potential_energy(o.def, implicit_at(o, pos).f, cap);
   }
   return e;
 }
 
-template void obstacle_forces<double>(const Topology<double>&, const Obstacle&, ConstVec3Ptr<double>, Vec3Ptr<double>);
-template void obstacle_forces<float>(const Topology<float>&, const Obstacle&, ConstVec3Ptr<float>, Vec3Ptr<float>);
-template double obstacle_energy<double>(const Sheet<double>&, const Obstacle&);
-template double obstacle_energy<float>(const Sheet<float>&, const Obstacle&);
+template void obstacle_forces<double>(const Topology<double>&, const NearObstacle&, ConstVec3Ptr<double>, Vec3Ptr<double>);
+template void obstacle_forces<float>(const Topology<float>&, const NearObstacle&, ConstVec3Ptr<float>, Vec3Ptr<float>);
+template double obstacle_energy<double>(const Sheet<double>&, const Obstacle&, double);
+template double obstacle_energy<float>(const Sheet<float>&, const Obstacle&, double);
 
 }  // namespace detail
 }  // namespace drape

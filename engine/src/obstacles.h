@@ -34,10 +34,18 @@ struct ImplicitSample {
 };
 ImplicitSample implicit_at(const Obstacle& o, const double p[3]);
 
-// E(f) = c·exp(−f/ξ), continued linearly past the exponent cap (ObstacleDef::max_exponent),
-// and −dE/df, the factor that multiplies ∇f in the force.
-double potential_energy(const ObstacleDef& def, double f);
-double potential_force_scale(const ObstacleDef& def, double f);
+// The force bound. The exponent −f/ξ is capped at `cap`: past it E continues linearly, so the
+// force stops growing at (c/ξ)·e^cap·|∇f|. The cap is the definition's max_exponent, lowered
+// where needed so the potential's stiffness d²E/df² = (c/ξ²)·e^e stays at or below m/dt² for
+// the sheet's lightest point m: a quarter of the explicit step's limit 4m/dt² (ω·dt < 2), so a
+// point that arrives fast or starts inside meets a force the step resolves, not one that
+// throws it out with more energy than it brought.
+double exponent_cap(const ObstacleDef& def, double lightest_mass, double dt);
+
+// E(f) = c·exp(−f/ξ), continued linearly past the exponent cap, and −dE/df, the factor that
+// multiplies ∇f in the force.
+double potential_energy(const ObstacleDef& def, double f, double cap);
+double potential_force_scale(const ObstacleDef& def, double f, double cap);
 
 // Host stage: can a sheet whose bounding box is `box` feel the obstacle at all?
 bool may_touch(const Obstacle& o, const Aabb& box);
@@ -45,9 +53,9 @@ bool may_touch(const Obstacle& o, const Aabb& box);
 // eq (9): adds the obstacle's repulsion to f for every point of the sheet; projected on the
 // sheet's unit normal (from the neighbouring grid points) unless def.full_gradient.
 template <class Real>
-void obstacle_forces(const Topology<Real>& topo, const Obstacle& o, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f);
+void obstacle_forces(const Topology<Real>& topo, const NearObstacle& near, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f);
 
 template <class Real>
-double obstacle_energy(const Sheet<Real>& sheet, const Obstacle& o);
+double obstacle_energy(const Sheet<Real>& sheet, const Obstacle& o, double cap);
 
 }  // namespace drape::detail

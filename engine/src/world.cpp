@@ -12,8 +12,8 @@
 #include <stdexcept>
 #include <string>
 
-#include "diagnostics.h"
 #include "bounds.h"
+#include "diagnostics.h"
 #include "integrate.h"
 #include "obstacles.h"
 #include "sheet_data.h"
@@ -28,6 +28,7 @@ struct BasicWorld<Real>::Impl {
   struct Slot {
     std::optional<Sheet<Real>> sheet;
     std::uint32_t generation = 0;
+    double lightest_point = 0;  // kg, for the obstacle force bound (obstacles.h, exponent_cap)
   };
 
   WorldDef def;
@@ -78,11 +79,13 @@ struct BasicWorld<Real>::Impl {
     if (active_obstacles.empty()) return;
     for (std::uint32_t index : active) {
       Sheet<Real>& s = *slots[index].sheet;
+      const double lightest = slots[index].lightest_point;
       s.near_obstacles.clear();
       const detail::Aabb box = detail::sheet_bounds(s);
       for (std::uint32_t o : active_obstacles) {
         const detail::Obstacle& obstacle = *obstacle_slots[o].obstacle;
-        if (detail::may_touch(obstacle, box)) s.near_obstacles.push_back(&obstacle);
+        if (detail::may_touch(obstacle, box))
+          s.near_obstacles.push_back({&obstacle, detail::exponent_cap(obstacle.def, lightest, def.dt)});
       }
     }
   }
@@ -147,6 +150,7 @@ SheetId BasicWorld<Real>::add_sheet(const SheetDef& def) {
     impl_->slots.emplace_back();
   }
   auto& slot = impl_->slots[index];
+  slot.lightest_point = *std::min_element(sheet.mass.begin(), sheet.mass.end());
   slot.sheet = std::move(sheet);
   impl_->active.push_back(index);
   return {index, slot.generation};
@@ -258,8 +262,11 @@ SheetDiagnostics BasicWorld<Real>::diagnostics(SheetId id) const {
   const auto& sheet = impl_->sheet(id);
   SheetDiagnostics d = detail::sheet_diagnostics(sheet, impl_->def.gravity);
   // every obstacle, not only the near ones: the energy must not depend on the broad-phase
-  for (std::uint32_t o : impl_->active_obstacles)
-    d.energy.obstacle += detail::obstacle_energy(sheet, *impl_->obstacle_slots[o].obstacle);
+  const double lightest = impl_->slots[id.index].lightest_point;
+  for (std::uint32_t o : impl_->active_obstacles) {
+    const detail::Obstacle& obstacle = *impl_->obstacle_slots[o].obstacle;
+    d.energy.obstacle += detail::obstacle_energy(sheet, obstacle, detail::exponent_cap(obstacle.def, lightest, impl_->def.dt));
+  }
   d.finite = d.finite && std::isfinite(d.energy.total());
   return d;
 }

@@ -28,10 +28,12 @@ struct ObstacleDef {
   // false (default): the force is projected on the sheet's unit surface normal, as in eq (9);
   // true: the full gradient −∇E is used.
   bool full_gradient = false;
-  // Force bound. The exponent −f/ξ is capped at max_exponent: deeper than f = −max_exponent·ξ
-  // the energy continues linearly, so the force stops growing at (c/ξ)·e^max_exponent·|∇f|.
-  // A point that starts inside, or arrives faster than the potential can stop it, is pushed
-  // out by a large but finite force instead of one that overflows to inf and then NaN.
+  // Force bound. The exponent −f/ξ is capped: deeper than f = −cap·ξ the energy continues
+  // linearly, so the force stops growing at (c/ξ)·e^cap·|∇f|. The cap is max_exponent, or
+  // lower where the potential would get stiffer than the step resolves: at most m/dt² for the
+  // sheet's lightest point m, a quarter of the explicit limit 4m/dt². A point that starts
+  // inside, or arrives faster than the potential can stop it, is pushed out by a finite force
+  // the integrator resolves, instead of one that overflows or throws it out with extra energy.
   double max_exponent = 8.0;
 };
 
