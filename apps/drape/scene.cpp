@@ -364,6 +364,18 @@ Scene parse_scene(std::string_view text, const std::string& file) {
   json root;
   try {
     root = json::parse(text.begin(), text.end());
+  } catch (const json::out_of_range& e) {
+    // a number literal too large for a double (e.g. 1e999): nlohmann names the literal, not
+    // its place, so find it in the text
+    std::string what = e.what();
+    std::size_t byte = 0;
+    if (const auto q = what.find('\''); q != std::string::npos) {
+      const std::string literal = what.substr(q + 1, what.find('\'', q + 1) - q - 1);
+      byte = text.find(literal) + 1;
+      what = "number " + literal + " is not finite (too large for a double)";
+    }
+    const auto [line, column] = line_column(text, byte);
+    throw SceneError(file + ":" + std::to_string(line) + ":" + std::to_string(column) + ": " + what);
   } catch (const json::parse_error& e) {
     const auto [line, column] = line_column(text, e.byte);
     // nlohmann's own text starts with "[json.exception.parse_error.101] parse error at …: "
