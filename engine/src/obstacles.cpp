@@ -128,11 +128,10 @@ inline ImplicitSample sample(const Obstacle& o, const double p[3]) {
   return s;
 }
 
-// One loop per shape, chosen once per obstacle: no shape branch per point.
-template <LocalFn fn, class Real>
+// One loop per shape and force mode, chosen once per obstacle: no feature branch per point.
+template <LocalFn fn, bool project, class Real>
 void repel(const Topology<Real>& t, const Obstacle& o, double cap, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f) {
   const std::uint32_t m = t.m, n = t.n, cols = t.cols();
-  const bool project = !o.def.full_gradient;
   for (std::uint32_t i = 0; i <= m; ++i) {
     const std::uint32_t up = std::min(i + 1, m), down = i > 0 ? i - 1 : 0;
     for (std::uint32_t j = 0; j <= n; ++j) {
@@ -141,7 +140,7 @@ void repel(const Topology<Real>& t, const Obstacle& o, double cap, ConstVec3Ptr<
       const ImplicitSample s = sample<fn>(o, pos);
       const double scale = potential_force_scale(o.def, s.f, cap);  // −dE/df ≥ 0: push along +∇f
       double F[3] = {scale * s.grad[0], scale * s.grad[1], scale * s.grad[2]};
-      if (project) {
+      if constexpr (project) {
         // eq (9): keep only the part along the sheet's unit normal, the cross product of the
         // central (one-sided at the border) differences along the row and the column.
         const std::uint32_t r = i * cols + std::min(j + 1, n), l = i * cols + (j > 0 ? j - 1 : 0);
@@ -162,6 +161,17 @@ void repel(const Topology<Real>& t, const Obstacle& o, double cap, ConstVec3Ptr<
       f.y[p] += static_cast<Real>(F[1]);
       f.z[p] += static_cast<Real>(F[2]);
     }
+  }
+}
+
+template <bool project, class Real>
+void repel_shape(const Topology<Real>& t, const Obstacle& o, double cap, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f) {
+  switch (o.def.shape) {
+    case ObstacleShape::Plane: repel<plane_f, project>(t, o, cap, x, f); break;
+    case ObstacleShape::Sphere: repel<sphere_f, project>(t, o, cap, x, f); break;
+    case ObstacleShape::Ellipsoid: repel<ellipsoid_f, project>(t, o, cap, x, f); break;
+    case ObstacleShape::Torus: repel<torus_f, project>(t, o, cap, x, f); break;
+    case ObstacleShape::Box: repel<box_f, project>(t, o, cap, x, f); break;
   }
 }
 
@@ -242,14 +252,10 @@ bool may_touch(const Obstacle& o, const Aabb& box) {
 template <class Real>
 void obstacle_forces(const Topology<Real>& t, const NearObstacle& near, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f) {
   const Obstacle& o = *near.obstacle;
-  const double cap = near.exponent_cap;
-  switch (o.def.shape) {
-    case ObstacleShape::Plane: repel<plane_f>(t, o, cap, x, f); break;
-    case ObstacleShape::Sphere: repel<sphere_f>(t, o, cap, x, f); break;
-    case ObstacleShape::Ellipsoid: repel<ellipsoid_f>(t, o, cap, x, f); break;
-    case ObstacleShape::Torus: repel<torus_f>(t, o, cap, x, f); break;
-    case ObstacleShape::Box: repel<box_f>(t, o, cap, x, f); break;
-  }
+  if (o.def.full_gradient)
+    repel_shape<false>(t, o, near.exponent_cap, x, f);
+  else
+    repel_shape<true>(t, o, near.exponent_cap, x, f);
 }
 
 template <class Real>
