@@ -4,6 +4,7 @@
 // Real is the storage and arithmetic type of the hot loops (double or float).
 #pragma once
 
+#include <drape/obstacle.h>
 #include <drape/sheet.h>
 #include <drape/types.h>
 
@@ -26,7 +27,8 @@ struct Energies {
   double spring = 0;   // ½ Σ k (|x1 − x2| − ℓ)²
   double gravity = 0;  // −Σ m g·x (zero at the origin)
   double anchor = 0;   // ½ Σ k |x − p0|², eq (8)
-  double total() const { return kinetic + spring + gravity + anchor; }
+  double obstacle = 0; // Σ c·exp(−f/ξ) over points and obstacles, eq (9) (linear past the cap)
+  double total() const { return kinetic + spring + gravity + anchor + obstacle; }
 };
 
 struct SheetDiagnostics {
@@ -71,6 +73,15 @@ class BasicWorld {
   bool contains(SheetId id) const;
   std::size_t sheet_count() const;
   std::vector<SheetId> sheets() const;  // in the order they were added
+
+  // Obstacles (eq 9). Throws std::invalid_argument with validate()'s message for a bad
+  // definition. Only sheets whose bounding box comes within the obstacle's reach pay for it.
+  ObstacleId add_obstacle(const ObstacleDef& def);
+  void remove_obstacle(ObstacleId id);
+  bool contains(ObstacleId id) const;
+  std::size_t obstacle_count() const;
+  std::vector<ObstacleId> obstacles() const;  // in the order they were added
+  const ObstacleDef& obstacle(ObstacleId id) const;
 
   SheetView<Real> view(SheetId id) const;
   SheetState<Real> state(SheetId id);
