@@ -1,12 +1,30 @@
 # ctest -P script: proves the installed package works for a program that knows only
 # find_package(drape). Installs BUILD_DIR into WORK_DIR/prefix, configures and builds
 # SOURCE_DIR (apps/example) against it in WORK_DIR/build, runs the program and checks that
-# it reports its own physics check (free fall against the closed form) as passed.
-foreach(var BUILD_DIR SOURCE_DIR WORK_DIR CXX)
+# it reports its own physics check (free fall against the closed form) as passed. Also
+# checks that docs/api.md (DOC) lists the example verbatim.
+foreach(var BUILD_DIR SOURCE_DIR WORK_DIR CXX DOC)
   if(NOT DEFINED ${var})
     message(FATAL_ERROR "package_test.cmake: -D${var}=... is required")
   endif()
 endforeach()
+
+# docs/api.md shows the example in full; it must be this very file, so the docs compile.
+file(READ ${DOC} doc)
+file(READ ${SOURCE_DIR}/main.cpp example)
+set(begin "<!-- example:begin -->\n```cpp\n")
+string(FIND "${doc}" "${begin}" start)
+string(FIND "${doc}" "```\n<!-- example:end -->" stop)
+if(start EQUAL -1 OR stop EQUAL -1)
+  message(FATAL_ERROR "${DOC} lacks the example:begin/example:end block around the example")
+endif()
+string(LENGTH "${begin}" begin_length)
+math(EXPR start "${start} + ${begin_length}")
+math(EXPR length "${stop} - ${start}")
+string(SUBSTRING "${doc}" ${start} ${length} listed)
+if(NOT listed STREQUAL example)
+  message(FATAL_ERROR "the example in ${DOC} differs from ${SOURCE_DIR}/main.cpp: copy the file into the doc")
+endif()
 
 file(REMOVE_RECURSE ${WORK_DIR})
 set(prefix ${WORK_DIR}/prefix)
