@@ -126,9 +126,9 @@ TEST(Checkpoint, HeaderIsTheDocumentedLittleEndianLayout) {
   EXPECT_EQ(bytes[8], 1);   // format version, low byte first
   EXPECT_EQ(bytes[9], 0);
   EXPECT_EQ(bytes[12], 4);  // float world: 4 bytes per value
-  EXPECT_EQ(bytes[16], 7);  // step count
+  EXPECT_EQ(bytes[24], 7);  // step count, after the (zero) fingerprint
   // magic..sheet count, 19-byte integrator name, then per sheet 16 bytes + 6 arrays of floats, checksum
-  const std::size_t expected = 8 + 4 + 4 + 8 + 8 + 24 + 4 + 19 + 4 + (16 + 6 * 4 * 7 * 6) + (16 + 6 * 4 * 3 * 4) + 8;
+  const std::size_t expected = 8 + 4 + 4 + 8 + 8 + 8 + 24 + 4 + 19 + 4 + (16 + 6 * 4 * 7 * 6) + (16 + 6 * 4 * 3 * 4) + 8;
   EXPECT_EQ(bytes.size(), expected);
 }
 
@@ -255,6 +255,21 @@ TEST(Checkpoint, WrongShapeOrPrecisionIsRefusedAndLeavesTheWorldUntouched) {
   other_gravity.add_sheet(a);
   other_gravity.add_sheet(b);
   refusal([&] { drape::load_checkpoint(file, other_gravity); }, file.string());
+}
+
+TEST(Checkpoint, CheckpointOfOtherDefinitionsIsRefusedByFingerprint) {
+  TempDir dir;
+  const fs::path file = dir.path() / "f.ckpt";
+  auto world = make_world<double>();
+  world.step(3);
+  drape::save_checkpoint(world, file, 0x1234);
+  auto same_grid = make_world<double>();
+  const auto before = state_bytes(same_grid);
+  const std::string what = refusal([&] { drape::load_checkpoint(file, same_grid, 0x9999); }, file.string());
+  EXPECT_NE(what.find("another scene"), std::string::npos) << what;
+  EXPECT_EQ(state_bytes(same_grid), before);
+  drape::load_checkpoint(file, same_grid, 0x1234);
+  EXPECT_EQ(state_bytes(same_grid), state_bytes(world));
 }
 
 TEST(Checkpoint, MissingDirectoryFailsClearlyAndLeavesNothing) {

@@ -101,7 +101,7 @@ class Reader {
 };
 
 // Header bytes before the first sheet, with an empty integrator name.
-constexpr std::size_t min_header = 8 + 4 + 4 + 8 + 8 + 24 + 4 + 4;
+constexpr std::size_t min_header = 8 + 4 + 4 + 8 + 8 + 8 + 24 + 4 + 4;
 constexpr std::size_t checksum_size = 8;
 
 void read_values(Reader& in, std::uint32_t precision, std::uint64_t count, std::vector<double>& out, const char* what) {
@@ -186,9 +186,10 @@ std::uint64_t fnv1a64(std::span<const unsigned char> bytes) {
 }
 
 template <class Real>
-Checkpoint capture_checkpoint(const BasicWorld<Real>& world) {
+Checkpoint capture_checkpoint(const BasicWorld<Real>& world, std::uint64_t fingerprint) {
   Checkpoint c;
   c.precision = sizeof(Real);
+  c.fingerprint = fingerprint;
   c.step_count = world.step_count();
   c.dt = world.def().dt;
   c.gravity = world.def().gravity;
@@ -258,6 +259,7 @@ std::vector<unsigned char> encode_checkpoint(const Checkpoint& c) {
   out.bytes(magic);
   out.u32(checkpoint_format_version);
   out.u32(c.precision);
+  out.u64(c.fingerprint);
   out.u64(c.step_count);
   out.f64(c.dt);
   out.f64(c.gravity.x);
@@ -300,6 +302,7 @@ Checkpoint decode_checkpoint(std::span<const unsigned char> bytes, const std::st
   c.precision = in.u32("precision");
   if (c.precision != 4 && c.precision != 8)
     fail(source, "precision must be 4 or 8 bytes per value (got " + std::to_string(c.precision) + ")");
+  c.fingerprint = in.u64("fingerprint");
   c.step_count = in.u64("step count");
   c.dt = in.f64("dt");
   c.gravity.x = in.f64("gravity");
@@ -332,23 +335,27 @@ Checkpoint decode_checkpoint(std::span<const unsigned char> bytes, const std::st
 }
 
 template <class Real>
-void save_checkpoint(const BasicWorld<Real>& world, const std::filesystem::path& path) {
-  write_file_atomically(path, encode_checkpoint(capture_checkpoint(world)));
+void save_checkpoint(const BasicWorld<Real>& world, const std::filesystem::path& path, std::uint64_t fingerprint) {
+  write_file_atomically(path, encode_checkpoint(capture_checkpoint(world, fingerprint)));
 }
 
 template <class Real>
-void load_checkpoint(const std::filesystem::path& path, BasicWorld<Real>& world) {
+void load_checkpoint(const std::filesystem::path& path, BasicWorld<Real>& world, std::uint64_t fingerprint) {
   const std::vector<unsigned char> bytes = read_file(path);
-  apply_checkpoint(decode_checkpoint(bytes, path.string()), world, path.string());
+  const Checkpoint c = decode_checkpoint(bytes, path.string());
+  if (fingerprint != 0 && c.fingerprint != fingerprint)
+    fail(path.string(), "was written for other definitions (fingerprint " + std::to_string(c.fingerprint) +
+                            ", expected " + std::to_string(fingerprint) + "): it belongs to another scene");
+  apply_checkpoint(c, world, path.string());
 }
 
-template Checkpoint capture_checkpoint<double>(const BasicWorld<double>&);
-template Checkpoint capture_checkpoint<float>(const BasicWorld<float>&);
+template Checkpoint capture_checkpoint<double>(const BasicWorld<double>&, std::uint64_t);
+template Checkpoint capture_checkpoint<float>(const BasicWorld<float>&, std::uint64_t);
 template void apply_checkpoint<double>(const Checkpoint&, BasicWorld<double>&, const std::string&);
 template void apply_checkpoint<float>(const Checkpoint&, BasicWorld<float>&, const std::string&);
-template void save_checkpoint<double>(const BasicWorld<double>&, const std::filesystem::path&);
-template void save_checkpoint<float>(const BasicWorld<float>&, const std::filesystem::path&);
-template void load_checkpoint<double>(const std::filesystem::path&, BasicWorld<double>&);
-template void load_checkpoint<float>(const std::filesystem::path&, BasicWorld<float>&);
+template void save_checkpoint<double>(const BasicWorld<double>&, const std::filesystem::path&, std::uint64_t);
+template void save_checkpoint<float>(const BasicWorld<float>&, const std::filesystem::path&, std::uint64_t);
+template void load_checkpoint<double>(const std::filesystem::path&, BasicWorld<double>&, std::uint64_t);
+template void load_checkpoint<float>(const std::filesystem::path&, BasicWorld<float>&, std::uint64_t);
 
 }  // namespace drape

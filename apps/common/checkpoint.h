@@ -6,6 +6,7 @@
 //   "DRAPECKP"                      8 bytes, magic
 //   u32 format version              checkpoint_format_version
 //   u32 precision                   bytes per stored value: 4 (WorldF) or 8 (World)
+//   u64 fingerprint                 of the definitions the world was built from (0: none)
 //   u64 step count
 //   f64 dt, f64 gravity x, y, z
 //   u32 length + bytes              integrator name (integrator_name), at most 64 bytes
@@ -38,6 +39,10 @@ struct Checkpoint {
     std::vector<double> integrator_memory;
   };
   std::uint32_t precision = 8;
+  // The program's fingerprint of what it built the world from (e.g. FNV-1a of the scene
+  // file), so a resume can refuse a checkpoint of another scene with the same grid sizes.
+  // 0: none recorded; the engine never looks at it.
+  std::uint64_t fingerprint = 0;
   std::uint64_t step_count = 0;
   double dt = 0;
   Vec3 gravity{};
@@ -46,7 +51,7 @@ struct Checkpoint {
 };
 
 template <class Real>
-Checkpoint capture_checkpoint(const BasicWorld<Real>& world);
+Checkpoint capture_checkpoint(const BasicWorld<Real>& world, std::uint64_t fingerprint = 0);
 
 // Puts a checkpoint into a world built from the same definitions. Every check (precision,
 // sheet count, each sheet's m×n, gravity) is made before anything is changed; on a mismatch
@@ -63,11 +68,12 @@ Checkpoint decode_checkpoint(std::span<const unsigned char> bytes, const std::st
 // rename over `path`. On any failure it throws std::runtime_error naming the file and the
 // reason, removes the temporary file, and leaves an existing `path` as it was.
 template <class Real>
-void save_checkpoint(const BasicWorld<Real>& world, const std::filesystem::path& path);
+void save_checkpoint(const BasicWorld<Real>& world, const std::filesystem::path& path, std::uint64_t fingerprint = 0);
 
 // Reads, checks and applies `path` to `world`; all-or-nothing (see apply_checkpoint).
+// A non-zero `fingerprint` must equal the one the checkpoint was saved with.
 template <class Real>
-void load_checkpoint(const std::filesystem::path& path, BasicWorld<Real>& world);
+void load_checkpoint(const std::filesystem::path& path, BasicWorld<Real>& world, std::uint64_t fingerprint = 0);
 
 std::uint64_t fnv1a64(std::span<const unsigned char> bytes);
 
