@@ -258,6 +258,35 @@ template <class Real>
 std::uint64_t BasicWorld<Real>::step_count() const { return impl_->steps; }
 
 template <class Real>
+void BasicWorld<Real>::set_step_count(std::uint64_t steps) { impl_->steps = steps; }
+
+template <class Real>
+void BasicWorld<Real>::set_state(SheetId id, const SheetView<Real>& from) {
+  auto& s = impl_->sheet(id);
+  const std::size_t count = s.size();
+  for (std::size_t size : {from.x.size(), from.y.size(), from.z.size(), from.vx.size(), from.vy.size(), from.vz.size()})
+    if (size != count)
+      throw std::invalid_argument("drape: set_state of sheet " + std::to_string(id.index) + " needs " +
+                                  std::to_string(count) + " values per component, got " + std::to_string(size));
+  std::copy(from.x.begin(), from.x.end(), s.position.x.begin());
+  std::copy(from.y.begin(), from.y.end(), s.position.y.begin());
+  std::copy(from.z.begin(), from.z.end(), s.position.z.begin());
+  std::copy(from.vx.begin(), from.vx.end(), s.velocity.x.begin());
+  std::copy(from.vy.begin(), from.vy.end(), s.velocity.y.begin());
+  std::copy(from.vz.begin(), from.vz.end(), s.velocity.z.begin());
+}
+
+template <class Real>
+std::span<const Real> BasicWorld<Real>::integrator_memory(SheetId id) const {
+  return impl_->sheet(id).integrator_scratch;
+}
+
+template <class Real>
+void BasicWorld<Real>::set_integrator_memory(SheetId id, std::span<const Real> memory) {
+  impl_->sheet(id).integrator_scratch.assign(memory.begin(), memory.end());
+}
+
+template <class Real>
 SheetDiagnostics BasicWorld<Real>::diagnostics(SheetId id) const {
   const auto& sheet = impl_->sheet(id);
   SheetDiagnostics d = detail::sheet_diagnostics(sheet, impl_->def.gravity);
