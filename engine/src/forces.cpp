@@ -1,5 +1,7 @@
-// Force kernels: springs (eqs 6–7), damping (eq 4's C), anchors (eq 8).
+// Force kernels: springs (eqs 6–7), damping (eq 4's C), anchors (eq 8); obstacles (eq 9) live in obstacles.cpp.
 #include "forces.h"
+
+#include "obstacles.h"
 
 #include <cmath>
 
@@ -111,6 +113,8 @@ void sheet_forces(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Ve
     f.y[p] += an.stiffness[a] * (an.ty[a] - x.y[p]);
     f.z[p] += an.stiffness[a] * (an.tz[a] - x.z[p]);
   }
+  // eq (9): only obstacles the host stage found near this sheet
+  for (const NearObstacle& o : s.near_obstacles) obstacle_forces(*s.topology, o, x, f);
 }
 
 template void spring_forces<double>(const Topology<double>&, ConstVec3Ptr<double>, Vec3Ptr<double>, Vec3Ptr<double>);

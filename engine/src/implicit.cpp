@@ -151,7 +151,13 @@ void implicit_euler_step(Sheet<Real>& s, const StepParams<Real>& p) {
   sc.cg.setTolerance(static_cast<Real>(p.cg_tolerance));
   sc.cg.setMaxIterations(p.cg_max_iterations);
   sc.cg.compute(sc.system);
-  sc.dv = sc.cg.solveWithGuess(sc.rhs, sc.dv);
+  // The previous Δv is the initial guess. It lives in integrator_scratch, the integrator
+  // memory a checkpoint saves, so a resumed run repeats the same solves bit for bit.
+  const Eigen::Index n3 = sc.rhs.size();
+  if (s.integrator_scratch.size() != std::size_t(n3)) s.integrator_scratch.assign(std::size_t(n3), Real(0));
+  Eigen::Map<typename ImplicitScratch<Real>::Vector> guess(s.integrator_scratch.data(), n3);
+  sc.dv = sc.cg.solveWithGuess(sc.rhs, guess);
+  guess = sc.dv;
   sc.iterations = static_cast<int>(sc.cg.iterations());
   sc.error = static_cast<double>(sc.cg.error());
 

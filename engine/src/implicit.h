@@ -27,7 +27,7 @@ struct ImplicitScratch {
   std::vector<int> diagonal;      // per scalar row 3p+r: value offset of entry (3p+r, 3p)
   std::vector<int> upper, lower;  // per spring e and r: offsets of (3a+r, 3b) and (3b+r, 3a)
   std::vector<Real> free;         // per point: 1, or 0 for a pinned point (its rows and columns are dropped)
-  Vector rhs, dv;                 // dv: last solution, the next solve's initial guess
+  Vector rhs, dv;                 // dv: the solution (its copy in Sheet::integrator_scratch is the next guess)
   Eigen::ConjugateGradient<Matrix, Eigen::Lower | Eigen::Upper, Eigen::DiagonalPreconditioner<Real>> cg;
 
   int iterations = 0;  // of the last solve

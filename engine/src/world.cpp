@@ -16,6 +16,7 @@
 #include "bounds.h"
 #include "diagnostics.h"
 #include "integrate.h"
+#include "obstacles.h"
 #include "sheet_data.h"
 
 namespace drape {
@@ -77,6 +78,7 @@ struct BasicWorld<Real>::Impl {
     std::uint32_t generation = 0;
     double omega_max = 0;  // rad/s, Gershgorin bound; fixed by masses and stiffnesses
     Guard guard;
+    double lightest_point = 0;  // kg, for the obstacle force bound (obstacles.h, exponent_cap)
   };
 
   WorldDef def;
@@ -93,6 +95,14 @@ struct BasicWorld<Real>::Impl {
 
   void set_def(const WorldDef& d);
 
+  struct ObstacleSlot {
+    std::optional<detail::Obstacle> obstacle;
+    std::uint32_t generation = 0;
+  };
+  std::vector<ObstacleSlot> obstacle_slots;
+  std::vector<std::uint32_t> free_obstacle_slots;
+  std::vector<std::uint32_t> active_obstacles;  // live slots in the order obstacles were added
+
   explicit Impl(const WorldDef& d)
       : def(d), arena(d.threads > 0 ? d.threads : tbb::task_arena::automatic) {}
 
@@ -103,6 +113,41 @@ struct BasicWorld<Real>::Impl {
   const Sheet<Real>& sheet(SheetId id) const { return const_cast<Impl*>(this)->sheet(id); }
   bool contains(SheetId id) const {
     return id.index < slots.size() && slots[id.index].sheet && slots[id.index].generation == id.generation;
+  }
+
+  detail::Obstacle& obstacle(ObstacleId id) {
+    if (!contains(id))
+      throw std::invalid_argument("drape: unknown or removed ObstacleId " + std::to_string(id.index));
+    return *obstacle_slots[id.index].obstacle;
+  }
+  bool contains(ObstacleId id) const {
+    return id.index < obstacle_slots.size() && obstacle_slots[id.index].obstacle &&
+           obstacle_slots[id.index].generation == id.generation;
+  }
+  // The sheets' obstacle lists point into obstacle_slots: drop them when the pool changes.
+  // The guard's energies include the obstacles' potentials, so its references are retaken too.
+  void forget_near_obstacles() {
+    for (std::uint32_t index : active) {
+      slots[index].sheet->near_obstacles.clear();
+      slots[index].guard.has_reference = false;
+    }
+  }
+
+  // Host stage: each sheet's list of obstacles whose reach its bounding box overlaps, so a
+  // sheet far from every obstacle runs no obstacle term at all.
+  void assign_obstacles(double h) {
+    if (active_obstacles.empty()) return;
+    for (std::uint32_t index : active) {
+      Sheet<Real>& s = *slots[index].sheet;
+      const double lightest = slots[index].lightest_point;
+      s.near_obstacles.clear();
+      const detail::Aabb box = detail::sheet_bounds(s);
+      for (std::uint32_t o : active_obstacles) {
+        const detail::Obstacle& obstacle = *obstacle_slots[o].obstacle;
+        if (detail::may_touch(obstacle, box))
+          s.near_obstacles.push_back({&obstacle, detail::exponent_cap(obstacle.def, lightest, h)});
+      }
+    }
   }
 
   // Dozens of identical sheets keep one edge buffer between them.
@@ -132,7 +177,8 @@ struct BasicWorld<Real>::Impl {
     const detail::StepParams<Real> params{static_cast<Real>(h), static_cast<Real>(def.gravity.x),
                                           static_cast<Real>(def.gravity.y), static_cast<Real>(def.gravity.z),
                                           def.cg_tolerance, def.cg_max_iterations};
-    // 1. host stage: bounds, broad-phase and contact work go here (nothing yet between sheets)
+    // 1. host stage: bounds, broad-phase and contact work go here
+    assign_obstacles(h);
     // 2. parallel stage: per-sheet forces, then integration
     integrate_sheets(params);
     if (h != current_h) {
@@ -168,11 +214,22 @@ struct BasicWorld<Real>::Impl {
   }
 
   // Motion energy: what an unstable step inflates.
-  static double motion_energy(const Energies& e) { return e.kinetic + e.spring + e.anchor; }
+  static double motion_energy(const Energies& e) { return e.kinetic + e.spring + e.anchor + e.obstacle; }
+
+  // The guard's energy of one sheet: its own terms and every obstacle's potential (as in
+  // diagnostics(): not only the near ones, so the value does not depend on the broad-phase).
+  Energies guard_energy(const Slot& slot) const {
+    Energies e = detail::sheet_energies(*slot.sheet, def.gravity);
+    for (std::uint32_t o : active_obstacles) {
+      const detail::Obstacle& obstacle = *obstacle_slots[o].obstacle;
+      e.obstacle += detail::obstacle_energy(*slot.sheet, obstacle, detail::exponent_cap(obstacle.def, slot.lightest_point, def.dt));
+    }
+    return e;
+  }
 
   void take_reference(Slot& slot) {
     const auto& s = *slot.sheet;
-    const Energies energy = detail::sheet_energies(s, def.gravity);
+    const Energies energy = guard_energy(slot);
     const detail::Aabb box = detail::sheet_bounds(s);
     double extent2 = 0, mass = 0;
     for (int k = 0; k < 3; ++k) extent2 += (box.hi[k] - box.lo[k]) * (box.hi[k] - box.lo[k]);
@@ -205,7 +262,7 @@ struct BasicWorld<Real>::Impl {
     bool any = false;
     for (std::uint32_t index : active) {
       const Slot& slot = slots[index];
-      const Energies energy = detail::sheet_energies(*slot.sheet, def.gravity);
+      const Energies energy = guard_energy(slot);
       StabilityStatus status = StabilityStatus::Stable;
       double growth = 1;
       if (!detail::sheet_finite(*slot.sheet) || !std::isfinite(energy.total())) {
@@ -282,6 +339,7 @@ SheetId BasicWorld<Real>::add_sheet(const SheetDef& def) {
     impl_->slots.emplace_back();
   }
   auto& slot = impl_->slots[index];
+  slot.lightest_point = *std::min_element(sheet.mass.begin(), sheet.mass.end());
   slot.sheet = std::move(sheet);
   slot.omega_max = 2.0 / detail::sheet_stable_step(*slot.sheet);
   slot.guard = {};
@@ -310,6 +368,52 @@ std::vector<SheetId> BasicWorld<Real>::sheets() const {
   std::vector<SheetId> ids;
   for (std::uint32_t index : impl_->active) ids.push_back({index, impl_->slots[index].generation});
   return ids;
+}
+
+template <class Real>
+ObstacleId BasicWorld<Real>::add_obstacle(const ObstacleDef& def) {
+  if (std::string problem = validate(def); !problem.empty()) throw std::invalid_argument("drape: obstacle " + problem);
+  std::uint32_t index;
+  if (!impl_->free_obstacle_slots.empty()) {
+    index = impl_->free_obstacle_slots.back();
+    impl_->free_obstacle_slots.pop_back();
+  } else {
+    index = static_cast<std::uint32_t>(impl_->obstacle_slots.size());
+    impl_->obstacle_slots.emplace_back();
+  }
+  impl_->forget_near_obstacles();
+  auto& slot = impl_->obstacle_slots[index];
+  slot.obstacle = detail::make_obstacle(def);
+  impl_->active_obstacles.push_back(index);
+  return {index, slot.generation};
+}
+
+template <class Real>
+void BasicWorld<Real>::remove_obstacle(ObstacleId id) {
+  impl_->obstacle(id);  // throws on a stale id
+  impl_->forget_near_obstacles();
+  auto& slot = impl_->obstacle_slots[id.index];
+  slot.obstacle.reset();
+  ++slot.generation;
+  impl_->free_obstacle_slots.push_back(id.index);
+  std::erase(impl_->active_obstacles, id.index);
+}
+
+template <class Real>
+bool BasicWorld<Real>::contains(ObstacleId id) const { return impl_->contains(id); }
+template <class Real>
+std::size_t BasicWorld<Real>::obstacle_count() const { return impl_->active_obstacles.size(); }
+
+template <class Real>
+std::vector<ObstacleId> BasicWorld<Real>::obstacles() const {
+  std::vector<ObstacleId> ids;
+  for (std::uint32_t index : impl_->active_obstacles) ids.push_back({index, impl_->obstacle_slots[index].generation});
+  return ids;
+}
+
+template <class Real>
+const ObstacleDef& BasicWorld<Real>::obstacle(ObstacleId id) const {
+  return const_cast<Impl&>(*impl_).obstacle(id).def;
 }
 
 template <class Real>
@@ -409,8 +513,53 @@ template <class Real>
 std::uint64_t BasicWorld<Real>::step_count() const { return impl_->steps; }
 
 template <class Real>
+void BasicWorld<Real>::set_step_count(std::uint64_t steps) {
+  // time() = steps·dt again, as for a world that has taken only steps of dt
+  impl_->steps = steps;
+  impl_->steps_base = 0;
+  impl_->time_base = 0;
+  impl_->current_h = impl_->def.dt;
+}
+
+template <class Real>
+void BasicWorld<Real>::set_state(SheetId id, const SheetView<Real>& from) {
+  auto& s = impl_->sheet(id);
+  impl_->slots[id.index].guard.has_reference = false;  // new state: the guard takes a new reference
+  const std::size_t count = s.size();
+  for (std::size_t size : {from.x.size(), from.y.size(), from.z.size(), from.vx.size(), from.vy.size(), from.vz.size()})
+    if (size != count)
+      throw std::invalid_argument("drape: set_state of sheet " + std::to_string(id.index) + " needs " +
+                                  std::to_string(count) + " values per component, got " + std::to_string(size));
+  std::copy(from.x.begin(), from.x.end(), s.position.x.begin());
+  std::copy(from.y.begin(), from.y.end(), s.position.y.begin());
+  std::copy(from.z.begin(), from.z.end(), s.position.z.begin());
+  std::copy(from.vx.begin(), from.vx.end(), s.velocity.x.begin());
+  std::copy(from.vy.begin(), from.vy.end(), s.velocity.y.begin());
+  std::copy(from.vz.begin(), from.vz.end(), s.velocity.z.begin());
+}
+
+template <class Real>
+std::span<const Real> BasicWorld<Real>::integrator_memory(SheetId id) const {
+  return impl_->sheet(id).integrator_scratch;
+}
+
+template <class Real>
+void BasicWorld<Real>::set_integrator_memory(SheetId id, std::span<const Real> memory) {
+  impl_->sheet(id).integrator_scratch.assign(memory.begin(), memory.end());
+}
+
+template <class Real>
 SheetDiagnostics BasicWorld<Real>::diagnostics(SheetId id) const {
-  return detail::sheet_diagnostics(impl_->sheet(id), impl_->def.gravity);
+  const auto& sheet = impl_->sheet(id);
+  SheetDiagnostics d = detail::sheet_diagnostics(sheet, impl_->def.gravity);
+  // every obstacle, not only the near ones: the energy must not depend on the broad-phase
+  const double lightest = impl_->slots[id.index].lightest_point;
+  for (std::uint32_t o : impl_->active_obstacles) {
+    const detail::Obstacle& obstacle = *impl_->obstacle_slots[o].obstacle;
+    d.energy.obstacle += detail::obstacle_energy(sheet, obstacle, detail::exponent_cap(obstacle.def, lightest, impl_->def.dt));
+  }
+  d.finite = d.finite && std::isfinite(d.energy.total());
+  return d;
 }
 
 template <class Real>
@@ -422,6 +571,7 @@ Energies BasicWorld<Real>::energies() const {
     total.spring += e.spring;
     total.gravity += e.gravity;
     total.anchor += e.anchor;
+    total.obstacle += e.obstacle;
   }
   return total;
 }
