@@ -55,7 +55,11 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
   const double dt = scene.world.dt;
   for (std::size_t k = 0; k < ids.size(); ++k) {
     const StableSteps st = stable_steps(scene.sheets[k], world.stable_step_estimate(ids[k]));
-    const double limit = scene.world.integrator == Integrator::ForwardEuler ? st.forward_euler : st.semi_implicit_euler;
+    // forward Euler's damped limit from stable_steps; the others scale the explicit interval
+    // 2/ω_max by their own factor (RK4 2√2; implicit Euler +inf: never warned about)
+    const double limit = scene.world.integrator == Integrator::ForwardEuler
+                             ? st.forward_euler
+                             : integrator_critical_step(scene.world.integrator, 2.0 / st.semi_implicit_euler);
     if (dt > limit) {
       log << "drape: warning: " << scene.file << ": sheets[" << k << "] (" << scene.sheet_names[k] << "): dt = " << dt
           << " s is above the estimated stable step " << limit << " s of " << integrator_name(scene.world.integrator);
