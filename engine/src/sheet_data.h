@@ -66,7 +66,12 @@ struct Sheet {
   std::vector<Real> damping;         // per point; empty: the sheet has no damping term
   Anchors<Real> anchors;
   Pins<Real> pins;
-  Vec3Array<Real> row_scratch;       // one row of horizontal spring forces
+  Vec3Array<Real> row_scratch;       // one row of horizontal spring forces per block
+  // Contact forces of this substep, gathered by the host stage in fixed pair order;
+  // sheet_forces adds them only when has_contacts (a per-sheet, not per-point, choice).
+  Vec3Array<Real> contact_force;
+  bool has_contacts = false;
+  bool self_collision = false;
   std::vector<Real> integrator_scratch;  // extra state an integrator may keep
 
   std::size_t size() const { return position.x.size(); }

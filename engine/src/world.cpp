@@ -12,7 +12,11 @@
 #include <stdexcept>
 #include <string>
 
+#include "bounds.h"
+#include "broad_phase.h"
+#include "contacts.h"
 #include "diagnostics.h"
+#include "forces.h"
 #include "integrate.h"
 #include "sheet_data.h"
 
@@ -27,17 +31,38 @@ struct BasicWorld<Real>::Impl {
     std::optional<Sheet<Real>> sheet;
     std::uint32_t generation = 0;
   };
+  // A unit of the parallel stage: rows [row_begin, row_end) of one sheet. `split` blocks
+  // compute forces in the first pass and update in the second; a whole sheet does both
+  // in its one task.
+  struct Block {
+    std::uint32_t sheet;  // position in `active`
+    std::uint32_t row_begin, row_end, index;
+    bool split;
+  };
 
   WorldDef def;
-  tbb::task_arena arena;
+  std::unique_ptr<tbb::task_arena> arena;
   std::vector<Slot> slots;
   std::vector<std::uint32_t> free_slots;
   std::vector<std::uint32_t> active;  // live slots in the order sheets were added
   std::vector<std::shared_ptr<const Topology<Real>>> topologies;
   std::uint64_t steps = 0;
 
-  explicit Impl(const WorldDef& d)
-      : def(d), arena(d.threads > 0 ? d.threads : tbb::task_arena::automatic) {}
+  // Host stage scratch, kept between substeps so a settled scene does not allocate.
+  std::vector<detail::Aabb> bounds, grown;
+  detail::BroadPhase broad_phase;
+  std::vector<detail::BoxPair> pairs;
+  std::vector<detail::PairContacts<Real>> pair_work;
+  std::vector<std::uint32_t> source_start;                  // per sheet, into sources (CSR)
+  std::vector<const detail::ContactForces<Real>*> sources;  // per sheet, in pair order
+  std::vector<Block> blocks;
+
+  explicit Impl(const WorldDef& d) : def(d) { make_arena(); }
+
+  void make_arena() {
+    const int concurrency = def.threads > 0 ? def.threads : int(tbb::task_arena::automatic);
+    arena = std::make_unique<tbb::task_arena>(concurrency);
+  }
 
   Sheet<Real>& sheet(SheetId id) {
     if (!contains(id)) throw std::invalid_argument("drape: unknown or removed SheetId " + std::to_string(id.index));
@@ -47,6 +72,7 @@ struct BasicWorld<Real>::Impl {
   bool contains(SheetId id) const {
     return id.index < slots.size() && slots[id.index].sheet && slots[id.index].generation == id.generation;
   }
+  Sheet<Real>& at(std::size_t k) { return *slots[active[k]].sheet; }
 
   // Dozens of identical sheets keep one edge buffer between them.
   void share_topology(Sheet<Real>& s) {
@@ -59,31 +85,167 @@ struct BasicWorld<Real>::Impl {
     topologies.push_back(s.topology);
   }
 
-  // Parallel stage: every sheet writes only its own buffers, so the result does not
-  // depend on how TBB schedules them (bit-identical for any thread count).
-  void integrate_sheets(const detail::StepParams<Real>& params) {
-    arena.execute([&] {
-      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, active.size(), 1),
-                        [&](const tbb::blocked_range<std::size_t>& r) {
-                          for (std::size_t k = r.begin(); k != r.end(); ++k)
-                            detail::integrate(def.integrator, *slots[active[k]].sheet, params);
-                        });
+  template <class Body>
+  void parallel(std::size_t count, Body body) {
+    arena->execute([&] {
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 1), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t k = r.begin(); k != r.end(); ++k) body(k);
+      });
     });
   }
 
+  // Host stage: bounds → broad-phase → contact work per overlapping pair → which forces
+  // each sheet gathers. Sheets whose boxes (grown by half the contact range each) do not
+  // meet never reach the narrow phase.
+  void host_stage() {
+    const std::size_t count = active.size();
+    for (std::size_t k = 0; k < count; ++k) at(k).has_contacts = false;
+    const bool any_self = std::any_of(active.begin(), active.end(), [&](auto i) { return slots[i].sheet->self_collision; });
+    if (!(def.contact_strength > 0) || (count < 2 && !any_self)) {
+      pairs.clear();
+      return;
+    }
+    const auto params = detail::ContactParams<Real>::make(def.contact_thickness, def.contact_xi, def.contact_strength,
+                                                          def.contact_range);
+    bounds.resize(count);
+    grown.resize(count);
+    parallel(count, [&](std::size_t k) {
+      bounds[k] = detail::sheet_bounds(at(k));
+      grown[k] = bounds[k].inflated(0.5 * double(params.range));
+    });
+    broad_phase.find_pairs(grown, pairs);
+    if (any_self) {
+      for (std::uint32_t k = 0; k < count; ++k)
+        if (at(k).self_collision) pairs.push_back({k, k});
+      std::sort(pairs.begin(), pairs.end());
+    }
+    if (pair_work.size() < pairs.size()) pair_work.resize(pairs.size());
+    parallel(pairs.size(), [&](std::size_t q) {
+      auto& w = pair_work[q];
+      w.a = pairs[q].first;
+      w.b = pairs[q].second;
+      if (w.a == w.b)
+        detail::self_contacts(at(w.a), bounds[w.a], params, w);
+      else
+        detail::pair_contacts(at(w.a), bounds[w.a], at(w.b), bounds[w.b], params, w);
+    });
+    // Each sheet's sources in pair order: the gather's order, fixed by the boxes alone.
+    source_start.assign(count + 1, 0);
+    for (std::size_t q = 0; q < pairs.size(); ++q) {
+      const auto& w = pair_work[q];
+      if (w.on_a.size()) ++source_start[w.a + 1];
+      if (w.a != w.b && w.on_b.size()) ++source_start[w.b + 1];
+    }
+    for (std::size_t k = 0; k < count; ++k) source_start[k + 1] += source_start[k];
+    sources.resize(source_start[count]);
+    std::vector<std::uint32_t>& cursor = bounds_cursor;
+    cursor.assign(source_start.begin(), source_start.end() - 1);
+    for (std::size_t q = 0; q < pairs.size(); ++q) {
+      const auto& w = pair_work[q];
+      if (w.on_a.size()) sources[cursor[w.a]++] = &w.on_a;
+      if (w.a != w.b && w.on_b.size()) sources[cursor[w.b]++] = &w.on_b;
+    }
+    for (std::size_t k = 0; k < count; ++k) {
+      Sheet<Real>& s = at(k);
+      s.has_contacts = source_start[k + 1] > source_start[k];
+      if (s.has_contacts && s.contact_force.x.size() != s.size()) s.contact_force.resize(s.size());
+    }
+  }
+  std::vector<std::uint32_t> bounds_cursor;
+
+  // A sheet of at least 2·block_points points is cut into row blocks of about
+  // block_points points, so one large sheet among small ones keeps every core busy.
+  void plan_blocks() {
+    blocks.clear();
+    const bool can_split = detail::updates_per_point(def.integrator);
+    for (std::uint32_t k = 0; k < active.size(); ++k) {
+      Sheet<Real>& s = at(k);
+      const std::uint32_t rows = s.topology->rows(), cols = s.topology->cols();
+      const std::uint64_t points = s.size();
+      std::uint32_t count = 1;
+      if (can_split && points >= 2 * std::uint64_t(def.block_points))
+        count = static_cast<std::uint32_t>(std::min<std::uint64_t>(rows, points / def.block_points));
+      if (count == 1) {
+        blocks.push_back({k, 0, rows, 0, false});
+        continue;
+      }
+      if (s.row_scratch.x.size() < std::size_t(count) * cols) s.row_scratch.resize(std::size_t(count) * cols);
+      for (std::uint32_t b = 0; b < count; ++b)
+        blocks.push_back({k, std::uint32_t(std::uint64_t(rows) * b / count), std::uint32_t(std::uint64_t(rows) * (b + 1) / count),
+                          b, true});
+    }
+  }
+
+  void gather(std::size_t k, std::size_t begin, std::size_t end) {
+    Sheet<Real>& s = at(k);
+    if (!s.has_contacts) return;
+    const std::span<const detail::ContactForces<Real>* const> src(sources.data() + source_start[k],
+                                                                   source_start[k + 1] - source_start[k]);
+    detail::gather_contacts(src, s.contact_force, begin, end);
+  }
+
+  // Parallel stage: every task writes only its own sheet's (or block's) buffers and reads
+  // the contact buffers the host stage finished, so the result does not depend on how TBB
+  // schedules them (bit-identical for any thread count).
+  void integrate_sheets(const detail::StepParams<Real>& params) {
+    plan_blocks();
+    bool any_split = false;
+    parallel(blocks.size(), [&](std::size_t q) {
+      const Block& b = blocks[q];
+      Sheet<Real>& s = at(b.sheet);
+      const std::size_t cols = s.topology->cols();
+      gather(b.sheet, b.row_begin * cols, b.row_end * cols);
+      if (!b.split) {
+        detail::integrate(def.integrator, s, params);
+        return;
+      }
+      auto row = detail::ptr(s.row_scratch);
+      const std::size_t off = b.index * cols;
+      detail::sheet_forces_rows(s, detail::cptr(s.position), detail::cptr(s.velocity), detail::ptr(s.force),
+                                {row.x + off, row.y + off, row.z + off}, b.row_begin, b.row_end);
+    });
+    for (const Block& b : blocks) any_split = any_split || b.split;
+    if (!any_split) return;
+    // Second pass, after every block's forces: a block's springs read its neighbours' rows.
+    parallel(blocks.size(), [&](std::size_t q) {
+      const Block& b = blocks[q];
+      if (!b.split) return;
+      Sheet<Real>& s = at(b.sheet);
+      const std::size_t cols = s.topology->cols();
+      detail::update_points(def.integrator, s, params, b.row_begin * cols, b.row_end * cols);
+    });
+  }
+
+  // One substep, stage by stage.
   void substep() {
     const detail::StepParams<Real> params{static_cast<Real>(def.dt), static_cast<Real>(def.gravity.x),
                                           static_cast<Real>(def.gravity.y), static_cast<Real>(def.gravity.z)};
-    // 1. host stage: bounds, broad-phase and contact work go here (nothing yet between sheets)
-    // 2. parallel stage: per-sheet forces, then integration
-    integrate_sheets(params);
+    host_stage();              // 1. bounds, broad-phase, contact forces per pair
+    integrate_sheets(params);  // 2. per sheet (or block): gather contacts, forces, integrate
     ++steps;
   }
 };
 
+std::string validate(const WorldDef& d) {
+  auto bad = [](const char* field, const char* what, double got) {
+    return std::string(field) + " " + what + " (got " + std::to_string(got) + ")";
+  };
+  if (!(d.dt > 0) || !std::isfinite(d.dt)) return bad("dt", "must be positive and finite", d.dt);
+  if (d.threads < 0) return bad("threads", "must be >= 0 (0: all cores)", d.threads);
+  if (!(d.contact_thickness >= 0) || !std::isfinite(d.contact_thickness))
+    return bad("contact_thickness", "must be non-negative and finite", d.contact_thickness);
+  if (!(d.contact_xi > 0) || !std::isfinite(d.contact_xi)) return bad("contact_xi", "must be positive and finite", d.contact_xi);
+  if (!(d.contact_strength >= 0) || !std::isfinite(d.contact_strength))
+    return bad("contact_strength", "must be non-negative and finite", d.contact_strength);
+  if (!(d.contact_range > 0) || !std::isfinite(d.contact_range))
+    return bad("contact_range", "must be positive and finite", d.contact_range);
+  if (d.block_points == 0) return "block_points must be positive";
+  return {};
+}
+
 template <class Real>
 BasicWorld<Real>::BasicWorld(const WorldDef& def) {
-  if (!(def.dt > 0) || !std::isfinite(def.dt)) throw std::invalid_argument("drape: WorldDef.dt must be positive and finite");
+  if (std::string problem = validate(def); !problem.empty()) throw std::invalid_argument("drape: WorldDef." + problem);
   impl_ = std::make_unique<Impl>(def);
 }
 template <class Real>
@@ -162,6 +324,14 @@ void BasicWorld<Real>::set_dt(double dt) {
   if (!(dt > 0) || !std::isfinite(dt)) throw std::invalid_argument("drape: dt must be positive and finite");
   impl_->def.dt = dt;
 }
+template <class Real>
+void BasicWorld<Real>::set_threads(int threads) {
+  if (threads < 0) throw std::invalid_argument("drape: threads must be >= 0 (0: all cores)");
+  impl_->def.threads = threads;
+  impl_->make_arena();
+}
+template <class Real>
+std::size_t BasicWorld<Real>::contact_pair_count() const { return impl_->pairs.size(); }
 template <class Real>
 double BasicWorld<Real>::time() const { return static_cast<double>(impl_->steps) * impl_->def.dt; }
 template <class Real>

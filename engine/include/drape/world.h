@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <string>
 #include <vector>
 
 namespace drape {
@@ -19,7 +20,23 @@ struct WorldDef {
   Vec3 gravity{0.0, 0.0, -9.81};       // m/s²; z is up
   Integrator integrator = Integrator::SemiImplicitEuler;
   int threads = 0;                     // worker threads for step(); 0: all cores
+
+  // Contacts between sheets (engine/src/contacts.h): a point at distance d from another
+  // sheet's surface feels E = c·exp(−(d − h)/ξ), cut off (continuously) at
+  // d = h + contact_range·ξ; the force never exceeds (c/ξ)·exp(h/ξ). Sheets whose boxes
+  // are farther apart than that distance cost nothing. contact_strength = 0: no contacts.
+  double contact_thickness = 0.005;  // h, m: the gap contacts keep between surfaces
+  double contact_xi = 0.002;         // ξ, m: how fast the repulsion decays with distance
+  double contact_strength = 1e-5;    // c, J
+  double contact_range = 6.0;        // cut-off beyond h, in units of ξ
+
+  // A sheet of at least 2·block_points points is stepped as row blocks of about this many
+  // points, so one large sheet keeps every core busy; the result is the same bit for bit.
+  std::uint32_t block_points = 8192;
 };
+
+// An empty string when the definition is usable; otherwise one message naming the field.
+std::string validate(const WorldDef& def);
 
 struct Energies {
   double kinetic = 0;  // ½ Σ m v²
@@ -81,6 +98,11 @@ class BasicWorld {
   const WorldDef& def() const;
   void set_integrator(Integrator integrator);
   void set_dt(double dt);
+  // Worker threads of step(); 0: all cores. Results do not depend on it, bit for bit.
+  void set_threads(int threads);
+  // Overlapping sheet pairs (including a sheet with itself when self_collision is on) that
+  // the last substep's host stage handed to the contact stage.
+  std::size_t contact_pair_count() const;
   double time() const;                // s, simulated
   std::uint64_t step_count() const;   // substeps taken
 
