@@ -50,18 +50,22 @@ struct Potential {
 
 P3 point(const Sheet<double>& s, std::uint32_t p) { return {s.position.x[p], s.position.y[p], s.position.z[p]}; }
 
-// Σ over points of q and all triangles of s (every cell, no grid): the brute force.
+// Σ over points of q of E(distance to the surface of s), the distance a minimum over all
+// triangles of s (every cell, no grid): the brute force.
 double brute_energy(const Sheet<double>& q, const Sheet<double>& s, const Potential& E) {
   const auto& t = *s.topology;
   const std::uint32_t cols = t.cols();
   double sum = 0;
-  for (std::uint32_t p = 0; p < q.size(); ++p)
+  for (std::uint32_t p = 0; p < q.size(); ++p) {
+    double d_min = INFINITY;
     for (std::uint32_t i = 0; i < t.m; ++i)
       for (std::uint32_t j = 0; j < t.n; ++j) {
         const std::uint32_t a = i * cols + j, b = a + 1, c = a + cols, d = c + 1;
-        sum += E(triangle_distance(point(q, p), point(s, a), point(s, b), point(s, d)));
-        sum += E(triangle_distance(point(q, p), point(s, a), point(s, d), point(s, c)));
+        d_min = std::min({d_min, triangle_distance(point(q, p), point(s, a), point(s, b), point(s, d)),
+                          triangle_distance(point(q, p), point(s, a), point(s, d), point(s, c))});
       }
+    sum += E(d_min);
+  }
   return sum;
 }
 
@@ -162,7 +166,7 @@ TEST(Contacts, ForceOnAPointLyingOnTheSurfaceIsFiniteAndMatchesTheBound) {
   SheetDef single;
   single.m = single.n = 0;
   // Inside triangle (0,0)(0,1)(1,1) of cell (0,0), far from its edges.
-  single.center = {-1.0 + 0.75, -1.0 + 0.25, 0.0};
+  single.center = {-1.0 + 0.75, -1.0 + 0.25, 0.0};  // on the surface: d = 0
   const auto s = build_sheet<double>(surface), q = build_sheet<double>(single);
   PairContacts<double> work;
   pair_contacts(q, sheet_bounds(q), s, sheet_bounds(s), kParams, work);

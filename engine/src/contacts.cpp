@@ -66,18 +66,37 @@ V3<Real> closest_weights(V3<Real> p, V3<Real> a, V3<Real> b, V3<Real> c) {
   return {1 - v - w, v, w};
 }
 
-// One point against one triangle: pushes the force on the point to `on_q` and the three
-// opposite shares to `on_s`.
+// The nearest triangle found so far for one point.
 template <class Real>
-void point_triangle(std::uint32_t q, V3<Real> p, const std::uint32_t tri[3], const V3<Real> v[3],
-                    const ContactParams<Real>& prm, ContactForces<Real>& on_q, ContactForces<Real>& on_s) {
-  const V3<Real> w = closest_weights(p, v[0], v[1], v[2]);
-  const V3<Real> c{w.x * v[0].x + w.y * v[1].x + w.z * v[2].x, w.x * v[0].y + w.y * v[1].y + w.z * v[2].y,
-                   w.x * v[0].z + w.y * v[1].z + w.z * v[2].z};
-  V3<Real> d = sub(p, c);
+struct Nearest {
+  Real dist2;
+  std::uint32_t tri[3];
+  V3<Real> v[3], w;
+};
+
+template <class Real>
+void consider(V3<Real> p, std::uint32_t i0, std::uint32_t i1, std::uint32_t i2, V3<Real> a, V3<Real> b, V3<Real> c,
+              Nearest<Real>& best) {
+  const V3<Real> w = closest_weights(p, a, b, c);
+  const V3<Real> q{w.x * a.x + w.y * b.x + w.z * c.x, w.x * a.y + w.y * b.y + w.z * c.y,
+                   w.x * a.z + w.y * b.z + w.z * c.z};
+  const V3<Real> d = sub(p, q);
   const Real dist2 = dot(d, d);
-  if (!(dist2 < prm.range * prm.range)) return;
-  const Real dist = std::sqrt(dist2);
+  if (!(dist2 < best.dist2)) return;  // ties keep the first: the candidate order is fixed
+  best = {dist2, {i0, i1, i2}, {a, b, c}, w};
+}
+
+// The point against the nearest triangle: pushes the force on the point to `on_q` and the
+// three opposite shares to `on_s`.
+template <class Real>
+void repel(std::uint32_t q, V3<Real> p, const Nearest<Real>& best, const ContactParams<Real>& prm,
+           ContactForces<Real>& on_q, ContactForces<Real>& on_s) {
+  const V3<Real>* v = best.v;
+  const V3<Real> c{best.w.x * v[0].x + best.w.y * v[1].x + best.w.z * v[2].x,
+                   best.w.x * v[0].y + best.w.y * v[1].y + best.w.z * v[2].y,
+                   best.w.x * v[0].z + best.w.y * v[1].z + best.w.z * v[2].z};
+  V3<Real> d = sub(p, c);
+  const Real dist = std::sqrt(best.dist2);
   if (dist > 0) {
     d = {d.x / dist, d.y / dist, d.z / dist};
   } else {  // p on the triangle: push along its normal
@@ -91,9 +110,9 @@ void point_triangle(std::uint32_t q, V3<Real> p, const std::uint32_t tri[3], con
   const Real f = prm.strength / prm.xi * (std::exp((prm.thickness - dist) / prm.xi) - prm.tail);
   const V3<Real> F{f * d.x, f * d.y, f * d.z};
   on_q.push(q, F.x, F.y, F.z);
-  const Real wt[3] = {w.x, w.y, w.z};
+  const Real wt[3] = {best.w.x, best.w.y, best.w.z};
   for (int k = 0; k < 3; ++k)
-    if (wt[k] != 0) on_s.push(tri[k], -wt[k] * F.x, -wt[k] * F.y, -wt[k] * F.z);
+    if (wt[k] != 0) on_s.push(best.tri[k], -wt[k] * F.x, -wt[k] * F.y, -wt[k] * F.z);
 }
 
 // Points of q inside `region` against the cells of s binned in a uniform grid over the
@@ -180,18 +199,19 @@ void points_against_cells(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb
       continue;
     const std::size_t g = (std::size_t(cell_of(0, x.x)) * dims[1] + cell_of(1, x.y)) * dims[2] + cell_of(2, x.z);
     const long pi = p / qcols, pj = p % qcols;
+    Nearest<Real> best{};
+    best.dist2 = prm.range * prm.range;
     for (std::uint32_t it = grid.start[g]; it < grid.start[g + 1]; ++it) {
       const std::uint32_t cell = grid.items[it];
       const std::uint32_t ci = cell / n, cj = cell % n;
       if (ring >= 0 && long(ci) >= pi - ring && long(ci) < pi + ring && long(cj) >= pj - ring && long(cj) < pj + ring)
         continue;
       const std::uint32_t p00 = ci * cols + cj, p01 = p00 + 1, p10 = p00 + cols, p11 = p10 + 1;
-      const std::uint32_t t0[3] = {p00, p01, p11}, t1[3] = {p00, p11, p10};
-      const V3<Real> v0[3] = {at(s, p00), at(s, p01), at(s, p11)};
-      const V3<Real> v1[3] = {v0[0], v0[2], at(s, p10)};
-      point_triangle(p, x, t0, v0, prm, on_q, on_s);
-      point_triangle(p, x, t1, v1, prm, on_q, on_s);
+      const V3<Real> x00 = at(s, p00), x01 = at(s, p01), x10 = at(s, p10), x11 = at(s, p11);
+      consider(x, p00, p01, p11, x00, x01, x11, best);
+      consider(x, p00, p11, p10, x00, x11, x10, best);
     }
+    if (best.dist2 < prm.range * prm.range) repel(p, x, best, prm, on_q, on_s);
   }
 }
 

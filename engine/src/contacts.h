@@ -1,15 +1,17 @@
 // Contacts between sheets (and of a sheet with itself): the narrow phase of the host stage.
 //
-// A point p of one sheet is repelled by each triangle T of another sheet's grid cells
-// (cell (i, j) split into (i,j)(i,j+1)(i+1,j+1) and (i,j)(i+1,j+1)(i+1,j)) through the
-// potential
-//     E(d) = c·exp(−(d − h)/ξ) − shift,   d = dist(p, T), h = thickness,
-// the obstacles' potential of eq (9) with the distance to the triangle minus the
-// thickness in place of the implicit function. The force −dE/dd = (c/ξ)·exp(−(d − h)/ξ) is
+// A point p of one sheet is repelled by the surface of another sheet, its grid cells split
+// into triangles (cell (i, j) into (i,j)(i,j+1)(i+1,j+1) and (i,j)(i+1,j+1)(i+1,j)), through
+// the potential
+//     E(d) = c·exp(−(d − h)/ξ) − shift,   d = min over triangles T of dist(p, T), h = thickness,
+// the obstacles' potential of eq (9) with the distance to the surface minus the thickness
+// in place of the implicit function. Only the nearest triangle acts: summing over every
+// triangle in range would make a flat sheet bumpy (a point over a vertex feels six
+// triangles, over a face one or two) and let resting sheets creep. The force −dE/dd = (c/ξ)·exp(−(d − h)/ξ) is
 // cut off at d = R = h + range_in_xi·ξ and shifted so it falls continuously to 0 there;
 // since d ≥ 0 it never exceeds (c/ξ)·exp(h/ξ): a fast or deep penetration meets a large
 // but finite force, never an overflow. The force on p acts along p − q (q the closest point
-// of T; T's normal when p lies on T), and the opposite force is shared by T's three
+// of the nearest T; T's normal when p lies on T), and the opposite force is shared by T's three
 // vertices with q's barycentric weights, so every contact conserves momentum to rounding.
 //
 // Candidates come from a uniform grid over the pair's overlap region: the other sheet's
