@@ -131,7 +131,7 @@ void points_against_cells(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb
   // grid cells than twice the number of sheet cells, so building it stays linear.
   double spacing = 0;
   for (const Real l : {ts.rest_length.front(), ts.rest_length.back()}) spacing = std::max(spacing, double(l));
-  double size = std::max(2 * R, spacing + R);
+  double size = std::max(R, spacing);
   const double cap = 2.0 * ts.m * ts.n + 8;
   int dims[3];
   for (;;) {
@@ -208,6 +208,17 @@ void points_against_cells(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb
         continue;
       const std::uint32_t p00 = ci * cols + cj, p01 = p00 + 1, p10 = p00 + cols, p11 = p10 + 1;
       const V3<Real> x00 = at(s, p00), x01 = at(s, p01), x10 = at(s, p10), x11 = at(s, p11);
+      // A cell whose box is no nearer than the nearest triangle so far cannot win:
+      // once a close triangle is found most candidates stop here.
+      auto gap = [](Real v, Real a, Real b, Real c, Real d) {
+        const Real lo = std::min(std::min(a, b), std::min(c, d)), hi = std::max(std::max(a, b), std::max(c, d));
+        const Real e = std::max(std::max(lo - v, v - hi), Real(0));
+        return e * e;
+      };
+      if (gap(x.x, x00.x, x01.x, x10.x, x11.x) + gap(x.y, x00.y, x01.y, x10.y, x11.y) +
+              gap(x.z, x00.z, x01.z, x10.z, x11.z) >=
+          best.dist2)
+        continue;
       consider(x, p00, p01, p11, x00, x01, x11, best);
       consider(x, p00, p11, p10, x00, x11, x10, best);
     }
