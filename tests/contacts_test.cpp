@@ -100,7 +100,8 @@ P3 total(const ContactForces<double>& f) {
 TEST(Contacts, ForceIsMinusGradientOfBruteForcePotentialOverAllCells) {
   auto [a, b] = close_sheets(3);
   PairContacts<double> work;
-  pair_contacts(a, sheet_bounds(a), b, sheet_bounds(b), kParams, work);
+  ContactGrid<double> grid;
+  pair_contacts(a, sheet_bounds(a), b, sheet_bounds(b), kParams, work, grid);
   ASSERT_GT(work.on_a.size(), 50u);
 
   const Potential E{kParams.thickness, kParams.xi, kParams.strength, kParams.range};
@@ -134,7 +135,8 @@ TEST(Contacts, PairForcesConserveLinearAndAngularMomentum) {
   for (unsigned seed = 1; seed <= 5; ++seed) {
     auto [a, b] = close_sheets(seed);
     PairContacts<double> work;
-    pair_contacts(a, sheet_bounds(a), b, sheet_bounds(b), kParams, work);
+    ContactGrid<double> grid;
+    pair_contacts(a, sheet_bounds(a), b, sheet_bounds(b), kParams, work, grid);
     ASSERT_GT(work.on_a.size() + work.on_b.size(), 0u);
     P3 force{0, 0, 0}, torque{0, 0, 0};
     double scale = 0, torque_scale = 0;
@@ -169,7 +171,8 @@ TEST(Contacts, ForceOnAPointLyingOnTheSurfaceIsFiniteAndMatchesTheBound) {
   single.center = {-1.0 + 0.75, -1.0 + 0.25, 0.0};  // on the surface: d = 0
   const auto s = build_sheet<double>(surface), q = build_sheet<double>(single);
   PairContacts<double> work;
-  pair_contacts(q, sheet_bounds(q), s, sheet_bounds(s), kParams, work);
+  ContactGrid<double> grid;
+  pair_contacts(q, sheet_bounds(q), s, sheet_bounds(s), kParams, work, grid);
   ASSERT_EQ(work.on_a.size(), 1u);
   const double bound = kParams.strength / kParams.xi * (std::exp(kParams.thickness / kParams.xi) - kParams.tail);
   EXPECT_DOUBLE_EQ(work.on_a.fx[0], 0.0);
@@ -184,7 +187,8 @@ TEST(Contacts, NoForceBeyondTheRange) {
   auto [a, b] = close_sheets(1);
   for (double& z : b.position.z) z += 0.005 + kParams.range;  // every point now beyond R
   PairContacts<double> work;
-  pair_contacts(a, sheet_bounds(a), b, sheet_bounds(b), kParams, work);
+  ContactGrid<double> grid;
+  pair_contacts(a, sheet_bounds(a), b, sheet_bounds(b), kParams, work, grid);
   EXPECT_EQ(work.on_a.size() + work.on_b.size(), 0u);
 }
 
@@ -195,7 +199,8 @@ TEST(Contacts, FlatSheetDoesNotRepelItself) {
   d.width = d.height = 0.05;  // spacing well below the contact range: the ring must cover it
   const auto s = build_sheet<double>(d);
   PairContacts<double> work;
-  self_contacts(s, sheet_bounds(s), kParams, work);
+  ContactGrid<double> grid;
+  self_contacts(s, sheet_bounds(s), kParams, work, grid);
   EXPECT_EQ(work.on_a.size(), 0u);
 }
 
@@ -215,7 +220,8 @@ TEST(Contacts, FoldedSheetPushesItsHalvesApartAndConservesMomentum) {
       s.position.z[p] = 0.008;
     }
   PairContacts<double> work;
-  self_contacts(s, sheet_bounds(s), kParams, work);
+  ContactGrid<double> grid;
+  self_contacts(s, sheet_bounds(s), kParams, work, grid);
   ASSERT_GT(work.on_a.size(), 0u);
   double up = 0, down = 0, scale = 0;
   for (std::size_t e = 0; e < work.on_a.size(); ++e) {

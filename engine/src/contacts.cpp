@@ -121,7 +121,7 @@ void repel(std::uint32_t q, V3<Real> p, const Nearest<Real>& best, const Contact
 template <class Real>
 void points_against_cells(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb& region,
                           const ContactParams<Real>& prm, int ring, ContactForces<Real>& on_q,
-                          ContactForces<Real>& on_s, ContactGrid& grid) {
+                          ContactForces<Real>& on_s, ContactGrid<Real>& grid) {
   const auto& ts = *s.topology;
   const std::uint32_t n = ts.n, cols = ts.cols();
   if (ts.m == 0 || ts.n == 0) return;  // a line of points has no cells
@@ -131,7 +131,7 @@ void points_against_cells(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb
   // grid cells than twice the number of sheet cells, so building it stays linear.
   double spacing = 0;
   for (const Real l : {ts.rest_length.front(), ts.rest_length.back()}) spacing = std::max(spacing, double(l));
-  double size = std::max(R, spacing);
+  double size = 0.5 * std::max(R, spacing);
   const double cap = 2.0 * ts.m * ts.n + 8;
   int dims[3];
   for (;;) {
@@ -152,19 +152,24 @@ void points_against_cells(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb
     return std::clamp(int((v - region.lo[k]) * inv[k]), 0, dims[k] - 1);
   };
 
-  // Bin the cells whose grown boxes meet the region (CSR: count, prefix sum, fill).
+  // Bin the cells whose grown boxes meet the region (CSR: count, prefix sum, fill). Each
+  // binned cell keeps its box and corner index in `cells`, read contiguously by queries.
   const std::size_t grid_cells = std::size_t(dims[0]) * dims[1] * dims[2];
   grid.start.assign(grid_cells + 1, 0);
   grid.range.clear();
+  grid.cells.clear();
   const auto& X = s.position;
   for (std::uint32_t i = 0; i < ts.m; ++i)
     for (std::uint32_t j = 0; j < n; ++j) {
       const std::uint32_t p[4] = {i * cols + j, i * cols + j + 1, (i + 1) * cols + j, (i + 1) * cols + j + 1};
+      typename ContactGrid<Real>::Cell cell{{}, {}, p[0], i, j};
       Aabb box;
       for (int k = 0; k < 3; ++k) {
         const std::vector<Real>& a = k == 0 ? X.x : k == 1 ? X.y : X.z;
-        box.lo[k] = std::min(std::min(a[p[0]], a[p[1]]), std::min(a[p[2]], a[p[3]])) - R;
-        box.hi[k] = std::max(std::max(a[p[0]], a[p[1]]), std::max(a[p[2]], a[p[3]])) + R;
+        cell.lo[k] = std::min(std::min(a[p[0]], a[p[1]]), std::min(a[p[2]], a[p[3]]));
+        cell.hi[k] = std::max(std::max(a[p[0]], a[p[1]]), std::max(a[p[2]], a[p[3]]));
+        box.lo[k] = cell.lo[k] - R;
+        box.hi[k] = cell.hi[k] + R;
       }
       if (!overlaps(box, region)) continue;
       std::uint32_t g0[3], g1[3];
@@ -172,25 +177,24 @@ void points_against_cells(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb
         g0[k] = cell_of(k, std::max(box.lo[k], region.lo[k]));
         g1[k] = cell_of(k, std::min(box.hi[k], region.hi[k]));
       }
-      grid.range.insert(grid.range.end(), {i * n + j, g0[0], g0[1], g0[2], g1[0], g1[1], g1[2]});
+      grid.cells.push_back(cell);
+      grid.range.insert(grid.range.end(), {g0[0], g0[1], g0[2], g1[0], g1[1], g1[2]});
       for (std::uint32_t a = g0[0]; a <= g1[0]; ++a)
         for (std::uint32_t b = g0[1]; b <= g1[1]; ++b)
           for (std::uint32_t c = g0[2]; c <= g1[2]; ++c) ++grid.start[(std::size_t(a) * dims[1] + b) * dims[2] + c + 1];
     }
-  if (grid.range.empty()) return;
+  if (grid.cells.empty()) return;
   for (std::size_t g = 0; g < grid_cells; ++g) grid.start[g + 1] += grid.start[g];
   grid.items.resize(grid.start[grid_cells]);
   grid.cursor.assign(grid.start.begin(), grid.start.end() - 1);
-  for (std::size_t r = 0; r < grid.range.size(); r += 7) {
-    const std::uint32_t* g = &grid.range[r];
-    for (std::uint32_t a = g[1]; a <= g[4]; ++a)
-      for (std::uint32_t b = g[2]; b <= g[5]; ++b)
-        for (std::uint32_t c = g[3]; c <= g[6]; ++c)
-          grid.items[grid.cursor[(std::size_t(a) * dims[1] + b) * dims[2] + c]++] = g[0];
+  for (std::uint32_t c = 0; c < grid.cells.size(); ++c) {
+    const std::uint32_t* g = &grid.range[6 * std::size_t(c)];
+    for (std::uint32_t a = g[0]; a <= g[3]; ++a)
+      for (std::uint32_t b = g[1]; b <= g[4]; ++b)
+        for (std::uint32_t e = g[2]; e <= g[5]; ++e) grid.items[grid.cursor[(std::size_t(a) * dims[1] + b) * dims[2] + e]++] = c;
   }
 
-  const auto& tq = *q.topology;
-  const std::uint32_t qcols = tq.cols();
+  const std::uint32_t qcols = q.topology->cols();
   const auto& Q = q.position;
   for (std::uint32_t p = 0; p < q.size(); ++p) {
     const V3<Real> x{Q.x[p], Q.y[p], Q.z[p]};
@@ -198,29 +202,44 @@ void points_against_cells(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb
         x.z < region.lo[2] || x.z > region.hi[2])
       continue;
     const std::size_t g = (std::size_t(cell_of(0, x.x)) * dims[1] + cell_of(1, x.y)) * dims[2] + cell_of(2, x.z);
-    const long pi = p / qcols, pj = p % qcols;
-    Nearest<Real> best{};
-    best.dist2 = prm.range * prm.range;
-    for (std::uint32_t it = grid.start[g]; it < grid.start[g + 1]; ++it) {
-      const std::uint32_t cell = grid.items[it];
-      const std::uint32_t ci = cell / n, cj = cell % n;
-      if (ring >= 0 && long(ci) >= pi - ring && long(ci) < pi + ring && long(cj) >= pj - ring && long(cj) < pj + ring)
-        continue;
-      const std::uint32_t p00 = ci * cols + cj, p01 = p00 + 1, p10 = p00 + cols, p11 = p10 + 1;
+    const std::int64_t pi = p / qcols, pj = p % qcols;
+    auto box_gap2 = [&](const typename ContactGrid<Real>::Cell& cell) {
+      Real gap2 = 0;
+      for (int k = 0; k < 3; ++k) {
+        const Real v = k == 0 ? x.x : k == 1 ? x.y : x.z;
+        const Real e = std::max(std::max(cell.lo[k] - v, v - cell.hi[k]), Real(0));
+        gap2 += e * e;
+      }
+      return gap2;
+    };
+    auto test = [&](const typename ContactGrid<Real>::Cell& cell, Nearest<Real>& best) {
+      if (ring >= 0 && std::int64_t(cell.i) >= pi - ring && std::int64_t(cell.i) < pi + ring &&
+          std::int64_t(cell.j) >= pj - ring && std::int64_t(cell.j) < pj + ring)
+        return;
+      const std::uint32_t p00 = cell.corner, p01 = p00 + 1, p10 = p00 + cols, p11 = p10 + 1;
       const V3<Real> x00 = at(s, p00), x01 = at(s, p01), x10 = at(s, p10), x11 = at(s, p11);
-      // A cell whose box is no nearer than the nearest triangle so far cannot win:
-      // once a close triangle is found most candidates stop here.
-      auto gap = [](Real v, Real a, Real b, Real c, Real d) {
-        const Real lo = std::min(std::min(a, b), std::min(c, d)), hi = std::max(std::max(a, b), std::max(c, d));
-        const Real e = std::max(std::max(lo - v, v - hi), Real(0));
-        return e * e;
-      };
-      if (gap(x.x, x00.x, x01.x, x10.x, x11.x) + gap(x.y, x00.y, x01.y, x10.y, x11.y) +
-              gap(x.z, x00.z, x01.z, x10.z, x11.z) >=
-          best.dist2)
-        continue;
       consider(x, p00, p01, p11, x00, x01, x11, best);
       consider(x, p00, p11, p10, x00, x11, x10, best);
+    };
+    Nearest<Real> best{};
+    best.dist2 = prm.range * prm.range;
+    // The cell whose box is nearest goes first, so the bound below prunes the others:
+    // a cell whose box is no nearer than the nearest triangle so far cannot win.
+    const std::uint32_t first = grid.start[g], last = grid.start[g + 1];
+    std::uint32_t nearest = last;
+    Real nearest_gap2 = best.dist2;
+    for (std::uint32_t it = first; it < last; ++it) {
+      const Real gap2 = box_gap2(grid.cells[grid.items[it]]);
+      if (gap2 < nearest_gap2) {
+        nearest_gap2 = gap2;
+        nearest = it;
+      }
+    }
+    if (nearest == last) continue;
+    test(grid.cells[grid.items[nearest]], best);
+    for (std::uint32_t it = first; it < last; ++it) {
+      const auto& cell = grid.cells[grid.items[it]];
+      if (it != nearest && box_gap2(cell) < best.dist2) test(cell, best);
     }
     if (best.dist2 < prm.range * prm.range) repel(p, x, best, prm, on_q, on_s);
   }
@@ -239,13 +258,13 @@ Aabb intersection(const Aabb& a, const Aabb& b) {
 
 template <class Real>
 void pair_contacts(const Sheet<Real>& a, const Aabb& box_a, const Sheet<Real>& b, const Aabb& box_b,
-                   const ContactParams<Real>& prm, PairContacts<Real>& work) {
+                   const ContactParams<Real>& prm, PairContacts<Real>& work, ContactGrid<Real>& grid) {
   work.on_a.clear();
   work.on_b.clear();
   const Aabb region = intersection(box_a.inflated(prm.range), box_b.inflated(prm.range));
   if (!overlaps(region, region)) return;
-  points_against_cells(a, b, region, prm, -1, work.on_a, work.on_b, work.grid);
-  points_against_cells(b, a, region, prm, -1, work.on_b, work.on_a, work.grid);
+  points_against_cells(a, b, region, prm, -1, work.on_a, work.on_b, grid);
+  points_against_cells(b, a, region, prm, -1, work.on_b, work.on_a, grid);
 }
 
 template <class Real>
@@ -257,11 +276,12 @@ std::uint32_t self_contact_ring(const Sheet<Real>& s, const ContactParams<Real>&
 }
 
 template <class Real>
-void self_contacts(const Sheet<Real>& s, const Aabb& box, const ContactParams<Real>& prm, PairContacts<Real>& work) {
+void self_contacts(const Sheet<Real>& s, const Aabb& box, const ContactParams<Real>& prm, PairContacts<Real>& work,
+                   ContactGrid<Real>& grid) {
   work.on_a.clear();
   work.on_b.clear();
   points_against_cells(s, s, box.inflated(prm.range), prm, int(self_contact_ring(s, prm)), work.on_a, work.on_a,
-                       work.grid);
+                       grid);
 }
 
 template <class Real>
@@ -283,9 +303,10 @@ void gather_contacts(std::span<const ContactForces<Real>* const> sources, Vec3Ar
 #define DRAPE_CONTACTS(Real)                                                                                   \
   template struct ContactParams<Real>;                                                                         \
   template void pair_contacts<Real>(const Sheet<Real>&, const Aabb&, const Sheet<Real>&, const Aabb&,        \
-                                    const ContactParams<Real>&, PairContacts<Real>&);                          \
+                                    const ContactParams<Real>&, PairContacts<Real>&, ContactGrid<Real>&);      \
   template void self_contacts<Real>(const Sheet<Real>&, const Aabb&, const ContactParams<Real>&,              \
-                                    PairContacts<Real>&);                                                      \
+                                    PairContacts<Real>&, ContactGrid<Real>&);                                  \
+  template struct ContactGrid<Real>;                                                                           \
   template std::uint32_t self_contact_ring<Real>(const Sheet<Real>&, const ContactParams<Real>&);            \
   template void gather_contacts<Real>(std::span<const ContactForces<Real>* const>, Vec3Array<Real>&,           \
                                       std::size_t, std::size_t);

@@ -60,11 +60,18 @@ struct ContactForces {
   std::size_t size() const { return point.size(); }
 };
 
-// Uniform-grid scratch of one pair, kept between substeps to avoid reallocation.
+// Uniform-grid scratch of the narrow phase. Its contents never reach the result's
+// order, so one grid per thread serves every pair that thread computes.
+template <class Real>
 struct ContactGrid {
+  struct Cell {  // a sheet cell near the region: its box (not grown) and where it is
+    Real lo[3], hi[3];
+    std::uint32_t corner, i, j;  // point (i, j), the cell's first corner
+  };
+  std::vector<Cell> cells;           // candidates, in the sheet's cell order
   std::vector<std::uint32_t> start;  // per grid cell, into items (CSR)
-  std::vector<std::uint32_t> items;  // sheet cell indices, grouped by grid cell, ascending
-  std::vector<std::uint32_t> range;  // per candidate sheet cell: cell index, g0[3], g1[3]
+  std::vector<std::uint32_t> items;  // indices into cells, grouped by grid cell, ascending
+  std::vector<std::uint32_t> range;  // per candidate: its grid cells g0[3], g1[3]
   std::vector<std::uint32_t> cursor; // per grid cell, while filling items
 };
 
@@ -74,21 +81,20 @@ template <class Real>
 struct PairContacts {
   std::uint32_t a = 0, b = 0;  // positions in the world's sheet order
   ContactForces<Real> on_a, on_b;
-  ContactGrid grid;
 };
 
 // Points of `a` against the cells of `b` and points of `b` against the cells of `a`,
 // restricted to the overlap of the boxes grown by params.range. Clears and fills work.on_a/on_b.
 template <class Real>
 void pair_contacts(const Sheet<Real>& a, const Aabb& box_a, const Sheet<Real>& b, const Aabb& box_b,
-                   const ContactParams<Real>& params, PairContacts<Real>& work);
+                   const ContactParams<Real>& params, PairContacts<Real>& work, ContactGrid<Real>& grid);
 
 // A sheet folding onto itself: points against the sheet's own cells, skipping the cells
 // within `self_contact_ring` rows/columns of the point (its grid neighbourhood, which
 // is always within contact range of it). Clears and fills work.on_a.
 template <class Real>
 void self_contacts(const Sheet<Real>& s, const Aabb& box, const ContactParams<Real>& params,
-                   PairContacts<Real>& work);
+                   PairContacts<Real>& work, ContactGrid<Real>& grid);
 
 // Rows/columns around a point whose cells self-contact ignores: enough that the cells a
 // point touches at rest spacing never count, 1 + ⌈R / smallest rest spacing⌉, at most 16.

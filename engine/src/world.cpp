@@ -2,6 +2,7 @@
 #include <drape/world.h>
 
 #include <oneapi/tbb/blocked_range.h>
+#include <oneapi/tbb/enumerable_thread_specific.h>
 #include <oneapi/tbb/parallel_for.h>
 #include <oneapi/tbb/task_arena.h>
 
@@ -53,6 +54,7 @@ struct BasicWorld<Real>::Impl {
   detail::BroadPhase broad_phase;
   std::vector<detail::BoxPair> pairs;
   std::vector<detail::PairContacts<Real>> pair_work;
+  tbb::enumerable_thread_specific<detail::ContactGrid<Real>> grids;  // narrow-phase scratch
   std::vector<std::uint32_t> source_start;                  // per sheet, into sources (CSR)
   std::vector<const detail::ContactForces<Real>*> sources;  // per sheet, in pair order
   std::vector<Block> blocks;
@@ -124,10 +126,11 @@ struct BasicWorld<Real>::Impl {
       auto& w = pair_work[q];
       w.a = pairs[q].first;
       w.b = pairs[q].second;
+      auto& grid = grids.local();
       if (w.a == w.b)
-        detail::self_contacts(at(w.a), bounds[w.a], params, w);
+        detail::self_contacts(at(w.a), bounds[w.a], params, w, grid);
       else
-        detail::pair_contacts(at(w.a), bounds[w.a], at(w.b), bounds[w.b], params, w);
+        detail::pair_contacts(at(w.a), bounds[w.a], at(w.b), bounds[w.b], params, w, grid);
     });
     // Each sheet's sources in pair order: the gather's order, fixed by the boxes alone.
     source_start.assign(count + 1, 0);
