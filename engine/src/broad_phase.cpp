@@ -5,41 +5,73 @@
 
 namespace drape::detail {
 
-void BroadPhase::find_pairs(std::span<const Aabb> boxes, std::vector<BoxPair>& pairs) {
-  pairs.clear();
-  // Sweep the axis along which the box centres spread most: fewest pairs overlap there
-  // by accident, so the scan tests fewest candidates.
+namespace {
+constexpr std::uint32_t kLeafSize = 4;
+}
+
+std::uint32_t BroadPhase::build(std::span<const Aabb> boxes, std::uint32_t begin, std::uint32_t end) {
+  const auto id = static_cast<std::uint32_t>(nodes_.size());
+  nodes_.push_back({boxes[order_[begin]], begin, end, 0, 0});
+  Aabb box = boxes[order_[begin]];
   double c_lo[3], c_hi[3];
-  std::fill(c_lo, c_lo + 3, INFINITY);
-  std::fill(c_hi, c_hi + 3, -INFINITY);
-  for (const Aabb& b : boxes)
+  for (int k = 0; k < 3; ++k) c_lo[k] = c_hi[k] = box.lo[k] + box.hi[k];
+  for (std::uint32_t s = begin + 1; s < end; ++s) {
+    const Aabb& b = boxes[order_[s]];
     for (int k = 0; k < 3; ++k) {
-      const double c = 0.5 * (b.lo[k] + b.hi[k]);
-      if (std::isfinite(c)) {
-        c_lo[k] = std::min(c_lo[k], c);
-        c_hi[k] = std::max(c_hi[k], c);
-      }
+      box.lo[k] = std::min(box.lo[k], b.lo[k]);
+      box.hi[k] = std::max(box.hi[k], b.hi[k]);
+      c_lo[k] = std::min(c_lo[k], b.lo[k] + b.hi[k]);
+      c_hi[k] = std::max(c_hi[k], b.lo[k] + b.hi[k]);
     }
+  }
+  nodes_[id].box = box;
+  if (end - begin <= kLeafSize) return id;
+  // Split at the median of the centres along their longest spread; ties broken by index,
+  // so the halves are the same sets whatever nth_element does inside.
   int axis = 0;
   for (int k = 1; k < 3; ++k)
     if (c_hi[k] - c_lo[k] > c_hi[axis] - c_lo[axis]) axis = k;
+  const std::uint32_t mid = begin + (end - begin) / 2;
+  std::nth_element(order_.begin() + begin, order_.begin() + mid, order_.begin() + end,
+                   [&](std::uint32_t a, std::uint32_t b) {
+                     const double ca = boxes[a].lo[axis] + boxes[a].hi[axis];
+                     const double cb = boxes[b].lo[axis] + boxes[b].hi[axis];
+                     return ca < cb || (ca == cb && a < b);
+                   });
+  const std::uint32_t left = build(boxes, begin, mid);
+  const std::uint32_t right = build(boxes, mid, end);
+  nodes_[id].left = left;
+  nodes_[id].right = right;
+  return id;
+}
 
-  sorted_.clear();
+void BroadPhase::find_pairs(std::span<const Aabb> boxes, std::vector<BoxPair>& pairs) {
+  pairs.clear();
+  order_.clear();
+  nodes_.clear();
   for (std::uint32_t i = 0; i < boxes.size(); ++i) {
-    const Aabb& b = boxes[i];
-    bool nan = false;
-    for (int k = 0; k < 3; ++k) nan = nan || std::isnan(b.lo[k]) || std::isnan(b.hi[k]);
-    if (!nan) sorted_.push_back({b.lo[axis], b.hi[axis], i});
+    bool finite_order = true;  // NaN would break the tree's ordering; ±inf is fine
+    for (int k = 0; k < 3; ++k) finite_order = finite_order && !std::isnan(boxes[i].lo[k] + boxes[i].hi[k]);
+    if (finite_order) order_.push_back(i);
   }
-  // Ties on lo are broken by index, so the sort is a strict total order (no NaN left).
-  std::sort(sorted_.begin(), sorted_.end(),
-            [](const Entry& a, const Entry& b) { return a.lo < b.lo || (a.lo == b.lo && a.index < b.index); });
-  for (std::size_t s = 0; s < sorted_.size(); ++s) {
-    const Entry& a = sorted_[s];
-    // Every later box has lo ≥ a.lo; it overlaps a along the axis iff its lo ≤ a.hi.
-    for (std::size_t t = s + 1; t < sorted_.size() && sorted_[t].lo <= a.hi; ++t) {
-      const std::uint32_t i = a.index, j = sorted_[t].index;
-      if (overlaps(boxes[i], boxes[j])) pairs.push_back({std::min(i, j), std::max(i, j)});
+  if (order_.size() < 2) return;
+  build(boxes, 0, static_cast<std::uint32_t>(order_.size()));
+  for (std::uint32_t i : order_) {
+    const Aabb& a = boxes[i];
+    stack_.assign(1, 0);
+    while (!stack_.empty()) {
+      const Node& node = nodes_[stack_.back()];
+      stack_.pop_back();
+      if (!overlaps(node.box, a)) continue;
+      if (node.left == 0) {
+        for (std::uint32_t s = node.begin; s < node.end; ++s) {
+          const std::uint32_t j = order_[s];
+          if (j > i && overlaps(a, boxes[j])) pairs.push_back({i, j});
+        }
+      } else {
+        stack_.push_back(node.left);
+        stack_.push_back(node.right);
+      }
     }
   }
   std::sort(pairs.begin(), pairs.end());
