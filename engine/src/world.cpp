@@ -31,6 +31,10 @@ struct BasicWorld<Real>::Impl {
   struct Slot {
     std::optional<Sheet<Real>> sheet;
     std::uint32_t generation = 0;
+    // The sheet's box after its last integration, taken while its positions were still in
+    // cache; stale after add_sheet, state() or a step that split the sheet into blocks.
+    detail::Aabb bounds;
+    bool bounds_fresh = false;
   };
   // A unit of the parallel stage: rows [row_begin, row_end) of one sheet. `split` blocks
   // compute forces in the first pass and update in the second; a whole sheet does both
@@ -96,14 +100,19 @@ struct BasicWorld<Real>::Impl {
     });
   }
 
+  bool contacts_possible() const {
+    if (!(def.contact_strength > 0)) return false;
+    return active.size() > 1 ||
+           std::any_of(active.begin(), active.end(), [&](auto i) { return slots[i].sheet->self_collision; });
+  }
+
   // Host stage: bounds → broad-phase → contact work per overlapping pair → which forces
   // each sheet gathers. Sheets whose boxes (grown by half the contact range each) do not
   // meet never reach the narrow phase.
   void host_stage() {
     const std::size_t count = active.size();
     for (std::size_t k = 0; k < count; ++k) at(k).has_contacts = false;
-    const bool any_self = std::any_of(active.begin(), active.end(), [&](auto i) { return slots[i].sheet->self_collision; });
-    if (!(def.contact_strength > 0) || (count < 2 && !any_self)) {
+    if (!contacts_possible()) {
       pairs.clear();
       return;
     }
@@ -112,11 +121,12 @@ struct BasicWorld<Real>::Impl {
     bounds.resize(count);
     grown.resize(count);
     parallel(count, [&](std::size_t k) {
-      bounds[k] = detail::sheet_bounds(at(k));
+      const Slot& slot = slots[active[k]];
+      bounds[k] = slot.bounds_fresh ? slot.bounds : detail::sheet_bounds(at(k));
       grown[k] = bounds[k].inflated(0.5 * double(params.range));
     });
     broad_phase.find_pairs(grown, pairs);
-    if (any_self) {
+    if (std::any_of(active.begin(), active.end(), [&](auto i) { return slots[i].sheet->self_collision; })) {
       for (std::uint32_t k = 0; k < count; ++k)
         if (at(k).self_collision) pairs.push_back({k, k});
       std::sort(pairs.begin(), pairs.end());
@@ -193,13 +203,20 @@ struct BasicWorld<Real>::Impl {
   void integrate_sheets(const detail::StepParams<Real>& params) {
     plan_blocks();
     bool any_split = false;
+    const bool keep_bounds = contacts_possible();
     parallel(blocks.size(), [&](std::size_t q) {
       const Block& b = blocks[q];
-      Sheet<Real>& s = at(b.sheet);
+      Slot& slot = slots[active[b.sheet]];
+      Sheet<Real>& s = *slot.sheet;
       const std::size_t cols = s.topology->cols();
       gather(b.sheet, b.row_begin * cols, b.row_end * cols);
+      slot.bounds_fresh = false;
       if (!b.split) {
         detail::integrate(def.integrator, s, params);
+        if (keep_bounds) {  // for the next host stage, while the positions are in cache
+          slot.bounds = detail::sheet_bounds(s);
+          slot.bounds_fresh = true;
+        }
         return;
       }
       auto row = detail::ptr(s.row_scratch);
@@ -273,6 +290,7 @@ SheetId BasicWorld<Real>::add_sheet(const SheetDef& def) {
   }
   auto& slot = impl_->slots[index];
   slot.sheet = std::move(sheet);
+  slot.bounds_fresh = false;
   impl_->active.push_back(index);
   return {index, slot.generation};
 }
@@ -309,6 +327,7 @@ SheetView<Real> BasicWorld<Real>::view(SheetId id) const {
 template <class Real>
 SheetState<Real> BasicWorld<Real>::state(SheetId id) {
   auto& s = impl_->sheet(id);
+  impl_->slots[id.index].bounds_fresh = false;  // the caller may move points
   return {s.topology->m, s.topology->n, s.position.x, s.position.y, s.position.z,
           s.velocity.x,  s.velocity.y,  s.velocity.z};
 }
