@@ -226,21 +226,21 @@ void points_against_cells(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb
     // The cell whose box is nearest goes first, so the bound below prunes the others:
     // a cell whose box is no nearer than the nearest triangle so far cannot win.
     const std::uint32_t first = grid.start[g], last = grid.start[g + 1];
+    if (grid.gap2.size() < last - first) grid.gap2.resize(last - first);
+    Real* gap2 = grid.gap2.data() - first;  // box gaps of this grid cell's candidates
     std::uint32_t nearest = last;
     Real nearest_gap2 = best.dist2;
     for (std::uint32_t it = first; it < last; ++it) {
-      const Real gap2 = box_gap2(grid.cells[grid.items[it]]);
-      if (gap2 < nearest_gap2) {
-        nearest_gap2 = gap2;
+      gap2[it] = box_gap2(grid.cells[grid.items[it]]);
+      if (gap2[it] < nearest_gap2) {
+        nearest_gap2 = gap2[it];
         nearest = it;
       }
     }
     if (nearest == last) continue;
     test(grid.cells[grid.items[nearest]], best);
-    for (std::uint32_t it = first; it < last; ++it) {
-      const auto& cell = grid.cells[grid.items[it]];
-      if (it != nearest && box_gap2(cell) < best.dist2) test(cell, best);
-    }
+    for (std::uint32_t it = first; it < last; ++it)
+      if (it != nearest && gap2[it] < best.dist2) test(grid.cells[grid.items[it]], best);
     if (best.dist2 < prm.range * prm.range) repel(p, x, best, prm, on_q, on_s);
   }
 }

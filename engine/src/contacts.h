@@ -73,6 +73,7 @@ struct ContactGrid {
   std::vector<std::uint32_t> items;  // indices into cells, grouped by grid cell, ascending
   std::vector<std::uint32_t> range;  // per candidate: its grid cells g0[3], g1[3]
   std::vector<std::uint32_t> cursor; // per grid cell, while filling items
+  std::vector<Real> gap2;            // per candidate of one query: squared gap to its box
 };
 
 // The contact work of one overlapping pair of sheets (a < b), or of one sheet with itself
