@@ -319,6 +319,32 @@ TEST(Worlds, SelfCollisionKeepsAFoldedSheetFromPassingThroughItself) {
   EXPECT_LT(lowest_gap_of_folded_sheet(false), 0.0);  // the test can fail: without it, it does
 }
 
+TEST(Worlds, FloatWorldKeepsASheetAboveAPinnedFloor) {
+  WorldDef wd;
+  wd.dt = 5e-4;
+  WorldF w(wd);
+  SheetDef floor;  // flat at z = 0, every point pinned: the gap is a point's height
+  floor.m = floor.n = 8;
+  floor.width = floor.height = 0.6;
+  for (std::uint32_t p = 0; p < point_count(8, 8); ++p) floor.pins.push_back(p);
+  w.add_sheet(floor);
+  SheetDef cloth;
+  cloth.m = cloth.n = 8;
+  cloth.width = cloth.height = 0.3;
+  cloth.mass = 0.1;
+  cloth.center = {0.01, 0.02, 0.04};
+  cloth.initial_velocity = {0, 0, -1.0};
+  const SheetId id = w.add_sheet(cloth);
+  float lowest = INFINITY;
+  for (int k = 0; k < 600; ++k) {
+    w.step();
+    for (float z : w.view(id).z) lowest = std::min(lowest, z);
+  }
+  EXPECT_TRUE(w.all_finite());
+  EXPECT_GT(lowest, 0.0f);
+  EXPECT_LT(lowest, float(wd.contact_thickness));  // it did land: the fall was stopped by contact
+}
+
 TEST(Worlds, BadContactSettingsAreRejectedByName) {
   WorldDef wd;
   wd.contact_xi = 0;

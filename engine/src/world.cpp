@@ -61,6 +61,7 @@ struct BasicWorld<Real>::Impl {
   tbb::enumerable_thread_specific<detail::ContactGrid<Real>> grids;  // narrow-phase scratch
   std::vector<std::uint32_t> source_start;                  // per sheet, into sources (CSR)
   std::vector<const detail::ContactForces<Real>*> sources;  // per sheet, in pair order
+  std::vector<std::uint32_t> source_cursor;                 // while filling sources
   std::vector<Block> blocks;
 
   explicit Impl(const WorldDef& d) : def(d) { make_arena(); }
@@ -151,12 +152,11 @@ struct BasicWorld<Real>::Impl {
     }
     for (std::size_t k = 0; k < count; ++k) source_start[k + 1] += source_start[k];
     sources.resize(source_start[count]);
-    std::vector<std::uint32_t>& cursor = bounds_cursor;
-    cursor.assign(source_start.begin(), source_start.end() - 1);
+    source_cursor.assign(source_start.begin(), source_start.end() - 1);
     for (std::size_t q = 0; q < pairs.size(); ++q) {
       const auto& w = pair_work[q];
-      if (w.on_a.size()) sources[cursor[w.a]++] = &w.on_a;
-      if (w.a != w.b && w.on_b.size()) sources[cursor[w.b]++] = &w.on_b;
+      if (w.on_a.size()) sources[source_cursor[w.a]++] = &w.on_a;
+      if (w.a != w.b && w.on_b.size()) sources[source_cursor[w.b]++] = &w.on_b;
     }
     for (std::size_t k = 0; k < count; ++k) {
       Sheet<Real>& s = at(k);
@@ -164,7 +164,6 @@ struct BasicWorld<Real>::Impl {
       if (s.has_contacts && s.contact_force.x.size() != s.size()) s.contact_force.resize(s.size());
     }
   }
-  std::vector<std::uint32_t> bounds_cursor;
 
   // A sheet of at least 2·block_points points is cut into row blocks of about
   // block_points points, so one large sheet among small ones keeps every core busy.
