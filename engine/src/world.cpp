@@ -177,6 +177,7 @@ struct BasicWorld<Real>::Impl {
       std::uint32_t count = 1;
       if (can_split && points >= 2 * std::uint64_t(def.block_points))
         count = static_cast<std::uint32_t>(std::min<std::uint64_t>(rows, points / def.block_points));
+      slots[active[k]].bounds_fresh = false;  // set again by a whole sheet's task
       if (count == 1) {
         blocks.push_back({k, 0, rows, 0, false});
         continue;
@@ -209,7 +210,6 @@ struct BasicWorld<Real>::Impl {
       Sheet<Real>& s = *slot.sheet;
       const std::size_t cols = s.topology->cols();
       gather(b.sheet, b.row_begin * cols, b.row_end * cols);
-      slot.bounds_fresh = false;
       if (!b.split) {
         detail::integrate(def.integrator, s, params);
         if (keep_bounds) {  // for the next host stage, while the positions are in cache
