@@ -1,5 +1,7 @@
-// Force kernels: springs (eqs 6–7), damping (eq 4's C), anchors (eq 8).
+// Force kernels: springs (eqs 6–7), damping (eq 4's C), anchors (eq 8); obstacles (eq 9) live in obstacles.cpp.
 #include "forces.h"
+
+#include "obstacles.h"
 
 #include <cmath>
 
@@ -148,6 +150,9 @@ void sheet_forces_rows(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> 
     f.y[p] += an.stiffness[a] * (an.ty[a] - x.y[p]);
     f.z[p] += an.stiffness[a] * (an.tz[a] - x.z[p]);
   }
+  // eq (9): only obstacles the host stage found near this sheet (whole sheets only: the
+  // world never splits a sheet into row blocks while an obstacle is near it)
+  for (const NearObstacle& o : s.near_obstacles) obstacle_forces(*s.topology, o, x, f);
 }
 
 template <class Real>

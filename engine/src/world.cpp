@@ -19,6 +19,7 @@
 #include "diagnostics.h"
 #include "forces.h"
 #include "integrate.h"
+#include "obstacles.h"
 #include "sheet_data.h"
 
 namespace drape {
@@ -31,6 +32,7 @@ struct BasicWorld<Real>::Impl {
   struct Slot {
     std::optional<Sheet<Real>> sheet;
     std::uint32_t generation = 0;
+    double lightest_point = 0;  // kg, for the obstacle force bound (obstacles.h, exponent_cap)
     // The sheet's box after its last integration, taken while its positions were still in
     // cache; stale after add_sheet, state() or a step that split the sheet into blocks.
     detail::Aabb bounds;
@@ -70,6 +72,14 @@ struct BasicWorld<Real>::Impl {
     const int concurrency = def.threads > 0 ? def.threads : int(tbb::task_arena::automatic);
     arena = std::make_unique<tbb::task_arena>(concurrency);
   }
+  struct ObstacleSlot {
+    std::optional<detail::Obstacle> obstacle;
+    std::uint32_t generation = 0;
+  };
+  std::vector<ObstacleSlot> obstacle_slots;
+  std::vector<std::uint32_t> free_obstacle_slots;
+  std::vector<std::uint32_t> active_obstacles;  // live slots in the order obstacles were added
+
 
   Sheet<Real>& sheet(SheetId id) {
     if (!contains(id)) throw std::invalid_argument("drape: unknown or removed SheetId " + std::to_string(id.index));
@@ -80,6 +90,37 @@ struct BasicWorld<Real>::Impl {
     return id.index < slots.size() && slots[id.index].sheet && slots[id.index].generation == id.generation;
   }
   Sheet<Real>& at(std::size_t k) { return *slots[active[k]].sheet; }
+
+  detail::Obstacle& obstacle(ObstacleId id) {
+    if (!contains(id))
+      throw std::invalid_argument("drape: unknown or removed ObstacleId " + std::to_string(id.index));
+    return *obstacle_slots[id.index].obstacle;
+  }
+  bool contains(ObstacleId id) const {
+    return id.index < obstacle_slots.size() && obstacle_slots[id.index].obstacle &&
+           obstacle_slots[id.index].generation == id.generation;
+  }
+  // The sheets' obstacle lists point into obstacle_slots: drop them when the pool changes.
+  void forget_near_obstacles() {
+    for (std::uint32_t index : active) slots[index].sheet->near_obstacles.clear();
+  }
+
+  // Host stage: each sheet's list of obstacles whose reach its bounding box overlaps, so a
+  // sheet far from every obstacle runs no obstacle term at all.
+  void assign_obstacles() {
+    if (active_obstacles.empty()) return;
+    for (std::uint32_t index : active) {
+      Sheet<Real>& s = *slots[index].sheet;
+      const double lightest = slots[index].lightest_point;
+      s.near_obstacles.clear();
+      const detail::Aabb box = detail::sheet_bounds(s);
+      for (std::uint32_t o : active_obstacles) {
+        const detail::Obstacle& obstacle = *obstacle_slots[o].obstacle;
+        if (detail::may_touch(obstacle, box))
+          s.near_obstacles.push_back({&obstacle, detail::exponent_cap(obstacle.def, lightest, def.dt)});
+      }
+    }
+  }
 
   // Dozens of identical sheets keep one edge buffer between them.
   void share_topology(Sheet<Real>& s) {
@@ -175,7 +216,8 @@ struct BasicWorld<Real>::Impl {
       const std::uint32_t rows = s.topology->rows(), cols = s.topology->cols();
       const std::uint64_t points = s.size();
       std::uint32_t count = 1;
-      if (can_split && points >= 2 * std::uint64_t(def.block_points))
+      // The obstacle term works on whole sheets: a sheet near an obstacle is not split.
+      if (can_split && s.near_obstacles.empty() && points >= 2 * std::uint64_t(def.block_points))
         count = static_cast<std::uint32_t>(std::min<std::uint64_t>(rows, points / def.block_points));
       slots[active[k]].bounds_fresh = false;  // set again by a whole sheet's task
       if (count == 1) {
@@ -239,7 +281,8 @@ struct BasicWorld<Real>::Impl {
   void substep() {
     const detail::StepParams<Real> params{static_cast<Real>(def.dt), static_cast<Real>(def.gravity.x),
                                           static_cast<Real>(def.gravity.y), static_cast<Real>(def.gravity.z)};
-    host_stage();              // 1. bounds, broad-phase, contact forces per pair
+    host_stage();              // 1. bounds, broad-phase, contact forces per pair; obstacles near each sheet
+    assign_obstacles();
     integrate_sheets(params);  // 2. per sheet (or block): gather contacts, forces, integrate
     ++steps;
   }
@@ -288,6 +331,7 @@ SheetId BasicWorld<Real>::add_sheet(const SheetDef& def) {
     impl_->slots.emplace_back();
   }
   auto& slot = impl_->slots[index];
+  slot.lightest_point = *std::min_element(sheet.mass.begin(), sheet.mass.end());
   slot.sheet = std::move(sheet);
   slot.bounds_fresh = false;
   impl_->active.push_back(index);
@@ -314,6 +358,52 @@ std::vector<SheetId> BasicWorld<Real>::sheets() const {
   std::vector<SheetId> ids;
   for (std::uint32_t index : impl_->active) ids.push_back({index, impl_->slots[index].generation});
   return ids;
+}
+
+template <class Real>
+ObstacleId BasicWorld<Real>::add_obstacle(const ObstacleDef& def) {
+  if (std::string problem = validate(def); !problem.empty()) throw std::invalid_argument("drape: obstacle " + problem);
+  std::uint32_t index;
+  if (!impl_->free_obstacle_slots.empty()) {
+    index = impl_->free_obstacle_slots.back();
+    impl_->free_obstacle_slots.pop_back();
+  } else {
+    index = static_cast<std::uint32_t>(impl_->obstacle_slots.size());
+    impl_->obstacle_slots.emplace_back();
+  }
+  impl_->forget_near_obstacles();
+  auto& slot = impl_->obstacle_slots[index];
+  slot.obstacle = detail::make_obstacle(def);
+  impl_->active_obstacles.push_back(index);
+  return {index, slot.generation};
+}
+
+template <class Real>
+void BasicWorld<Real>::remove_obstacle(ObstacleId id) {
+  impl_->obstacle(id);  // throws on a stale id
+  impl_->forget_near_obstacles();
+  auto& slot = impl_->obstacle_slots[id.index];
+  slot.obstacle.reset();
+  ++slot.generation;
+  impl_->free_obstacle_slots.push_back(id.index);
+  std::erase(impl_->active_obstacles, id.index);
+}
+
+template <class Real>
+bool BasicWorld<Real>::contains(ObstacleId id) const { return impl_->contains(id); }
+template <class Real>
+std::size_t BasicWorld<Real>::obstacle_count() const { return impl_->active_obstacles.size(); }
+
+template <class Real>
+std::vector<ObstacleId> BasicWorld<Real>::obstacles() const {
+  std::vector<ObstacleId> ids;
+  for (std::uint32_t index : impl_->active_obstacles) ids.push_back({index, impl_->obstacle_slots[index].generation});
+  return ids;
+}
+
+template <class Real>
+const ObstacleDef& BasicWorld<Real>::obstacle(ObstacleId id) const {
+  return const_cast<Impl&>(*impl_).obstacle(id).def;
 }
 
 template <class Real>
@@ -359,8 +449,47 @@ template <class Real>
 std::uint64_t BasicWorld<Real>::step_count() const { return impl_->steps; }
 
 template <class Real>
+void BasicWorld<Real>::set_step_count(std::uint64_t steps) { impl_->steps = steps; }
+
+template <class Real>
+void BasicWorld<Real>::set_state(SheetId id, const SheetView<Real>& from) {
+  auto& s = impl_->sheet(id);
+  const std::size_t count = s.size();
+  for (std::size_t size : {from.x.size(), from.y.size(), from.z.size(), from.vx.size(), from.vy.size(), from.vz.size()})
+    if (size != count)
+      throw std::invalid_argument("drape: set_state of sheet " + std::to_string(id.index) + " needs " +
+                                  std::to_string(count) + " values per component, got " + std::to_string(size));
+  std::copy(from.x.begin(), from.x.end(), s.position.x.begin());
+  std::copy(from.y.begin(), from.y.end(), s.position.y.begin());
+  std::copy(from.z.begin(), from.z.end(), s.position.z.begin());
+  std::copy(from.vx.begin(), from.vx.end(), s.velocity.x.begin());
+  std::copy(from.vy.begin(), from.vy.end(), s.velocity.y.begin());
+  std::copy(from.vz.begin(), from.vz.end(), s.velocity.z.begin());
+  impl_->slots[id.index].bounds_fresh = false;  // the points moved: the cached box is stale
+}
+
+template <class Real>
+std::span<const Real> BasicWorld<Real>::integrator_memory(SheetId id) const {
+  return impl_->sheet(id).integrator_scratch;
+}
+
+template <class Real>
+void BasicWorld<Real>::set_integrator_memory(SheetId id, std::span<const Real> memory) {
+  impl_->sheet(id).integrator_scratch.assign(memory.begin(), memory.end());
+}
+
+template <class Real>
 SheetDiagnostics BasicWorld<Real>::diagnostics(SheetId id) const {
-  return detail::sheet_diagnostics(impl_->sheet(id), impl_->def.gravity);
+  const auto& sheet = impl_->sheet(id);
+  SheetDiagnostics d = detail::sheet_diagnostics(sheet, impl_->def.gravity);
+  // every obstacle, not only the near ones: the energy must not depend on the broad-phase
+  const double lightest = impl_->slots[id.index].lightest_point;
+  for (std::uint32_t o : impl_->active_obstacles) {
+    const detail::Obstacle& obstacle = *impl_->obstacle_slots[o].obstacle;
+    d.energy.obstacle += detail::obstacle_energy(sheet, obstacle, detail::exponent_cap(obstacle.def, lightest, impl_->def.dt));
+  }
+  d.finite = d.finite && std::isfinite(d.energy.total());
+  return d;
 }
 
 template <class Real>
@@ -372,6 +501,7 @@ Energies BasicWorld<Real>::energies() const {
     total.spring += e.spring;
     total.gravity += e.gravity;
     total.anchor += e.anchor;
+    total.obstacle += e.obstacle;
   }
   return total;
 }
