@@ -29,7 +29,7 @@ struct WorldDef {
   // are farther apart than that distance cost nothing. contact_strength = 0: no contacts.
   double contact_thickness = 0.005;  // h, m: the gap contacts keep between surfaces
   double contact_xi = 0.002;         // ξ, m: how fast the repulsion decays with distance
-  double contact_strength = 2e-4;    // c, J: the barrier at d = 0 is c·exp(h/ξ) ≈ 2.4e-3 J
+  double contact_strength = 1e-3;    // c, J: the barrier at d = 0 is c·exp(h/ξ) ≈ 0.012 J
   double contact_range = 6.0;        // cut-off beyond h, in units of ξ
 
   // A sheet of at least 2·block_points points is stepped as row blocks of about this many
