@@ -23,14 +23,32 @@ struct Aabb {
   }
 };
 
+// Eight independent running minima/maxima per axis: no iterator bookkeeping and no
+// single dependency chain, so the compiler turns the loop into packed min/max (the host
+// stage reads every point of every sheet each substep; this keeps it cheap).
 template <class Real>
 Aabb sheet_bounds(const Sheet<Real>& s) {
   Aabb box;
   const std::vector<Real>* axes[3] = {&s.position.x, &s.position.y, &s.position.z};
   for (int k = 0; k < 3; ++k) {
-    const auto [lo, hi] = std::minmax_element(axes[k]->begin(), axes[k]->end());
-    box.lo[k] = *lo;
-    box.hi[k] = *hi;
+    const Real* a = axes[k]->data();
+    const std::size_t count = axes[k]->size();
+    if (count == 0) continue;
+    constexpr std::size_t lanes = 8;
+    Real lo[lanes], hi[lanes];
+    for (std::size_t l = 0; l < lanes; ++l) lo[l] = hi[l] = a[0];
+    std::size_t i = 0;
+    for (; i + lanes <= count; i += lanes)
+      for (std::size_t l = 0; l < lanes; ++l) {
+        lo[l] = a[i + l] < lo[l] ? a[i + l] : lo[l];
+        hi[l] = a[i + l] > hi[l] ? a[i + l] : hi[l];
+      }
+    for (; i < count; ++i) {
+      lo[0] = a[i] < lo[0] ? a[i] : lo[0];
+      hi[0] = a[i] > hi[0] ? a[i] : hi[0];
+    }
+    box.lo[k] = *std::min_element(lo, lo + lanes);
+    box.hi[k] = *std::max_element(hi, hi + lanes);
   }
   return box;
 }

@@ -31,8 +31,23 @@ Vec3Ptr<Real> ptr(Vec3Array<Real>& a) { return {a.x.data(), a.y.data(), a.z.data
 template <class Real>
 void spring_forces(const Topology<Real>& topo, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row);
 
-// f = springs(x) − C·v + anchors(x) + near obstacles(x): the total internal force of eq (4) without gravity,
-// which the integrators add as an acceleration.
+// Rows [row_begin, row_end) of spring_forces: each row's force is computed from the same
+// operations in the same order as in the whole-sheet call (a boundary spring is evaluated
+// by both blocks, each keeping its own endpoint's share), so splitting a sheet into row
+// blocks changes no bit. spring_forces is the single block [0, m+1).
+template <class Real>
+void spring_forces_rows(const Topology<Real>& topo, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row,
+                        std::uint32_t row_begin, std::uint32_t row_end);
+
+// Rows [row_begin, row_end) of sheet_forces, with `row` as the block's scratch row.
+template <class Real>
+void sheet_forces_rows(Sheet<Real>& sheet, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f,
+                       Vec3Ptr<Real> row, std::uint32_t row_begin, std::uint32_t row_end);
+
+// f = springs(x) − C·v + contacts + anchors(x) + near obstacles(x): the total force of eq (4) without gravity,
+// which the integrators add as an acceleration. Contact forces are the ones the host stage
+// gathered from the positions at the start of the substep; a multi-stage integrator holds
+// them constant over the substep.
 template <class Real>
 void sheet_forces(Sheet<Real>& sheet, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f);
 

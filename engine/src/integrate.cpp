@@ -6,16 +6,20 @@
 #include "forces.h"
 #include "implicit.h"
 
+#include <cstdint>
+
 namespace drape::detail {
 
 namespace {
 
 // Hard pins: whatever the update did, a pinned point is back on its pin and at rest.
+// Only the pins among points [begin, end), the range a block of the world updated.
 template <class Real>
-void apply_pins(Sheet<Real>& s) {
+void apply_pins(Sheet<Real>& s, std::size_t begin = 0, std::size_t end = SIZE_MAX) {
   const auto& pins = s.pins;
   for (std::size_t k = 0; k < pins.point.size(); ++k) {
     const std::uint32_t p = pins.point[k];
+    if (p < begin || p >= end) continue;
     s.position.x[p] = pins.tx[k];
     s.position.y[p] = pins.ty[k];
     s.position.z[p] = pins.tz[k];
@@ -178,6 +182,30 @@ void integrate(Integrator integrator, Sheet<Real>& s, const StepParams<Real>& p)
   apply_pins(s);
 }
 
+bool updates_per_point(Integrator integrator) {
+  return integrator == Integrator::ForwardEuler || integrator == Integrator::SemiImplicitEuler;
+}
+
+template <class Real>
+void update_points(Integrator integrator, Sheet<Real>& s, const StepParams<Real>& p, std::size_t begin,
+                   std::size_t end) {
+  auto run = [&](auto update) {
+    const std::size_t count = end - begin;
+    const Real* inv_mass = s.inv_mass.data() + begin;
+    update(count, p.dt, p.gx, s.position.x.data() + begin, s.velocity.x.data() + begin, s.force.x.data() + begin, inv_mass);
+    update(count, p.dt, p.gy, s.position.y.data() + begin, s.velocity.y.data() + begin, s.force.y.data() + begin, inv_mass);
+    update(count, p.dt, p.gz, s.position.z.data() + begin, s.velocity.z.data() + begin, s.force.z.data() + begin, inv_mass);
+  };
+  switch (integrator) {
+    case Integrator::ForwardEuler: run(forward_euler_axis<Real>); break;
+    case Integrator::SemiImplicitEuler: run(semi_implicit_euler_axis<Real>); break;
+    default: break;  // updates_per_point() keeps the other integrators whole: never split
+  }
+  apply_pins(s, begin, end);
+}
+
+template void update_points<double>(Integrator, Sheet<double>&, const StepParams<double>&, std::size_t, std::size_t);
+template void update_points<float>(Integrator, Sheet<float>&, const StepParams<float>&, std::size_t, std::size_t);
 template void integrate<double>(Integrator, Sheet<double>&, const StepParams<double>&);
 template void integrate<float>(Integrator, Sheet<float>&, const StepParams<float>&);
 

@@ -28,4 +28,15 @@ struct SolveStats {
 template <class Real>
 SolveStats implicit_solve_stats(const Sheet<Real>& sheet);
 
+// Integrators that evaluate the forces once per substep and then update each point from
+// its own force alone. Only these let the world split a large sheet into row blocks:
+// forces of every block first, then update_points per block.
+bool updates_per_point(Integrator integrator);
+
+// Points [begin, end) of such an integrator's update from sheet.force, then the pins among
+// them; integrate() is sheet_forces followed by update_points over all points.
+template <class Real>
+void update_points(Integrator integrator, Sheet<Real>& sheet, const StepParams<Real>& params, std::size_t begin,
+                   std::size_t end);
+
 }  // namespace drape::detail

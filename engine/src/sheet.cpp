@@ -197,6 +197,7 @@ Sheet<Real> build_sheet(const SheetDef& d) {
   s.velocity.resize(count);
   s.force.resize(count);
   s.row_scratch.resize(cols);
+  s.self_collision = d.self_collision;
   for (std::uint32_t i = 0; i <= m; ++i)
     for (std::uint32_t j = 0; j <= n; ++j) {
       // eqs (2)–(3): row-major; local grid centred on the sheet's centre

@@ -85,6 +85,11 @@ struct Sheet {
   // Shared between copies of a sheet only until one of them steps implicitly again: the
   // integrator replaces a scratch it does not own alone (implicit.cpp).
   std::shared_ptr<ImplicitScratch<Real>> implicit_scratch;
+  // Contact forces of this substep, gathered by the host stage in fixed pair order;
+  // sheet_forces adds them only when has_contacts (a per-sheet, not per-point, choice).
+  Vec3Array<Real> contact_force;
+  bool has_contacts = false;
+  bool self_collision = false;
   // Obstacles whose reach overlaps this sheet's bounding box, chosen by the world's host
   // stage every substep (the world clears these lists whenever its obstacle pool changes).
   std::vector<NearObstacle> near_obstacles;

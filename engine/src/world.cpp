@@ -2,6 +2,7 @@
 #include <drape/world.h>
 
 #include <oneapi/tbb/blocked_range.h>
+#include <oneapi/tbb/enumerable_thread_specific.h>
 #include <oneapi/tbb/parallel_for.h>
 #include <oneapi/tbb/task_arena.h>
 
@@ -14,7 +15,10 @@
 #include <string>
 
 #include "bounds.h"
+#include "broad_phase.h"
+#include "contacts.h"
 #include "diagnostics.h"
+#include "forces.h"
 #include "integrate.h"
 #include "obstacles.h"
 #include "sheet_data.h"
@@ -37,6 +41,14 @@ std::string validate(const WorldDef& d) {
   if (!(d.adaptive_safety > 0 && d.adaptive_safety <= 1)) return problem("adaptive_safety", "must be in (0, 1]", d.adaptive_safety);
   if (!(d.guard_energy_growth > 1) || std::isnan(d.guard_energy_growth))
     return problem("guard_energy_growth", "must be greater than 1", d.guard_energy_growth);
+  if (!(d.contact_thickness >= 0) || !finite(d.contact_thickness))
+    return problem("contact_thickness", "must be non-negative and finite", d.contact_thickness);
+  if (!(d.contact_xi > 0) || !finite(d.contact_xi)) return problem("contact_xi", "must be positive and finite", d.contact_xi);
+  if (!(d.contact_strength >= 0) || !finite(d.contact_strength))
+    return problem("contact_strength", "must be non-negative and finite", d.contact_strength);
+  if (!(d.contact_range > 0) || !finite(d.contact_range))
+    return problem("contact_range", "must be positive and finite", d.contact_range);
+  if (d.block_points == 0) return problem("block_points", "must be positive", d.block_points);
   return {};
 }
 
@@ -79,10 +91,22 @@ struct BasicWorld<Real>::Impl {
     double omega_max = 0;  // rad/s, Gershgorin bound; fixed by masses and stiffnesses
     Guard guard;
     double lightest_point = 0;  // kg, for the obstacle force bound (obstacles.h, exponent_cap)
+    // The sheet's box after its last integration, taken while its positions were still in
+    // cache; stale after add_sheet, state() or a step that split the sheet into blocks.
+    detail::Aabb bounds;
+    bool bounds_fresh = false;
+  };
+  // A unit of the parallel stage: rows [row_begin, row_end) of one sheet. `split` blocks
+  // compute forces in the first pass and update in the second; a whole sheet does both
+  // in its one task.
+  struct Block {
+    std::uint32_t sheet;  // position in `active`
+    std::uint32_t row_begin, row_end, index;
+    bool split;
   };
 
   WorldDef def;
-  tbb::task_arena arena;
+  std::unique_ptr<tbb::task_arena> arena;
   std::vector<Slot> slots;
   std::vector<std::uint32_t> free_slots;
   std::vector<std::uint32_t> active;  // live slots in the order sheets were added
@@ -95,6 +119,23 @@ struct BasicWorld<Real>::Impl {
 
   void set_def(const WorldDef& d);
 
+  // Host stage scratch, kept between substeps so a settled scene does not allocate.
+  std::vector<detail::Aabb> bounds, grown;
+  detail::BroadPhase broad_phase;
+  std::vector<detail::BoxPair> pairs;
+  std::vector<detail::PairContacts<Real>> pair_work;
+  tbb::enumerable_thread_specific<detail::ContactGrid<Real>> grids;  // narrow-phase scratch
+  std::vector<std::uint32_t> source_start;                  // per sheet, into sources (CSR)
+  std::vector<const detail::ContactForces<Real>*> sources;  // per sheet, in pair order
+  std::vector<std::uint32_t> source_cursor;                 // while filling sources
+  std::vector<Block> blocks;
+
+  explicit Impl(const WorldDef& d) : def(d) { make_arena(); }
+
+  void make_arena() {
+    const int concurrency = def.threads > 0 ? def.threads : int(tbb::task_arena::automatic);
+    arena = std::make_unique<tbb::task_arena>(concurrency);
+  }
   struct ObstacleSlot {
     std::optional<detail::Obstacle> obstacle;
     std::uint32_t generation = 0;
@@ -103,8 +144,6 @@ struct BasicWorld<Real>::Impl {
   std::vector<std::uint32_t> free_obstacle_slots;
   std::vector<std::uint32_t> active_obstacles;  // live slots in the order obstacles were added
 
-  explicit Impl(const WorldDef& d)
-      : def(d), arena(d.threads > 0 ? d.threads : tbb::task_arena::automatic) {}
 
   Sheet<Real>& sheet(SheetId id) {
     if (!contains(id)) throw std::invalid_argument("drape: unknown or removed SheetId " + std::to_string(id.index));
@@ -114,6 +153,7 @@ struct BasicWorld<Real>::Impl {
   bool contains(SheetId id) const {
     return id.index < slots.size() && slots[id.index].sheet && slots[id.index].generation == id.generation;
   }
+  Sheet<Real>& at(std::size_t k) { return *slots[active[k]].sheet; }
 
   detail::Obstacle& obstacle(ObstacleId id) {
     if (!contains(id))
@@ -161,26 +201,158 @@ struct BasicWorld<Real>::Impl {
     topologies.push_back(s.topology);
   }
 
-  // Parallel stage: every sheet writes only its own buffers, so the result does not
-  // depend on how TBB schedules them (bit-identical for any thread count).
-  void integrate_sheets(const detail::StepParams<Real>& params) {
-    arena.execute([&] {
-      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, active.size(), 1),
-                        [&](const tbb::blocked_range<std::size_t>& r) {
-                          for (std::size_t k = r.begin(); k != r.end(); ++k)
-                            detail::integrate(def.integrator, *slots[active[k]].sheet, params);
-                        });
+  template <class Body>
+  void parallel(std::size_t count, Body body) {
+    arena->execute([&] {
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 1), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t k = r.begin(); k != r.end(); ++k) body(k);
+      });
     });
   }
 
+  bool contacts_possible() const {
+    if (!(def.contact_strength > 0)) return false;
+    return active.size() > 1 ||
+           std::any_of(active.begin(), active.end(), [&](auto i) { return slots[i].sheet->self_collision; });
+  }
+
+  // Host stage: bounds → broad-phase → contact work per overlapping pair → which forces
+  // each sheet gathers. Sheets whose boxes (grown by half the contact range each) do not
+  // meet never reach the narrow phase.
+  void host_stage() {
+    const std::size_t count = active.size();
+    for (std::size_t k = 0; k < count; ++k) at(k).has_contacts = false;
+    if (!contacts_possible()) {
+      pairs.clear();
+      return;
+    }
+    const auto params = detail::ContactParams<Real>::make(def.contact_thickness, def.contact_xi, def.contact_strength,
+                                                          def.contact_range);
+    bounds.resize(count);
+    grown.resize(count);
+    parallel(count, [&](std::size_t k) {
+      const Slot& slot = slots[active[k]];
+      bounds[k] = slot.bounds_fresh ? slot.bounds : detail::sheet_bounds(at(k));
+      grown[k] = bounds[k].inflated(0.5 * double(params.range));
+    });
+    broad_phase.find_pairs(grown, pairs);
+    if (std::any_of(active.begin(), active.end(), [&](auto i) { return slots[i].sheet->self_collision; })) {
+      for (std::uint32_t k = 0; k < count; ++k)
+        if (at(k).self_collision) pairs.push_back({k, k});
+      std::sort(pairs.begin(), pairs.end());
+    }
+    if (pair_work.size() < pairs.size()) pair_work.resize(pairs.size());
+    parallel(pairs.size(), [&](std::size_t q) {
+      auto& w = pair_work[q];
+      w.a = pairs[q].first;
+      w.b = pairs[q].second;
+      auto& grid = grids.local();
+      if (w.a == w.b)
+        detail::self_contacts(at(w.a), bounds[w.a], params, w, grid);
+      else
+        detail::pair_contacts(at(w.a), bounds[w.a], at(w.b), bounds[w.b], params, w, grid);
+    });
+    // Each sheet's sources in pair order: the gather's order, fixed by the boxes alone.
+    source_start.assign(count + 1, 0);
+    for (std::size_t q = 0; q < pairs.size(); ++q) {
+      const auto& w = pair_work[q];
+      if (w.on_a.size()) ++source_start[w.a + 1];
+      if (w.a != w.b && w.on_b.size()) ++source_start[w.b + 1];
+    }
+    for (std::size_t k = 0; k < count; ++k) source_start[k + 1] += source_start[k];
+    sources.resize(source_start[count]);
+    source_cursor.assign(source_start.begin(), source_start.end() - 1);
+    for (std::size_t q = 0; q < pairs.size(); ++q) {
+      const auto& w = pair_work[q];
+      if (w.on_a.size()) sources[source_cursor[w.a]++] = &w.on_a;
+      if (w.a != w.b && w.on_b.size()) sources[source_cursor[w.b]++] = &w.on_b;
+    }
+    for (std::size_t k = 0; k < count; ++k) {
+      Sheet<Real>& s = at(k);
+      s.has_contacts = source_start[k + 1] > source_start[k];
+      if (s.has_contacts && s.contact_force.x.size() != s.size()) s.contact_force.resize(s.size());
+    }
+  }
+
+  // A sheet of at least 2·block_points points is cut into row blocks of about
+  // block_points points, so one large sheet among small ones keeps every core busy.
+  void plan_blocks() {
+    blocks.clear();
+    const bool can_split = detail::updates_per_point(def.integrator);
+    for (std::uint32_t k = 0; k < active.size(); ++k) {
+      Sheet<Real>& s = at(k);
+      const std::uint32_t rows = s.topology->rows(), cols = s.topology->cols();
+      const std::uint64_t points = s.size();
+      std::uint32_t count = 1;
+      // The obstacle term works on whole sheets: a sheet near an obstacle is not split.
+      if (can_split && s.near_obstacles.empty() && points >= 2 * std::uint64_t(def.block_points))
+        count = static_cast<std::uint32_t>(std::min<std::uint64_t>(rows, points / def.block_points));
+      slots[active[k]].bounds_fresh = false;  // set again by a whole sheet's task
+      if (count == 1) {
+        blocks.push_back({k, 0, rows, 0, false});
+        continue;
+      }
+      if (s.row_scratch.x.size() < std::size_t(count) * cols) s.row_scratch.resize(std::size_t(count) * cols);
+      for (std::uint32_t b = 0; b < count; ++b)
+        blocks.push_back({k, std::uint32_t(std::uint64_t(rows) * b / count), std::uint32_t(std::uint64_t(rows) * (b + 1) / count),
+                          b, true});
+    }
+  }
+
+  void gather(std::size_t k, std::size_t begin, std::size_t end) {
+    Sheet<Real>& s = at(k);
+    if (!s.has_contacts) return;
+    const std::span<const detail::ContactForces<Real>* const> src(sources.data() + source_start[k],
+                                                                   source_start[k + 1] - source_start[k]);
+    detail::gather_contacts(src, s.contact_force, begin, end);
+  }
+
+  // Parallel stage: every task writes only its own sheet's (or block's) buffers and reads
+  // the contact buffers the host stage finished, so the result does not depend on how TBB
+  // schedules them (bit-identical for any thread count).
+  void integrate_sheets(const detail::StepParams<Real>& params) {
+    plan_blocks();
+    bool any_split = false;
+    const bool keep_bounds = contacts_possible();
+    parallel(blocks.size(), [&](std::size_t q) {
+      const Block& b = blocks[q];
+      Slot& slot = slots[active[b.sheet]];
+      Sheet<Real>& s = *slot.sheet;
+      const std::size_t cols = s.topology->cols();
+      gather(b.sheet, b.row_begin * cols, b.row_end * cols);
+      if (!b.split) {
+        detail::integrate(def.integrator, s, params);
+        if (keep_bounds) {  // for the next host stage, while the positions are in cache
+          slot.bounds = detail::sheet_bounds(s);
+          slot.bounds_fresh = true;
+        }
+        return;
+      }
+      auto row = detail::ptr(s.row_scratch);
+      const std::size_t off = b.index * cols;
+      detail::sheet_forces_rows(s, detail::cptr(s.position), detail::cptr(s.velocity), detail::ptr(s.force),
+                                {row.x + off, row.y + off, row.z + off}, b.row_begin, b.row_end);
+    });
+    for (const Block& b : blocks) any_split = any_split || b.split;
+    if (!any_split) return;
+    // Second pass, after every block's forces: a block's springs read its neighbours' rows.
+    parallel(blocks.size(), [&](std::size_t q) {
+      const Block& b = blocks[q];
+      if (!b.split) return;
+      Sheet<Real>& s = at(b.sheet);
+      const std::size_t cols = s.topology->cols();
+      detail::update_points(def.integrator, s, params, b.row_begin * cols, b.row_end * cols);
+    });
+  }
+
+  // One substep, stage by stage.
   void substep(double h) {
     const detail::StepParams<Real> params{static_cast<Real>(h), static_cast<Real>(def.gravity.x),
                                           static_cast<Real>(def.gravity.y), static_cast<Real>(def.gravity.z),
                                           def.cg_tolerance, def.cg_max_iterations};
-    // 1. host stage: bounds, broad-phase and contact work go here
+    host_stage();              // 1. bounds, broad-phase, contact forces per pair; obstacles near each sheet
     assign_obstacles(h);
-    // 2. parallel stage: per-sheet forces, then integration
-    integrate_sheets(params);
+    integrate_sheets(params);  // 2. per sheet (or block): gather contacts, forces, integrate
     if (h != current_h) {
       time_base = time();
       steps_base = steps;
@@ -313,6 +485,7 @@ struct BasicWorld<Real>::Impl {
   }
 };
 
+
 template <class Real>
 BasicWorld<Real>::BasicWorld(const WorldDef& def) {
   if (std::string problem = validate(def); !problem.empty()) throw std::invalid_argument("drape: WorldDef " + problem);
@@ -344,6 +517,7 @@ SheetId BasicWorld<Real>::add_sheet(const SheetDef& def) {
   slot.omega_max = 2.0 / detail::sheet_stable_step(*slot.sheet);
   slot.guard = {};
   impl_->take_reference(slot);
+  slot.bounds_fresh = false;
   impl_->active.push_back(index);
   return {index, slot.generation};
 }
@@ -427,6 +601,7 @@ template <class Real>
 SheetState<Real> BasicWorld<Real>::state(SheetId id) {
   auto& s = impl_->sheet(id);
   impl_->slots[id.index].guard.has_reference = false;  // the caller may write: a new reference
+  impl_->slots[id.index].bounds_fresh = false;  // the caller may move points
   return {s.topology->m, s.topology->n, s.position.x, s.position.y, s.position.z,
           s.velocity.x,  s.velocity.y,  s.velocity.z};
 }
@@ -469,7 +644,9 @@ const WorldDef& BasicWorld<Real>::def() const { return impl_->def; }
 template <class Real>
 void BasicWorld<Real>::Impl::set_def(const WorldDef& d) {
   if (std::string problem = validate(d); !problem.empty()) throw std::invalid_argument("drape: WorldDef " + problem);
+  const bool new_arena = d.threads != def.threads;
   def = d;
+  if (new_arena) make_arena();
   failure.reset();
   for (std::uint32_t index : active) slots[index].guard.has_reference = false;
 }
@@ -509,6 +686,16 @@ typename BasicWorld<Real>::SolverStats BasicWorld<Real>::solver_stats(SheetId id
 
 template <class Real>
 double BasicWorld<Real>::time() const { return impl_->time(); }
+
+template <class Real>
+void BasicWorld<Real>::set_threads(int threads) {
+  if (threads < 0) throw std::invalid_argument("drape: threads must be >= 0 (0: all cores)");
+  WorldDef d = impl_->def;
+  d.threads = threads;
+  impl_->set_def(d);
+}
+template <class Real>
+std::size_t BasicWorld<Real>::contact_pair_count() const { return impl_->pairs.size(); }
 template <class Real>
 std::uint64_t BasicWorld<Real>::step_count() const { return impl_->steps; }
 
@@ -536,6 +723,7 @@ void BasicWorld<Real>::set_state(SheetId id, const SheetView<Real>& from) {
   std::copy(from.vx.begin(), from.vx.end(), s.velocity.x.begin());
   std::copy(from.vy.begin(), from.vy.end(), s.velocity.y.begin());
   std::copy(from.vz.begin(), from.vz.end(), s.velocity.z.begin());
+  impl_->slots[id.index].bounds_fresh = false;  // the points moved: the cached box is stale
 }
 
 template <class Real>

@@ -58,6 +58,10 @@ struct SheetDef {
 
   std::vector<AnchorDef> anchors;    // soft constraints, eq (8)
   std::vector<std::uint32_t> pins;   // hard constraints: these points never move
+
+  // Contacts of the sheet with itself (folding), with the world's contact parameters
+  // (WorldDef::contact_*). Off by default: it costs a grid over the whole sheet per substep.
+  bool self_collision = false;
 };
 
 constexpr std::uint32_t point_index(std::uint32_t n, std::uint32_t i, std::uint32_t j) {

@@ -41,6 +41,19 @@ struct WorldDef {
   // reported. Cost: one pass over points and springs per call, not per substep.
   bool guard = true;
   double guard_energy_growth = 10.0;
+
+  // Contacts between sheets (engine/src/contacts.h): a point at distance d from another
+  // sheet's surface feels E = c·exp(−(d − h)/ξ), cut off (continuously) at
+  // d = h + contact_range·ξ; the force never exceeds (c/ξ)·exp(h/ξ). Sheets whose boxes
+  // are farther apart than that distance cost nothing. contact_strength = 0: no contacts.
+  double contact_thickness = 0.005;  // h, m: the gap contacts keep between surfaces
+  double contact_xi = 0.002;         // ξ, m: how fast the repulsion decays with distance
+  double contact_strength = 1e-3;    // c, J: the barrier at d = 0 is c·exp(h/ξ) ≈ 0.012 J
+  double contact_range = 6.0;        // cut-off beyond h, in units of ξ
+
+  // A sheet of at least 2·block_points points is stepped as row blocks of about this many
+  // points, so one large sheet keeps every core busy; the result is the same bit for bit.
+  std::uint32_t block_points = 8192;
 };
 
 // Throws nothing: an empty string when the definition is usable, else one message naming
@@ -198,6 +211,11 @@ class BasicWorld {
   // s, simulated: step_count()·dt while the substep never changed (runs of equal substeps
   // are exact; advance() and adaptive steps add their own lengths)
   double time() const;
+  // Worker threads of step(); 0: all cores. Results do not depend on it, bit for bit.
+  void set_threads(int threads);
+  // Overlapping sheet pairs (including a sheet with itself when self_collision is on) that
+  // the last substep's host stage handed to the contact stage.
+  std::size_t contact_pair_count() const;
   std::uint64_t step_count() const;   // substeps taken
 
   // Full state, for checkpoints. Everything step() changes is the step count, each sheet's

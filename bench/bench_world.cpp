@@ -1,0 +1,115 @@
+// Many sheets in one World: step throughput against threads, the price of contacts, and
+// the broad-phase alone against the number of boxes.
+#include <benchmark/benchmark.h>
+#include <drape/drape.h>
+
+#include <random>
+#include <vector>
+
+#include "broad_phase.h"
+
+namespace {
+
+// 48 sheets of 64×64 points, 1 m wide, corners pinned, in a stack of 6 columns × 8
+// layers. `layer_gap` 0.5 m keeps them apart (no pair within contact range); 0.01 m puts
+// each layer in contact with the next (the contact range is 0.017 m by default).
+drape::World stack_world(int threads, double layer_gap) {
+  drape::WorldDef wd;
+  wd.dt = 1e-3;
+  wd.threads = threads;
+  drape::World world(wd);
+  drape::SheetDef sd;
+  sd.m = sd.n = 63;
+  sd.mass = 1.0;
+  sd.stiffness = 100.0;
+  sd.damping = 1e-3;
+  sd.pins = drape::corner_points(sd.m, sd.n);
+  for (int column = 0; column < 6; ++column)
+    for (int layer = 0; layer < 8; ++layer) {
+      sd.center = {1.5 * column, 0.0, layer_gap * layer};
+      world.add_sheet(sd);
+    }
+  return world;
+}
+
+void report(benchmark::State& state, double points) {
+  state.counters["points"] = points;
+  state.counters["point_steps_per_s"] =
+      benchmark::Counter(points * double(state.iterations()), benchmark::Counter::kIsRate);
+}
+
+// Arg: threads. Sheets apart: the host stage finds no pair.
+void BM_World48SheetsApart(benchmark::State& state) {
+  drape::World world = stack_world(int(state.range(0)), 0.5);
+  world.step(10);
+  for (auto _ : state) world.step(1);
+  state.counters["pairs"] = double(world.contact_pair_count());
+  report(state, 48.0 * 64 * 64);
+}
+BENCHMARK(BM_World48SheetsApart)->Arg(1)->Arg(2)->UseRealTime();
+
+// Arg: threads. Same sheets, layers 10 mm apart (about the resting gap): every layer
+// touches the next, and only the next.
+void BM_World48SheetsInContact(benchmark::State& state) {
+  drape::World world = stack_world(int(state.range(0)), 0.01);
+  world.step(10);
+  for (auto _ : state) world.step(1);
+  state.counters["pairs"] = double(world.contact_pair_count());
+  report(state, 48.0 * 64 * 64);
+}
+BENCHMARK(BM_World48SheetsInContact)->Arg(1)->Arg(2)->UseRealTime();
+
+// Args: threads, block_points. One 256×256 sheet among eight 32×32 ones: without
+// splitting (block_points huge) one core does the large sheet alone.
+void BM_WorldOneLargeSheet(benchmark::State& state) {
+  drape::WorldDef wd;
+  wd.dt = 1e-4;
+  wd.threads = int(state.range(0));
+  wd.block_points = std::uint32_t(state.range(1));
+  drape::World world(wd);
+  drape::SheetDef big;
+  big.m = big.n = 255;
+  big.pins = drape::corner_points(big.m, big.n);
+  world.add_sheet(big);
+  drape::SheetDef small;
+  small.m = small.n = 31;
+  small.pins = drape::corner_points(small.m, small.n);
+  for (int k = 0; k < 8; ++k) {
+    small.center = {2.0 + 1.5 * k, 0.0, 0.0};
+    world.add_sheet(small);
+  }
+  for (auto _ : state) world.step(1);
+  report(state, 256.0 * 256 + 8 * 32 * 32);
+}
+BENCHMARK(BM_WorldOneLargeSheet)
+    ->Args({1, 1 << 30})
+    ->Args({2, 1 << 30})
+    ->Args({2, 8192})
+    ->UseRealTime();
+
+// Arg: number of boxes. Sheet-sized boxes (1 m) scattered in a cube whose volume grows
+// with the count, so each box overlaps a few others at every size.
+void BM_BroadPhase(benchmark::State& state) {
+  const auto count = std::size_t(state.range(0));
+  std::mt19937 rng(42);
+  const double side = 2.0 * std::cbrt(double(count));
+  std::uniform_real_distribution<double> pos(0.0, side), ext(0.2, 1.0);
+  std::vector<drape::detail::Aabb> boxes(count);
+  for (auto& b : boxes)
+    for (int k = 0; k < 3; ++k) {
+      b.lo[k] = pos(rng);
+      b.hi[k] = b.lo[k] + ext(rng);
+    }
+  drape::detail::BroadPhase bp;
+  std::vector<drape::detail::BoxPair> pairs;
+  for (auto _ : state) {
+    bp.find_pairs(boxes, pairs);
+    benchmark::DoNotOptimize(pairs.data());
+  }
+  state.counters["pairs"] = double(pairs.size());
+  state.counters["boxes_per_s"] = benchmark::Counter(double(count) * double(state.iterations()), benchmark::Counter::kIsRate);
+  state.SetComplexityN(state.range(0));
+}
+BENCHMARK(BM_BroadPhase)->RangeMultiplier(10)->Range(10, 10000)->Complexity(benchmark::oNLogN);
+
+}  // namespace

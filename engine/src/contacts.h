@@ -1,0 +1,112 @@
+// Contacts between sheets (and of a sheet with itself): the narrow phase of the host stage.
+//
+// A point p of one sheet is repelled by the surface of another sheet, its grid cells split
+// into triangles (cell (i, j) into (i,j)(i,j+1)(i+1,j+1) and (i,j)(i+1,j+1)(i+1,j)), through
+// the potential
+//     E(d) = c·exp(−(d − h)/ξ) − shift,   d = min over triangles T of dist(p, T), h = thickness,
+// the obstacles' potential of eq (9) with the distance to the surface minus the thickness
+// in place of the implicit function. Only the nearest triangle acts: summing over every
+// triangle in range would make a flat sheet bumpy (a point over a vertex feels six
+// triangles, over a face one or two) and let resting sheets creep. The force −dE/dd = (c/ξ)·exp(−(d − h)/ξ) is
+// cut off at d = R = h + range_in_xi·ξ and shifted so it falls continuously to 0 there;
+// since d ≥ 0 it never exceeds (c/ξ)·exp(h/ξ): a fast or deep penetration meets a large
+// but finite force, never an overflow. The force on p acts along p − q (q the closest point
+// of the nearest T; T's normal when p lies on T), and the opposite force is shared by T's three
+// vertices with q's barycentric weights, so every contact conserves momentum to rounding.
+//
+// Candidates come from a uniform grid over the pair's overlap region: the other sheet's
+// cells are binned by their boxes grown by R, and each point inside the region tests only
+// the cells binned where it lies. Never all points against all cells.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "bounds.h"
+#include "sheet_data.h"
+
+namespace drape::detail {
+
+template <class Real>
+struct ContactParams {
+  Real thickness;  // h, m
+  Real xi;         // ξ, m
+  Real strength;   // c, J
+  Real range;      // R, m: no force beyond this distance
+  Real tail;       // exp(−(R − h)/ξ): the shift that makes the force vanish at R
+
+  static ContactParams make(double thickness, double xi, double strength, double range_in_xi);
+};
+
+// Sparse forces one pair puts on one sheet, in the order the pair found them: entries for
+// the same point are added in this order when the sheet gathers them.
+template <class Real>
+struct ContactForces {
+  std::vector<std::uint32_t> point;
+  std::vector<Real> fx, fy, fz;
+  void clear() {
+    point.clear();
+    fx.clear();
+    fy.clear();
+    fz.clear();
+  }
+  void push(std::uint32_t p, Real x, Real y, Real z) {
+    point.push_back(p);
+    fx.push_back(x);
+    fy.push_back(y);
+    fz.push_back(z);
+  }
+  std::size_t size() const { return point.size(); }
+};
+
+// Uniform-grid scratch of the narrow phase. Its contents never reach the result's
+// order, so one grid per thread serves every pair that thread computes.
+template <class Real>
+struct ContactGrid {
+  struct Cell {  // a sheet cell near the region: its box (not grown) and where it is
+    Real lo[3], hi[3];
+    std::uint32_t corner, i, j;  // point (i, j), the cell's first corner
+  };
+  std::vector<Cell> cells;           // candidates, in the sheet's cell order
+  std::vector<std::uint32_t> start;  // per grid cell, into items (CSR)
+  std::vector<std::uint32_t> items;  // indices into cells, grouped by grid cell, ascending
+  std::vector<std::uint32_t> range;  // per candidate: its grid cells g0[3], g1[3]
+  std::vector<std::uint32_t> cursor; // per grid cell, while filling items
+  std::vector<Real> gap2;            // per candidate of one query: squared gap to its box
+};
+
+// The contact work of one overlapping pair of sheets (a < b), or of one sheet with itself
+// (a == b, only on_a used). Written by one task, read by the gather: no sharing.
+template <class Real>
+struct PairContacts {
+  std::uint32_t a = 0, b = 0;  // positions in the world's sheet order
+  ContactForces<Real> on_a, on_b;
+};
+
+// Points of `a` against the cells of `b` and points of `b` against the cells of `a`,
+// restricted to the overlap of the boxes grown by params.range. Clears and fills work.on_a/on_b.
+template <class Real>
+void pair_contacts(const Sheet<Real>& a, const Aabb& box_a, const Sheet<Real>& b, const Aabb& box_b,
+                   const ContactParams<Real>& params, PairContacts<Real>& work, ContactGrid<Real>& grid);
+
+// A sheet folding onto itself: points against the sheet's own cells, skipping the cells
+// within `self_contact_ring` rows/columns of the point (its grid neighbourhood, which
+// is always within contact range of it). Clears and fills work.on_a.
+template <class Real>
+void self_contacts(const Sheet<Real>& s, const Aabb& box, const ContactParams<Real>& params,
+                   PairContacts<Real>& work, ContactGrid<Real>& grid);
+
+// Rows/columns around a point whose cells self-contact ignores: enough that the cells a
+// point touches at rest spacing never count, 1 + ⌈R / smallest rest spacing⌉, at most 16.
+template <class Real>
+std::uint32_t self_contact_ring(const Sheet<Real>& s, const ContactParams<Real>& params);
+
+// Writes the sum of `sources` into points [begin, end) of `out` (zeroing them first),
+// adding in source order and, within a source, in entry order: the same bits whatever
+// thread runs it and however the sheet is split into blocks.
+template <class Real>
+void gather_contacts(std::span<const ContactForces<Real>* const> sources, Vec3Array<Real>& out, std::size_t begin,
+                     std::size_t end);
+
+}  // namespace drape::detail

@@ -1,0 +1,250 @@
+// Contacts between sheets against an independent brute-force potential, conservation
+// laws and a hand computation.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "bounds.h"
+#include "contacts.h"
+#include "sheet_data.h"
+
+namespace drape::detail {
+namespace {
+
+using P3 = std::array<double, 3>;
+P3 sub(P3 a, P3 b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
+double dot(P3 a, P3 b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+P3 cross(P3 a, P3 b) { return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]}; }
+
+double segment_distance(P3 p, P3 a, P3 b) {
+  const P3 ab = sub(b, a);
+  const double t = std::clamp(dot(sub(p, a), ab) / dot(ab, ab), 0.0, 1.0);
+  const P3 q{a[0] + t * ab[0], a[1] + t * ab[1], a[2] + t * ab[2]};
+  return std::sqrt(dot(sub(p, q), sub(p, q)));
+}
+
+// Distance to a triangle by a different route than the engine's Voronoi-region walk:
+// the plane distance if p projects inside, else the nearest of the three edges.
+double triangle_distance(P3 p, P3 a, P3 b, P3 c) {
+  const P3 nrm = cross(sub(b, a), sub(c, a));
+  const double h = dot(sub(p, a), nrm) / dot(nrm, nrm);
+  const P3 q{p[0] - h * nrm[0], p[1] - h * nrm[1], p[2] - h * nrm[2]};
+  const bool inside = dot(cross(sub(b, a), sub(q, a)), nrm) >= 0 && dot(cross(sub(c, b), sub(q, b)), nrm) >= 0 &&
+                      dot(cross(sub(a, c), sub(q, c)), nrm) >= 0;
+  if (inside) return std::abs(h) * std::sqrt(dot(nrm, nrm));
+  return std::min({segment_distance(p, a, b), segment_distance(p, b, c), segment_distance(p, c, a)});
+}
+
+struct Potential {
+  double h, xi, c, R;
+  // E(d) whose −dE/dd is contacts.h's shifted force: zero, with zero slope, at d = R.
+  double operator()(double d) const {
+    if (d >= R) return 0;
+    const double tail = std::exp(-(R - h) / xi);
+    return c * (std::exp((h - d) / xi) - tail) + c / xi * tail * (d - R);
+  }
+};
+
+P3 point(const Sheet<double>& s, std::uint32_t p) { return {s.position.x[p], s.position.y[p], s.position.z[p]}; }
+
+// Σ over points of q of E(distance to the surface of s), the distance a minimum over all
+// triangles of s (every cell, no grid): the brute force.
+double brute_energy(const Sheet<double>& q, const Sheet<double>& s, const Potential& E) {
+  const auto& t = *s.topology;
+  const std::uint32_t cols = t.cols();
+  double sum = 0;
+  for (std::uint32_t p = 0; p < q.size(); ++p) {
+    double d_min = INFINITY;
+    for (std::uint32_t i = 0; i < t.m; ++i)
+      for (std::uint32_t j = 0; j < t.n; ++j) {
+        const std::uint32_t a = i * cols + j, b = a + 1, c = a + cols, d = c + 1;
+        d_min = std::min({d_min, triangle_distance(point(q, p), point(s, a), point(s, b), point(s, d)),
+                          triangle_distance(point(q, p), point(s, a), point(s, d), point(s, c))});
+      }
+    sum += E(d_min);
+  }
+  return sum;
+}
+
+const ContactParams<double> kParams = ContactParams<double>::make(0.005, 0.002, 1e-4, 6.0);
+
+// Two small sheets a few millimetres apart, the upper one rumpled, so most points lie
+// within contact range of several triangles of the other sheet.
+std::pair<Sheet<double>, Sheet<double>> close_sheets(unsigned seed) {
+  SheetDef da;
+  da.m = 6;
+  da.n = 6;
+  da.width = da.height = 0.1;
+  SheetDef db = da;
+  db.m = 5;
+  db.n = 7;
+  db.center = {0.01, -0.005, 0.006};
+  db.orientation = quat_from_axis_angle({0, 0, 1}, 0.3);
+  auto a = build_sheet<double>(da), b = build_sheet<double>(db);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> bump(-0.003, 0.003);
+  for (double& z : b.position.z) z += bump(rng);
+  for (double& x : a.position.x) x += 0.3 * bump(rng);
+  return {std::move(a), std::move(b)};
+}
+
+P3 total(const ContactForces<double>& f) {
+  P3 s{0, 0, 0};
+  for (std::size_t e = 0; e < f.size(); ++e) s = {s[0] + f.fx[e], s[1] + f.fy[e], s[2] + f.fz[e]};
+  return s;
+}
+
+TEST(Contacts, ForceIsMinusGradientOfBruteForcePotentialOverAllCells) {
+  auto [a, b] = close_sheets(3);
+  PairContacts<double> work;
+  ContactGrid<double> grid;
+  pair_contacts(a, sheet_bounds(a), b, sheet_bounds(b), kParams, work, grid);
+  ASSERT_GT(work.on_a.size(), 50u);
+
+  const Potential E{kParams.thickness, kParams.xi, kParams.strength, kParams.range};
+  auto energy = [&] { return brute_energy(a, b, E) + brute_energy(b, a, E); };
+  double fmax = 0;
+  for (std::size_t e = 0; e < work.on_a.size(); ++e) fmax = std::max(fmax, std::abs(work.on_a.fz[e]));
+  const double delta = 1e-7;
+  for (auto* side : {&a, &b}) {
+    const ContactForces<double>& got = side == &a ? work.on_a : work.on_b;
+    for (std::uint32_t p = 0; p < side->size(); p += 3) {
+      for (int k = 0; k < 3; ++k) {
+        std::vector<double>& axis = k == 0 ? side->position.x : k == 1 ? side->position.y : side->position.z;
+        const double x0 = axis[p];
+        axis[p] = x0 + delta;
+        const double up = energy();
+        axis[p] = x0 - delta;
+        const double down = energy();
+        axis[p] = x0;
+        const double expected = -(up - down) / (2 * delta);
+        double sum = 0;
+        const std::vector<double>& f = k == 0 ? got.fx : k == 1 ? got.fy : got.fz;
+        for (std::size_t e = 0; e < got.size(); ++e)
+          if (got.point[e] == p) sum += f[e];
+        EXPECT_NEAR(sum, expected, 1e-5 * fmax) << (side == &a ? "a" : "b") << " point " << p << " axis " << k;
+      }
+    }
+  }
+}
+
+TEST(Contacts, PairForcesConserveLinearAndAngularMomentum) {
+  for (unsigned seed = 1; seed <= 5; ++seed) {
+    auto [a, b] = close_sheets(seed);
+    PairContacts<double> work;
+    ContactGrid<double> grid;
+    pair_contacts(a, sheet_bounds(a), b, sheet_bounds(b), kParams, work, grid);
+    ASSERT_GT(work.on_a.size() + work.on_b.size(), 0u);
+    P3 force{0, 0, 0}, torque{0, 0, 0};
+    double scale = 0, torque_scale = 0;
+    for (const auto& [sheet, f] : {std::pair{&a, &work.on_a}, std::pair{&b, &work.on_b}})
+      for (std::size_t e = 0; e < f->size(); ++e) {
+        const P3 F{f->fx[e], f->fy[e], f->fz[e]};
+        const P3 r = point(*sheet, f->point[e]);
+        const P3 t = cross(r, F);
+        for (int k = 0; k < 3; ++k) {
+          force[k] += F[k];
+          torque[k] += t[k];
+        }
+        scale += std::sqrt(dot(F, F));
+        torque_scale += std::sqrt(dot(t, t));
+      }
+    // A point's force lies along p − q and its reaction acts at q (by weights), so
+    // neither the sum of forces nor of torques changes: zero up to rounding.
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_NEAR(force[k], 0.0, 1e-13 * scale) << "seed " << seed;
+      EXPECT_NEAR(torque[k], 0.0, 1e-13 * torque_scale) << "seed " << seed;
+    }
+  }
+}
+
+TEST(Contacts, ForceOnAPointLyingOnTheSurfaceIsFiniteAndMatchesTheBound) {
+  SheetDef surface;
+  surface.m = surface.n = 2;
+  surface.width = surface.height = 2.0;  // cells of 1 m: only one triangle within range
+  SheetDef single;
+  single.m = single.n = 0;
+  // Inside triangle (0,0)(0,1)(1,1) of cell (0,0), far from its edges.
+  single.center = {-1.0 + 0.75, -1.0 + 0.25, 0.0};  // on the surface: d = 0
+  const auto s = build_sheet<double>(surface), q = build_sheet<double>(single);
+  PairContacts<double> work;
+  ContactGrid<double> grid;
+  pair_contacts(q, sheet_bounds(q), s, sheet_bounds(s), kParams, work, grid);
+  ASSERT_EQ(work.on_a.size(), 1u);
+  const double bound = kParams.strength / kParams.xi * (std::exp(kParams.thickness / kParams.xi) - kParams.tail);
+  EXPECT_DOUBLE_EQ(work.on_a.fx[0], 0.0);
+  EXPECT_DOUBLE_EQ(work.on_a.fy[0], 0.0);
+  EXPECT_NEAR(std::abs(work.on_a.fz[0]), bound, 1e-12 * bound);
+  // The reaction goes to the triangle's three corners with weights summing to one.
+  const P3 r = total(work.on_b);
+  EXPECT_NEAR(r[2], -work.on_a.fz[0], 1e-12 * bound);
+}
+
+TEST(Contacts, NoForceBeyondTheRange) {
+  auto [a, b] = close_sheets(1);
+  for (double& z : b.position.z) z += 0.005 + kParams.range;  // every point now beyond R
+  PairContacts<double> work;
+  ContactGrid<double> grid;
+  pair_contacts(a, sheet_bounds(a), b, sheet_bounds(b), kParams, work, grid);
+  EXPECT_EQ(work.on_a.size() + work.on_b.size(), 0u);
+}
+
+TEST(Contacts, FlatSheetDoesNotRepelItself) {
+  SheetDef d;
+  d.m = 12;
+  d.n = 9;
+  d.width = d.height = 0.05;  // spacing well below the contact range: the ring must cover it
+  const auto s = build_sheet<double>(d);
+  PairContacts<double> work;
+  ContactGrid<double> grid;
+  self_contacts(s, sheet_bounds(s), kParams, work, grid);
+  EXPECT_EQ(work.on_a.size(), 0u);
+}
+
+TEST(Contacts, FoldedSheetPushesItsHalvesApartAndConservesMomentum) {
+  SheetDef d;
+  d.m = 20;
+  d.n = 10;
+  d.width = 0.2;
+  d.height = 0.4;
+  auto s = build_sheet<double>(d);
+  // Fold rows above the middle back over the lower half, 8 mm above it.
+  const std::uint32_t cols = d.n + 1;
+  for (std::uint32_t i = 11; i <= 20; ++i)
+    for (std::uint32_t j = 0; j < cols; ++j) {
+      const std::uint32_t p = i * cols + j, mirror = (20 - i) * cols + j;
+      s.position.y[p] = s.position.y[mirror];
+      s.position.z[p] = 0.008;
+    }
+  PairContacts<double> work;
+  ContactGrid<double> grid;
+  self_contacts(s, sheet_bounds(s), kParams, work, grid);
+  ASSERT_GT(work.on_a.size(), 0u);
+  double up = 0, down = 0, scale = 0;
+  for (std::size_t e = 0; e < work.on_a.size(); ++e) {
+    (work.on_a.point[e] >= 11 * cols ? up : down) += work.on_a.fz[e];
+    scale += std::abs(work.on_a.fz[e]);
+  }
+  EXPECT_GT(up, 0.0);
+  EXPECT_LT(down, 0.0);
+  EXPECT_NEAR(up + down, 0.0, 1e-13 * scale);
+}
+
+TEST(Contacts, GatherAddsSourcesInOrderWithinTheRange) {
+  ContactForces<double> first, second;
+  first.push(1, 1.0, 2.0, 3.0);
+  first.push(3, 0.5, 0.0, 0.0);
+  second.push(1, 0.25, 0.0, -1.0);
+  const ContactForces<double>* sources[] = {&first, &second};
+  Vec3Array<double> out;
+  out.resize(4, 9.0);  // stale values must be cleared in the range, kept outside it
+  gather_contacts<double>(sources, out, 0, 2);
+  EXPECT_EQ(out.x, (std::vector<double>{0.0, 1.25, 9.0, 9.0}));
+  EXPECT_EQ(out.z, (std::vector<double>{0.0, 2.0, 9.0, 9.0}));
+}
+
+}  // namespace
+}  // namespace drape::detail
