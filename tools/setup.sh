@@ -7,7 +7,7 @@ packages=(
   build-essential cmake pkg-config
   libeigen3-dev libtbb-dev libgtest-dev libgmock-dev libbenchmark-dev
   nlohmann-json3-dev libcli11-dev libfmt-dev libpng-dev
-  python3
+  python3 python3-matplotlib
 )
 # Extra packages a caller may ask for, e.g. DRAPE_EXTRA_PACKAGES="clang python3-matplotlib".
 if [[ -n "${DRAPE_EXTRA_PACKAGES:-}" ]]; then
