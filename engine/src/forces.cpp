@@ -18,15 +18,34 @@ inline Real spring_scale(Real dx, Real dy, Real dz, Real rest, Real k) {
   return -k * (len - rest) * inv;
 }
 
+// Where a kernel finds k and ℓ of spring e: per-spring arrays, or one constant for the
+// whole run (Topology::uniform), chosen once per sheet so the loops carry no branch.
+template <class Real>
+struct PerSpring {
+  const Real* __restrict rest;
+  const Real* __restrict k;
+  Real rest_at(std::size_t e) const { return rest[e]; }
+  Real k_at(std::size_t e) const { return k[e]; }
+  PerSpring offset(std::size_t e) const { return {rest + e, k + e}; }
+};
+
+template <class Real>
+struct SameSpring {
+  Real rest, k;
+  Real rest_at(std::size_t) const { return rest; }
+  Real k_at(std::size_t) const { return k; }
+  SameSpring offset(std::size_t) const { return *this; }
+};
+
 // Horizontal springs of one row: forces go to a scratch row first, so the scatter into
 // both endpoints becomes a dependency-free second loop the compiler can vectorise.
-template <class Real>
+template <class Real, class Springs>
 inline void row_springs(std::uint32_t n, const Real* __restrict x, const Real* __restrict y, const Real* __restrict z,
-                        const Real* __restrict rest, const Real* __restrict k, Real* __restrict sx, Real* __restrict sy,
-                        Real* __restrict sz, Real* __restrict fx, Real* __restrict fy, Real* __restrict fz) {
+                        Springs springs, Real* __restrict sx, Real* __restrict sy, Real* __restrict sz,
+                        Real* __restrict fx, Real* __restrict fy, Real* __restrict fz) {
   for (std::uint32_t j = 0; j < n; ++j) {
     const Real dx = x[j] - x[j + 1], dy = y[j] - y[j + 1], dz = z[j] - z[j + 1];
-    const Real s = spring_scale(dx, dy, dz, rest[j], k[j]);
+    const Real s = spring_scale(dx, dy, dz, springs.rest_at(j), springs.k_at(j));
     sx[j] = s * dx;
     sy[j] = s * dy;
     sz[j] = s * dz;
@@ -50,46 +69,80 @@ inline void row_springs(std::uint32_t n, const Real* __restrict x, const Real* _
 }
 
 // Vertical springs between row `a` and the row below it, `b`: no two iterations touch
-// the same point, so it vectorises as it stands.
-template <class Real>
+// the same point, so it vectorises as it stands. A block of rows that does not own row a
+// (or b) still evaluates the spring, with the same arithmetic, and adds only to its own
+// row: forces of a row are then bit-identical however the sheet is split.
+template <bool ToA, bool ToB, class Real, class Springs>
 inline void column_springs(std::uint32_t cols, const Real* __restrict xa, const Real* __restrict ya,
                            const Real* __restrict za, const Real* __restrict xb, const Real* __restrict yb,
-                           const Real* __restrict zb, const Real* __restrict rest, const Real* __restrict k,
-                           Real* __restrict fxa, Real* __restrict fya, Real* __restrict fza, Real* __restrict fxb,
-                           Real* __restrict fyb, Real* __restrict fzb) {
+                           const Real* __restrict zb, Springs springs, Real* __restrict fxa, Real* __restrict fya,
+                           Real* __restrict fza, Real* __restrict fxb, Real* __restrict fyb, Real* __restrict fzb) {
   for (std::uint32_t j = 0; j < cols; ++j) {
     const Real dx = xa[j] - xb[j], dy = ya[j] - yb[j], dz = za[j] - zb[j];
-    const Real s = spring_scale(dx, dy, dz, rest[j], k[j]);
-    fxa[j] += s * dx;
-    fya[j] += s * dy;
-    fza[j] += s * dz;
-    fxb[j] -= s * dx;
-    fyb[j] -= s * dy;
-    fzb[j] -= s * dz;
+    const Real s = spring_scale(dx, dy, dz, springs.rest_at(j), springs.k_at(j));
+    if constexpr (ToA) {
+      fxa[j] += s * dx;
+      fya[j] += s * dy;
+      fza[j] += s * dz;
+    }
+    if constexpr (ToB) {
+      fxb[j] -= s * dx;
+      fyb[j] -= s * dy;
+      fzb[j] -= s * dz;
+    }
   }
+}
+
+// Rows [begin, end) of the sheet; every row sums its terms in the same order
+// (own horizontal springs, spring to the row above, spring to the row below).
+template <class Real, class Springs>
+void spring_rows(const Topology<Real>& t, Springs horizontal_springs, Springs vertical_springs, ConstVec3Ptr<Real> x,
+                 Vec3Ptr<Real> f, Vec3Ptr<Real> row, std::uint32_t begin, std::uint32_t end) {
+  const std::uint32_t n = t.n, cols = t.cols();
+  auto horizontal = [&](std::uint32_t i) {
+    const std::size_t p = std::size_t(i) * cols;
+    row_springs(n, x.x + p, x.y + p, x.z + p, horizontal_springs.offset(std::size_t(i) * n), row.x, row.y, row.z,
+                f.x + p, f.y + p, f.z + p);
+  };
+  auto vertical = [&]<bool ToA, bool ToB>(std::uint32_t i) {
+    const std::size_t a = std::size_t(i) * cols, b = a + cols;
+    column_springs<ToA, ToB>(cols, x.x + a, x.y + a, x.z + a, x.x + b, x.y + b, x.z + b,
+                             vertical_springs.offset(std::size_t(i) * cols), f.x + a, f.y + a, f.z + a, f.x + b,
+                             f.y + b, f.z + b);
+  };
+  if (begin >= end) return;
+  // Row i+1's horizontal springs assign its forces before the vertical springs of rows
+  // i–i+1 add to them, so f needs no separate clearing pass.
+  horizontal(begin);
+  if (begin > 0) vertical.template operator()<false, true>(begin - 1);
+  for (std::uint32_t i = begin; i + 1 < end; ++i) {
+    horizontal(i + 1);
+    vertical.template operator()<true, true>(i);
+  }
+  if (end - 1 < t.m) vertical.template operator()<true, false>(end - 1);
 }
 
 }  // namespace
 
 template <class Real>
-void spring_forces(const Topology<Real>& t, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row) {
-  const std::uint32_t n = t.n, cols = t.cols();
-  const Real* rest = t.rest_length.data();
-  const Real* k = t.stiffness.data();
-  const std::uint32_t vertical = t.horizontal_count();
-  auto horizontal = [&](std::uint32_t i) {
-    const std::size_t p = std::size_t(i) * cols, e = std::size_t(i) * n;
-    row_springs(n, x.x + p, x.y + p, x.z + p, rest + e, k + e, row.x, row.y, row.z, f.x + p, f.y + p, f.z + p);
-  };
-  // Row i+1's horizontal springs assign its forces before the vertical springs of rows
-  // i–i+1 add to them, so f needs no separate clearing pass.
-  horizontal(0);
-  for (std::uint32_t i = 0; i < t.m; ++i) {
-    horizontal(i + 1);
-    const std::size_t a = std::size_t(i) * cols, b = a + cols, e = vertical + std::size_t(i) * cols;
-    column_springs(cols, x.x + a, x.y + a, x.z + a, x.x + b, x.y + b, x.z + b, rest + e, k + e, f.x + a, f.y + a,
-                   f.z + a, f.x + b, f.y + b, f.z + b);
+void spring_forces(const Topology<Real>& t, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row,
+                   std::uint32_t row_begin, std::uint32_t row_end) {
+  if (t.uniform) {
+    const auto& u = *t.uniform;
+    spring_rows(t, SameSpring<Real>{u.rest_h, u.stiffness}, SameSpring<Real>{u.rest_v, u.stiffness}, x, f, row,
+                row_begin, row_end);
+  } else {
+    const Real* rest = t.rest_length.data();
+    const Real* k = t.stiffness.data();
+    const std::size_t vertical = t.horizontal_count();
+    spring_rows(t, PerSpring<Real>{rest, k}, PerSpring<Real>{rest + vertical, k + vertical}, x, f, row, row_begin,
+                row_end);
   }
+}
+
+template <class Real>
+void spring_forces(const Topology<Real>& t, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row) {
+  spring_forces(t, x, f, row, 0, t.rows());
 }
 
 template <class Real>
@@ -115,6 +168,10 @@ void sheet_forces(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Ve
 
 template void spring_forces<double>(const Topology<double>&, ConstVec3Ptr<double>, Vec3Ptr<double>, Vec3Ptr<double>);
 template void spring_forces<float>(const Topology<float>&, ConstVec3Ptr<float>, Vec3Ptr<float>, Vec3Ptr<float>);
+template void spring_forces<double>(const Topology<double>&, ConstVec3Ptr<double>, Vec3Ptr<double>, Vec3Ptr<double>,
+                                    std::uint32_t, std::uint32_t);
+template void spring_forces<float>(const Topology<float>&, ConstVec3Ptr<float>, Vec3Ptr<float>, Vec3Ptr<float>,
+                                   std::uint32_t, std::uint32_t);
 template void sheet_forces<double>(Sheet<double>&, ConstVec3Ptr<double>, ConstVec3Ptr<double>, Vec3Ptr<double>);
 template void sheet_forces<float>(Sheet<float>&, ConstVec3Ptr<float>, ConstVec3Ptr<float>, Vec3Ptr<float>);
 

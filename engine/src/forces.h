@@ -31,6 +31,13 @@ Vec3Ptr<Real> ptr(Vec3Array<Real>& a) { return {a.x.data(), a.y.data(), a.z.data
 template <class Real>
 void spring_forces(const Topology<Real>& topo, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row);
 
+// The same for rows [row_begin, row_end) only: writes f of those rows, reading x of the
+// rows next to them. Each row's result is bit-identical to the whole-sheet call, so a
+// sheet split into blocks of rows (one per task) gives the same state for any split.
+template <class Real>
+void spring_forces(const Topology<Real>& topo, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row,
+                   std::uint32_t row_begin, std::uint32_t row_end);
+
 // f = springs(x) − C·v + anchors(x): the total internal force of eq (4) without gravity,
 // which the integrators add as an acceleration.
 template <class Real>

@@ -21,35 +21,77 @@ void apply_pins(Sheet<Real>& s) {
   }
 }
 
-// One component of forward Euler: x and v both advance from the old state.
+// Both first-order updates run over all three axes in one pass, so inv_mass is read once
+// and every array is streamed once per substep.
 template <class Real>
-void forward_euler_axis(std::size_t count, Real dt, Real g, Real* __restrict x, Real* __restrict v,
-                        const Real* __restrict f, const Real* __restrict inv_mass) {
+struct FirstOrderArrays {
+  Real* __restrict x;
+  Real* __restrict y;
+  Real* __restrict z;
+  Real* __restrict vx;
+  Real* __restrict vy;
+  Real* __restrict vz;
+  const Real* __restrict fx;
+  const Real* __restrict fy;
+  const Real* __restrict fz;
+  const Real* __restrict inv_mass;
+};
+
+// Forward Euler: x and v both advance from the old state.
+template <class Real>
+void forward_euler_update(std::size_t count, const StepParams<Real>& p, FirstOrderArrays<Real> a) {
+  Real* __restrict x = a.x;
+  Real* __restrict y = a.y;
+  Real* __restrict z = a.z;
+  Real* __restrict vx = a.vx;
+  Real* __restrict vy = a.vy;
+  Real* __restrict vz = a.vz;
+  const Real* __restrict fx = a.fx;
+  const Real* __restrict fy = a.fy;
+  const Real* __restrict fz = a.fz;
+  const Real* __restrict im = a.inv_mass;
+  const Real dt = p.dt, gx = p.gx, gy = p.gy, gz = p.gz;
   for (std::size_t i = 0; i < count; ++i) {
-    const Real a = f[i] * inv_mass[i] + g;
-    x[i] += dt * v[i];
-    v[i] += dt * a;
+    x[i] += dt * vx[i];
+    y[i] += dt * vy[i];
+    z[i] += dt * vz[i];
+    vx[i] += dt * (fx[i] * im[i] + gx);
+    vy[i] += dt * (fy[i] * im[i] + gy);
+    vz[i] += dt * (fz[i] * im[i] + gz);
   }
 }
 
-// One component of semi-implicit Euler: the new velocity moves the point.
+// Semi-implicit Euler: the new velocity moves the point.
 template <class Real>
-void semi_implicit_euler_axis(std::size_t count, Real dt, Real g, Real* __restrict x, Real* __restrict v,
-                              const Real* __restrict f, const Real* __restrict inv_mass) {
+void semi_implicit_euler_update(std::size_t count, const StepParams<Real>& p, FirstOrderArrays<Real> a) {
+  Real* __restrict x = a.x;
+  Real* __restrict y = a.y;
+  Real* __restrict z = a.z;
+  Real* __restrict vx = a.vx;
+  Real* __restrict vy = a.vy;
+  Real* __restrict vz = a.vz;
+  const Real* __restrict fx = a.fx;
+  const Real* __restrict fy = a.fy;
+  const Real* __restrict fz = a.fz;
+  const Real* __restrict im = a.inv_mass;
+  const Real dt = p.dt, gx = p.gx, gy = p.gy, gz = p.gz;
   for (std::size_t i = 0; i < count; ++i) {
-    v[i] += dt * (f[i] * inv_mass[i] + g);
-    x[i] += dt * v[i];
+    vx[i] += dt * (fx[i] * im[i] + gx);
+    vy[i] += dt * (fy[i] * im[i] + gy);
+    vz[i] += dt * (fz[i] * im[i] + gz);
+    x[i] += dt * vx[i];
+    y[i] += dt * vy[i];
+    z[i] += dt * vz[i];
   }
 }
 
-template <class Real, class AxisUpdate>
-void first_order_step(Sheet<Real>& s, const StepParams<Real>& p, AxisUpdate update) {
+template <class Real, class Update>
+void first_order_step(Sheet<Real>& s, const StepParams<Real>& p, Update update) {
   sheet_forces(s, cptr(s.position), cptr(s.velocity), ptr(s.force));
-  const std::size_t count = s.size();
-  const Real* inv_mass = s.inv_mass.data();
-  update(count, p.dt, p.gx, s.position.x.data(), s.velocity.x.data(), s.force.x.data(), inv_mass);
-  update(count, p.dt, p.gy, s.position.y.data(), s.velocity.y.data(), s.force.y.data(), inv_mass);
-  update(count, p.dt, p.gz, s.position.z.data(), s.velocity.z.data(), s.force.z.data(), inv_mass);
+  update(s.size(), p,
+         FirstOrderArrays<Real>{s.position.x.data(), s.position.y.data(), s.position.z.data(), s.velocity.x.data(),
+                                s.velocity.y.data(), s.velocity.z.data(), s.force.x.data(), s.force.y.data(),
+                                s.force.z.data(), s.inv_mass.data()});
 }
 
 }  // namespace
@@ -57,8 +99,8 @@ void first_order_step(Sheet<Real>& s, const StepParams<Real>& p, AxisUpdate upda
 template <class Real>
 void integrate(Integrator integrator, Sheet<Real>& s, const StepParams<Real>& p) {
   switch (integrator) {
-    case Integrator::ForwardEuler: first_order_step(s, p, forward_euler_axis<Real>); break;
-    case Integrator::SemiImplicitEuler: first_order_step(s, p, semi_implicit_euler_axis<Real>); break;
+    case Integrator::ForwardEuler: first_order_step(s, p, forward_euler_update<Real>); break;
+    case Integrator::SemiImplicitEuler: first_order_step(s, p, semi_implicit_euler_update<Real>); break;
   }
   apply_pins(s);
 }

@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <vector>
 
 namespace drape::detail {
@@ -23,6 +24,15 @@ struct Topology {
   std::vector<Real> rest_length;  // ℓ per spring, m
   std::vector<Real> stiffness;    // k per spring, N/m
 
+  // Set when every spring has one stiffness and each direction one rest length (any sheet
+  // without stiffness regions): the spring kernel then reads constants instead of two
+  // arrays, chosen once per sheet. Empty means per spring, which is always correct.
+  struct Uniform {
+    Real stiffness, rest_h, rest_v;
+    friend bool operator==(const Uniform&, const Uniform&) = default;
+  };
+  std::optional<Uniform> uniform;
+
   std::uint32_t cols() const { return n + 1; }
   std::uint32_t rows() const { return m + 1; }
   std::uint32_t points() const { return rows() * cols(); }
@@ -30,6 +40,18 @@ struct Topology {
   std::uint32_t springs() const { return static_cast<std::uint32_t>(a.size()); }
 
   friend bool operator==(const Topology&, const Topology&) = default;
+
+  // Fills `uniform` from the arrays; call after the last change to them.
+  void find_uniform() {
+    uniform.reset();
+    const std::size_t h = horizontal_count();
+    if (rest_length.empty()) return;
+    const Real k = stiffness.front(), rh = h > 0 ? rest_length.front() : Real(0);
+    const Real rv = rest_length.size() > h ? rest_length[h] : Real(0);
+    for (std::size_t e = 0; e < rest_length.size(); ++e)
+      if (stiffness[e] != k || rest_length[e] != (e < h ? rh : rv)) return;
+    uniform = Uniform{k, rh, rv};
+  }
 };
 
 template <class Real>

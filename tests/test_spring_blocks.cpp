@@ -1,0 +1,103 @@
+// The spring kernel's fast paths against an edge-by-edge evaluation of eq (6), and its
+// row blocks against the whole-sheet call (a split sheet must give the same bits).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "forces.h"
+
+namespace drape::detail {
+namespace {
+
+// A 9×12-cell sheet, jostled so no spring is at rest; regions make stiffness non-uniform.
+Sheet<double> jostled_sheet(bool regions) {
+  SheetDef def;
+  def.m = 9;
+  def.n = 12;
+  def.rest_length_h = 0.07;
+  if (regions) def.stiffness_regions.push_back({2, 5, 3, 8, 250.0});
+  Sheet<double> s = build_sheet<double>(def);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> jitter(-0.02, 0.02);
+  for (auto* a : {&s.position.x, &s.position.y, &s.position.z})
+    for (double& v : *a) v += jitter(rng);
+  return s;
+}
+
+// eq (6) spring by spring through the generic edge list, in long double.
+std::vector<long double> edge_by_edge(const Sheet<double>& s, int axis) {
+  const auto& t = *s.topology;
+  const auto& x = s.position;
+  std::vector<long double> f(s.size(), 0.0L);
+  for (std::uint32_t e = 0; e < t.springs(); ++e) {
+    const std::uint32_t a = t.a[e], b = t.b[e];
+    const long double d[3] = {(long double)x.x[a] - x.x[b], (long double)x.y[a] - x.y[b],
+                              (long double)x.z[a] - x.z[b]};
+    const long double len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    if (len == 0) continue;  // a zero-length spring has no direction: no force
+    const long double fa = -t.stiffness[e] * (len - t.rest_length[e]) / len * d[axis];
+    f[a] += fa;
+    f[b] -= fa;
+  }
+  return f;
+}
+
+void expect_matches_eq6(Sheet<double>& s) {
+  spring_forces(*s.topology, cptr(s.position), ptr(s.force), ptr(s.row_scratch));
+  const std::vector<double>* fs[3] = {&s.force.x, &s.force.y, &s.force.z};
+  for (int axis = 0; axis < 3; ++axis) {
+    const auto expected = edge_by_edge(s, axis);
+    for (std::size_t p = 0; p < s.size(); ++p)
+      EXPECT_NEAR((*fs[axis])[p], double(expected[p]), 1e-12 * (1.0 + std::abs(double(expected[p]))))
+          << "axis " << axis << " point " << p;
+  }
+}
+
+TEST(SpringKernel, UniformFastPathMatchesEdgeByEdgeEq6) {
+  Sheet<double> s = jostled_sheet(false);
+  ASSERT_TRUE(s.topology->uniform.has_value());
+  expect_matches_eq6(s);
+}
+
+TEST(SpringKernel, PerSpringPathMatchesEdgeByEdgeEq6) {
+  Sheet<double> s = jostled_sheet(true);
+  ASSERT_FALSE(s.topology->uniform.has_value());
+  expect_matches_eq6(s);
+}
+
+TEST(SpringKernel, RowBlocksAreBitIdenticalToWholeSheet) {
+  for (bool regions : {false, true}) {
+    Sheet<double> s = jostled_sheet(regions);
+    spring_forces(*s.topology, cptr(s.position), ptr(s.force), ptr(s.row_scratch));
+    const Vec3Array<double> whole = s.force;
+    const std::uint32_t rows = s.topology->rows();
+    for (std::uint32_t cut = 1; cut < rows; ++cut) {
+      s.force.resize(s.size(), std::nan(""));
+      spring_forces(*s.topology, cptr(s.position), ptr(s.force), ptr(s.row_scratch), cut, rows);
+      spring_forces(*s.topology, cptr(s.position), ptr(s.force), ptr(s.row_scratch), 0, cut);
+      EXPECT_EQ(s.force.x, whole.x) << "cut at row " << cut;
+      EXPECT_EQ(s.force.y, whole.y) << "cut at row " << cut;
+      EXPECT_EQ(s.force.z, whole.z) << "cut at row " << cut;
+    }
+  }
+}
+
+TEST(SpringKernel, ZeroLengthSpringGivesZeroForceNotNaN) {
+  SheetDef def;
+  def.m = 1;
+  def.n = 1;
+  Sheet<double> s = build_sheet<double>(def);
+  // points 0 and 1 on top of each other: the spring between them has no direction
+  s.position.x[1] = s.position.x[0];
+  s.position.y[1] = s.position.y[0];
+  s.position.z[1] = s.position.z[0];
+  spring_forces(*s.topology, cptr(s.position), ptr(s.force), ptr(s.row_scratch));
+  for (std::size_t p = 0; p < s.size(); ++p)
+    EXPECT_TRUE(std::isfinite(s.force.x[p]) && std::isfinite(s.force.y[p]) && std::isfinite(s.force.z[p]));
+  // the other springs at points 0 and 1 still pull: only the degenerate one is silent
+  expect_matches_eq6(s);
+}
+
+}  // namespace
+}  // namespace drape::detail
