@@ -94,10 +94,12 @@ inline void column_springs(std::uint32_t cols, const Real* __restrict xa, const 
 }
 
 // Rows [begin, end) of the sheet; every row sums its terms in the same order
-// (own horizontal springs, spring to the row above, spring to the row below).
-template <class Real, class Springs>
+// (own horizontal springs, spring to the row above, spring to the row below). done(i) is
+// called as soon as row i's spring forces are final, while the row is still in cache, so
+// per-point terms can be added in the same sweep instead of another pass over the sheet.
+template <class Real, class Springs, class RowDone>
 void spring_rows(const Topology<Real>& t, Springs horizontal_springs, Springs vertical_springs, ConstVec3Ptr<Real> x,
-                 Vec3Ptr<Real> f, Vec3Ptr<Real> row, std::uint32_t begin, std::uint32_t end) {
+                 Vec3Ptr<Real> f, Vec3Ptr<Real> row, std::uint32_t begin, std::uint32_t end, RowDone done) {
   const std::uint32_t n = t.n, cols = t.cols();
   auto horizontal = [&](std::uint32_t i) {
     const std::size_t p = std::size_t(i) * cols;
@@ -118,8 +120,38 @@ void spring_rows(const Topology<Real>& t, Springs horizontal_springs, Springs ve
   for (std::uint32_t i = begin; i + 1 < end; ++i) {
     horizontal(i + 1);
     vertical.template operator()<true, true>(i);
+    done(i);
   }
   if (end - 1 < t.m) vertical.template operator()<true, false>(end - 1);
+  done(end - 1);
+}
+
+// Picks the spring parameters once per call: constants when the topology is uniform.
+template <class Real, class RowDone>
+void springs_by_rows(const Topology<Real>& t, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row,
+                     std::uint32_t row_begin, std::uint32_t row_end, RowDone done) {
+  if (t.uniform) {
+    const auto& u = *t.uniform;
+    spring_rows(t, SameSpring<Real>{u.rest_h, u.stiffness}, SameSpring<Real>{u.rest_v, u.stiffness}, x, f, row,
+                row_begin, row_end, done);
+  } else {
+    const Real* rest = t.rest_length.data();
+    const Real* k = t.stiffness.data();
+    const std::size_t vertical = t.horizontal_count();
+    spring_rows(t, PerSpring<Real>{rest, k}, PerSpring<Real>{rest + vertical, k + vertical}, x, f, row, row_begin,
+                row_end, done);
+  }
+}
+
+// eq (4): −C ẋ on `count` points, C diagonal.
+template <class Real>
+inline void damp(std::size_t count, const Real* __restrict c, const Real* __restrict vx, const Real* __restrict vy,
+                 const Real* __restrict vz, Real* __restrict fx, Real* __restrict fy, Real* __restrict fz) {
+  for (std::size_t i = 0; i < count; ++i) {
+    fx[i] -= c[i] * vx[i];
+    fy[i] -= c[i] * vy[i];
+    fz[i] -= c[i] * vz[i];
+  }
 }
 
 }  // namespace
@@ -127,17 +159,7 @@ void spring_rows(const Topology<Real>& t, Springs horizontal_springs, Springs ve
 template <class Real>
 void spring_forces(const Topology<Real>& t, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row,
                    std::uint32_t row_begin, std::uint32_t row_end) {
-  if (t.uniform) {
-    const auto& u = *t.uniform;
-    spring_rows(t, SameSpring<Real>{u.rest_h, u.stiffness}, SameSpring<Real>{u.rest_v, u.stiffness}, x, f, row,
-                row_begin, row_end);
-  } else {
-    const Real* rest = t.rest_length.data();
-    const Real* k = t.stiffness.data();
-    const std::size_t vertical = t.horizontal_count();
-    spring_rows(t, PerSpring<Real>{rest, k}, PerSpring<Real>{rest + vertical, k + vertical}, x, f, row, row_begin,
-                row_end);
-  }
+  springs_by_rows(t, x, f, row, row_begin, row_end, [](std::uint32_t) {});
 }
 
 template <class Real>
@@ -147,15 +169,16 @@ void spring_forces(const Topology<Real>& t, ConstVec3Ptr<Real> x, Vec3Ptr<Real> 
 
 template <class Real>
 void sheet_forces(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f) {
-  spring_forces(*s.topology, x, f, ptr(s.row_scratch));
-  const std::size_t count = s.size();
-  if (!s.damping.empty()) {  // eq (4): −C ẋ, C diagonal
+  const Topology<Real>& t = *s.topology;
+  if (s.damping.empty()) {
+    spring_forces(t, x, f, ptr(s.row_scratch));
+  } else {  // damping joins the spring sweep row by row, while the row's forces are in cache
+    const std::uint32_t cols = t.cols();
     const Real* c = s.damping.data();
-    for (std::size_t i = 0; i < count; ++i) {
-      f.x[i] -= c[i] * v.x[i];
-      f.y[i] -= c[i] * v.y[i];
-      f.z[i] -= c[i] * v.z[i];
-    }
+    springs_by_rows(t, x, f, ptr(s.row_scratch), 0, t.rows(), [&](std::uint32_t i) {
+      const std::size_t p = std::size_t(i) * cols;
+      damp<Real>(cols, c + p, v.x + p, v.y + p, v.z + p, f.x + p, f.y + p, f.z + p);
+    });
   }
   const auto& an = s.anchors;
   for (std::size_t a = 0; a < an.point.size(); ++a) {  // eq (8): k (p0 − x)
