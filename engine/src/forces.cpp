@@ -1,6 +1,7 @@
 // Force kernels: springs (eqs 6–7), damping (eq 4's C), anchors (eq 8).
 #include "forces.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace drape::detail {
@@ -168,25 +169,43 @@ void spring_forces(const Topology<Real>& t, ConstVec3Ptr<Real> x, Vec3Ptr<Real> 
 }
 
 template <class Real>
-void sheet_forces(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f) {
+void sheet_forces_by_rows(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f, RowSink sink) {
   const Topology<Real>& t = *s.topology;
-  if (s.damping.empty()) {
-    spring_forces(t, x, f, ptr(s.row_scratch));
-  } else {  // damping joins the spring sweep row by row, while the row's forces are in cache
-    const std::uint32_t cols = t.cols();
-    const Real* c = s.damping.data();
-    springs_by_rows(t, x, f, ptr(s.row_scratch), 0, t.rows(), [&](std::uint32_t i) {
-      const std::size_t p = std::size_t(i) * cols;
-      damp<Real>(cols, c + p, v.x + p, v.y + p, v.z + p, f.x + p, f.y + p, f.z + p);
-    });
-  }
   const auto& an = s.anchors;
-  for (std::size_t a = 0; a < an.point.size(); ++a) {  // eq (8): k (p0 − x)
+  auto anchor = [&](std::size_t a) {  // eq (8): k (p0 − x)
     const std::uint32_t p = an.point[a];
     f.x[p] += an.stiffness[a] * (an.tx[a] - x.x[p]);
     f.y[p] += an.stiffness[a] * (an.ty[a] - x.y[p]);
     f.z[p] += an.stiffness[a] * (an.tz[a] - x.z[p]);
+  };
+  if (!std::is_sorted(an.point.begin(), an.point.end())) {
+    // anchors in no particular order: finish every force first, then hand over the sheet
+    springs_by_rows(t, x, f, ptr(s.row_scratch), 0, t.rows(), [&](std::uint32_t i) {
+      if (!s.damping.empty()) {
+        const std::size_t p = std::size_t(i) * t.cols();
+        damp<Real>(t.cols(), s.damping.data() + p, v.x + p, v.y + p, v.z + p, f.x + p, f.y + p, f.z + p);
+      }
+    });
+    for (std::size_t a = 0; a < an.point.size(); ++a) anchor(a);
+    if (sink.done) sink.done(sink.context, 0, s.size());
+    return;
   }
+  // Every term of row i is added as soon as its springs are final (same order as above:
+  // springs, damping, anchors), then the row goes to the sink while it is still in cache.
+  const std::uint32_t cols = t.cols();
+  const Real* c = s.damping.empty() ? nullptr : s.damping.data();
+  std::size_t next_anchor = 0;
+  springs_by_rows(t, x, f, ptr(s.row_scratch), 0, t.rows(), [&](std::uint32_t i) {
+    const std::size_t p = std::size_t(i) * cols;
+    if (c) damp<Real>(cols, c + p, v.x + p, v.y + p, v.z + p, f.x + p, f.y + p, f.z + p);
+    for (; next_anchor < an.point.size() && an.point[next_anchor] < p + cols; ++next_anchor) anchor(next_anchor);
+    if (sink.done) sink.done(sink.context, p, cols);
+  });
+}
+
+template <class Real>
+void sheet_forces(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f) {
+  sheet_forces_by_rows(s, x, v, f, RowSink{});
 }
 
 template void spring_forces<double>(const Topology<double>&, ConstVec3Ptr<double>, Vec3Ptr<double>, Vec3Ptr<double>);
@@ -197,5 +216,9 @@ template void spring_forces<float>(const Topology<float>&, ConstVec3Ptr<float>, 
                                    std::uint32_t, std::uint32_t);
 template void sheet_forces<double>(Sheet<double>&, ConstVec3Ptr<double>, ConstVec3Ptr<double>, Vec3Ptr<double>);
 template void sheet_forces<float>(Sheet<float>&, ConstVec3Ptr<float>, ConstVec3Ptr<float>, Vec3Ptr<float>);
+template void sheet_forces_by_rows<double>(Sheet<double>&, ConstVec3Ptr<double>, ConstVec3Ptr<double>, Vec3Ptr<double>,
+                                           RowSink);
+template void sheet_forces_by_rows<float>(Sheet<float>&, ConstVec3Ptr<float>, ConstVec3Ptr<float>, Vec3Ptr<float>,
+                                          RowSink);
 
 }  // namespace drape::detail

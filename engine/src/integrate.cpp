@@ -85,13 +85,19 @@ void semi_implicit_euler_update(std::size_t count, const StepParams<Real>& p, Fi
   }
 }
 
+// Each row is updated as soon as its force is final (sheet_forces_by_rows), so forces
+// never leave the cache.
 template <class Real, class Update>
 void first_order_step(Sheet<Real>& s, const StepParams<Real>& p, Update update) {
-  sheet_forces(s, cptr(s.position), cptr(s.velocity), ptr(s.force));
-  update(s.size(), p,
-         FirstOrderArrays<Real>{s.position.x.data(), s.position.y.data(), s.position.z.data(), s.velocity.x.data(),
-                                s.velocity.y.data(), s.velocity.z.data(), s.force.x.data(), s.force.y.data(),
-                                s.force.z.data(), s.inv_mass.data()});
+  auto row_done = [&](std::size_t first, std::size_t count) {
+    update(count, p,
+           FirstOrderArrays<Real>{s.position.x.data() + first, s.position.y.data() + first,
+                                  s.position.z.data() + first, s.velocity.x.data() + first,
+                                  s.velocity.y.data() + first, s.velocity.z.data() + first,
+                                  s.force.x.data() + first, s.force.y.data() + first, s.force.z.data() + first,
+                                  s.inv_mass.data() + first});
+  };
+  sheet_forces_by_rows(s, cptr(s.position), cptr(s.velocity), ptr(s.force), RowSink::of(row_done));
 }
 
 }  // namespace

@@ -1,11 +1,14 @@
-// The spring kernel's fast paths against an edge-by-edge evaluation of eq (6), and its
-// row blocks against the whole-sheet call (a split sheet must give the same bits).
+// The spring sweep's fast paths against an edge-by-edge evaluation of eq (6), its row
+// blocks against the whole-sheet call (a split sheet must give the same bits), and the
+// row-fused integrator step against forces-then-update.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
 #include "forces.h"
+#include "integrate.h"
 
 namespace drape::detail {
 namespace {
@@ -54,19 +57,19 @@ void expect_matches_eq6(Sheet<double>& s) {
   }
 }
 
-TEST(SpringKernel, UniformFastPathMatchesEdgeByEdgeEq6) {
+TEST(SpringSweep, UniformFastPathMatchesEdgeByEdgeEq6) {
   Sheet<double> s = jostled_sheet(false);
   ASSERT_TRUE(s.topology->uniform.has_value());
   expect_matches_eq6(s);
 }
 
-TEST(SpringKernel, PerSpringPathMatchesEdgeByEdgeEq6) {
+TEST(SpringSweep, PerSpringPathMatchesEdgeByEdgeEq6) {
   Sheet<double> s = jostled_sheet(true);
   ASSERT_FALSE(s.topology->uniform.has_value());
   expect_matches_eq6(s);
 }
 
-TEST(SpringKernel, RowBlocksAreBitIdenticalToWholeSheet) {
+TEST(SpringSweep, RowBlocksAreBitIdenticalToWholeSheet) {
   for (bool regions : {false, true}) {
     Sheet<double> s = jostled_sheet(regions);
     spring_forces(*s.topology, cptr(s.position), ptr(s.force), ptr(s.row_scratch));
@@ -83,7 +86,7 @@ TEST(SpringKernel, RowBlocksAreBitIdenticalToWholeSheet) {
   }
 }
 
-TEST(SpringKernel, ZeroLengthSpringGivesZeroForceNotNaN) {
+TEST(SpringSweep, ZeroLengthSpringGivesZeroForceNotNaN) {
   SheetDef def;
   def.m = 1;
   def.n = 1;
@@ -97,6 +100,59 @@ TEST(SpringKernel, ZeroLengthSpringGivesZeroForceNotNaN) {
     EXPECT_TRUE(std::isfinite(s.force.x[p]) && std::isfinite(s.force.y[p]) && std::isfinite(s.force.z[p]));
   // the other springs at points 0 and 1 still pull: only the degenerate one is silent
   expect_matches_eq6(s);
+}
+
+// The fused sweep hands rows to the integrator as they finish; with anchors listed out of
+// point order it falls back to finishing every force first and updating the whole sheet.
+// Both must give the same bits, step after step, with damping and anchors in play.
+TEST(SpringSweep, RowFusedStepIsBitIdenticalToForcesThenUpdate) {
+  for (Integrator integrator : {Integrator::ForwardEuler, Integrator::SemiImplicitEuler}) {
+    SheetDef def;
+    def.m = 11;
+    def.n = 8;
+    def.damping = 0.02;
+    def.stiffness_regions.push_back({0, 4, 0, 4, 300.0});
+    const std::uint32_t anchored[] = {3, 40, 77, 100};
+    for (std::uint32_t p : anchored) def.anchors.push_back({p, 50.0, Vec3{0.1 * p, 0.0, 0.3}});
+    def.pins = {0};
+    Sheet<double> fused = build_sheet<double>(def);
+    std::reverse(def.anchors.begin(), def.anchors.end());
+    Sheet<double> whole = build_sheet<double>(def);
+    ASSERT_TRUE(std::is_sorted(fused.anchors.point.begin(), fused.anchors.point.end()));
+    ASSERT_FALSE(std::is_sorted(whole.anchors.point.begin(), whole.anchors.point.end()));
+    const StepParams<double> params{1e-3, 0.0, 0.0, -9.81};
+    for (int step = 0; step < 50; ++step) {
+      integrate(integrator, fused, params);
+      integrate(integrator, whole, params);
+    }
+    EXPECT_EQ(fused.position.x, whole.position.x);
+    EXPECT_EQ(fused.position.y, whole.position.y);
+    EXPECT_EQ(fused.position.z, whole.position.z);
+    EXPECT_EQ(fused.velocity.z, whole.velocity.z);
+    EXPECT_NE(fused.position.z, build_sheet<double>(def).position.z);  // the sheet did move
+  }
+}
+
+// One semi-implicit step by hand from the whole-sheet forces (eq 4 with M, C diagonal),
+// against the engine's fused step.
+TEST(SpringSweep, FusedSemiImplicitStepMatchesHandUpdate) {
+  Sheet<double> s = jostled_sheet(true);
+  s.damping.assign(s.size(), 0.05);
+  for (double& v : s.velocity.y) v = 0.3;
+  Sheet<double> ref = s;
+  const StepParams<double> params{2e-3, 0.0, 0.0, -9.81};
+  sheet_forces(ref, cptr(ref.position), cptr(ref.velocity), ptr(ref.force));
+  integrate(Integrator::SemiImplicitEuler, s, params);
+  for (std::size_t p = 0; p < s.size(); ++p) {
+    const double vx = ref.velocity.x[p] + params.dt * ref.force.x[p] / ref.mass[p];
+    const double vy = ref.velocity.y[p] + params.dt * ref.force.y[p] / ref.mass[p];
+    const double vz = ref.velocity.z[p] + params.dt * (ref.force.z[p] / ref.mass[p] + params.gz);
+    EXPECT_NEAR(s.velocity.x[p], vx, 1e-12 * (1 + std::abs(vx)));
+    EXPECT_NEAR(s.velocity.y[p], vy, 1e-12 * (1 + std::abs(vy)));
+    EXPECT_NEAR(s.velocity.z[p], vz, 1e-12 * (1 + std::abs(vz)));
+    EXPECT_NEAR(s.position.x[p], ref.position.x[p] + params.dt * vx, 1e-12);
+    EXPECT_NEAR(s.position.z[p], ref.position.z[p] + params.dt * vz, 1e-12);
+  }
 }
 
 }  // namespace
