@@ -37,9 +37,10 @@ struct FirstOrderArrays {
   const Real* __restrict inv_mass;
 };
 
-// Forward Euler: x and v both advance from the old state.
-template <class Real>
-void forward_euler_update(std::size_t count, const StepParams<Real>& p, FirstOrderArrays<Real> a) {
+// Forward Euler (SemiImplicit = false): x and v both advance from the old state.
+// Semi-implicit Euler (SemiImplicit = true): the new velocity moves the point.
+template <class Real, bool SemiImplicit>
+void first_order_update(std::size_t count, const StepParams<Real>& p, FirstOrderArrays<Real> a) {
   Real* __restrict x = a.x;
   Real* __restrict y = a.y;
   Real* __restrict z = a.z;
@@ -52,36 +53,19 @@ void forward_euler_update(std::size_t count, const StepParams<Real>& p, FirstOrd
   const Real* __restrict im = a.inv_mass;
   const Real dt = p.dt, gx = p.gx, gy = p.gy, gz = p.gz;
   for (std::size_t i = 0; i < count; ++i) {
-    x[i] += dt * vx[i];
-    y[i] += dt * vy[i];
-    z[i] += dt * vz[i];
+    if constexpr (!SemiImplicit) {
+      x[i] += dt * vx[i];
+      y[i] += dt * vy[i];
+      z[i] += dt * vz[i];
+    }
     vx[i] += dt * (fx[i] * im[i] + gx);
     vy[i] += dt * (fy[i] * im[i] + gy);
     vz[i] += dt * (fz[i] * im[i] + gz);
-  }
-}
-
-// Semi-implicit Euler: the new velocity moves the point.
-template <class Real>
-void semi_implicit_euler_update(std::size_t count, const StepParams<Real>& p, FirstOrderArrays<Real> a) {
-  Real* __restrict x = a.x;
-  Real* __restrict y = a.y;
-  Real* __restrict z = a.z;
-  Real* __restrict vx = a.vx;
-  Real* __restrict vy = a.vy;
-  Real* __restrict vz = a.vz;
-  const Real* __restrict fx = a.fx;
-  const Real* __restrict fy = a.fy;
-  const Real* __restrict fz = a.fz;
-  const Real* __restrict im = a.inv_mass;
-  const Real dt = p.dt, gx = p.gx, gy = p.gy, gz = p.gz;
-  for (std::size_t i = 0; i < count; ++i) {
-    vx[i] += dt * (fx[i] * im[i] + gx);
-    vy[i] += dt * (fy[i] * im[i] + gy);
-    vz[i] += dt * (fz[i] * im[i] + gz);
-    x[i] += dt * vx[i];
-    y[i] += dt * vy[i];
-    z[i] += dt * vz[i];
+    if constexpr (SemiImplicit) {
+      x[i] += dt * vx[i];
+      y[i] += dt * vy[i];
+      z[i] += dt * vz[i];
+    }
   }
 }
 
@@ -105,8 +89,8 @@ void first_order_step(Sheet<Real>& s, const StepParams<Real>& p, Update update) 
 template <class Real>
 void integrate(Integrator integrator, Sheet<Real>& s, const StepParams<Real>& p) {
   switch (integrator) {
-    case Integrator::ForwardEuler: first_order_step(s, p, forward_euler_update<Real>); break;
-    case Integrator::SemiImplicitEuler: first_order_step(s, p, semi_implicit_euler_update<Real>); break;
+    case Integrator::ForwardEuler: first_order_step(s, p, first_order_update<Real, false>); break;
+    case Integrator::SemiImplicitEuler: first_order_step(s, p, first_order_update<Real, true>); break;
   }
   apply_pins(s);
 }
