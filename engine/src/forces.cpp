@@ -192,6 +192,9 @@ void sheet_forces_by_rows(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Rea
   }
   // Every term of row i is added as soon as its springs are final (same order as above:
   // springs, damping, anchors), then the row goes to the sink while it is still in cache.
+  // A new per-point force term (obstacles, contacts) belongs here, before the sink, and in
+  // the unsorted branch above; a term that cannot work row by row must make this function
+  // take the branch above for the sheets that have it.
   const std::uint32_t cols = t.cols();
   const Real* c = s.damping.empty() ? nullptr : s.damping.data();
   std::size_t next_anchor = 0;
