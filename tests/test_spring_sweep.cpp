@@ -48,7 +48,7 @@ std::vector<long double> edge_by_edge(const Sheet<double>& s, int axis) {
 
 void expect_matches_eq6(Sheet<double>& s) {
   spring_forces(*s.topology, cptr(s.position), ptr(s.force), ptr(s.row_scratch));
-  const std::vector<double>* fs[3] = {&s.force.x, &s.force.y, &s.force.z};
+  const AlignedArray<double>* fs[3] = {&s.force.x, &s.force.y, &s.force.z};
   for (int axis = 0; axis < 3; ++axis) {
     const auto expected = edge_by_edge(s, axis);
     for (std::size_t p = 0; p < s.size(); ++p)
