@@ -4,7 +4,9 @@
 # Build: Release (-O3 -DNDEBUG) with -march=native and -fno-math-errno (see the top-level
 # CMakeLists.txt, drape_flags), in its own build directory so a Debug or sanitizer build in
 # build/ is never measured. Run: one drape_bench process, every benchmark --benchmark_repetitions
-# times for --benchmark_min_time seconds each; the report uses the medians.
+# times for --benchmark_min_time seconds each, repetitions of different benchmarks randomly
+# interleaved so a slow spell of a shared machine does not land on one benchmark; the report
+# uses the medians.
 #
 # Environment (all optional):
 #   DRAPE_BENCH_BUILD_DIR   build directory              (build-bench)
@@ -27,7 +29,7 @@ cmake --build "$build" --target drape_bench -j"$(nproc)"
 
 mkdir -p docs/img
 command=("$build/bench/drape_bench" "--benchmark_min_time=$min_time" "--benchmark_repetitions=$repetitions"
-  --benchmark_report_aggregates_only=true "$@")
+  --benchmark_enable_random_interleaving=true --benchmark_report_aggregates_only=true "$@")
 # Written next to the report only when the run completes, so a failed run leaves the old one.
 "${command[@]}" --benchmark_out="$json.tmp" --benchmark_out_format=json
 mv "$json.tmp" "$json"
