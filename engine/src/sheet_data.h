@@ -102,9 +102,9 @@ template <class Real>
 struct Sheet {
   std::shared_ptr<const Topology<Real>> topology;
   Vec3Array<Real> position, velocity;
-  Vec3Array<Real> force;             // scratch of the force kernels
-  std::vector<Real> mass, inv_mass;  // per point
-  std::vector<Real> damping;         // per point; empty: the sheet has no damping term
+  Vec3Array<Real> force;              // scratch of the force kernels
+  AlignedArray<Real> mass, inv_mass;  // per point
+  AlignedArray<Real> damping;         // per point; empty: the sheet has no damping term
   Anchors<Real> anchors;
   Pins<Real> pins;
   Vec3Array<Real> row_scratch;       // one row of horizontal spring forces
