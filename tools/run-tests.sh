@@ -1,9 +1,58 @@
 #!/usr/bin/env bash
-# Sets up a fresh Debian machine, builds drape (Release, warnings as errors) and runs every test.
+# What CI runs, from a clean clone: sets up a fresh Debian machine, then
+#   1. Release build (warnings as errors) and every test;
+#   2. the tests again, built with AddressSanitizer + UndefinedBehaviorSanitizer (build-asan);
+#   3. a short libFuzzer run of every reader (build-fuzz, clang), seeded with valid files.
+# Environment: DRAPE_BUILD_DIR (default build), DRAPE_SKIP_SANITIZE=1, DRAPE_SKIP_FUZZ=1,
+# DRAPE_FUZZ_SECONDS (default 25 per target).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 tools/setup.sh
+jobs=$(nproc)
+stamp() { echo "run-tests: $1 ($(( SECONDS - started )) s)"; }
+started=$SECONDS
+
 build=${DRAPE_BUILD_DIR:-build}
 cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release -DDRAPE_WERROR=ON >/dev/null
-cmake --build "$build" -j"$(nproc)"
-ctest --test-dir "$build" --output-on-failure -j"$(nproc)"
+cmake --build "$build" -j"$jobs"
+ctest --test-dir "$build" --output-on-failure -j"$jobs"
+stamp "release build and tests passed"
+
+if [[ "${DRAPE_SKIP_SANITIZE:-0}" != 1 ]]; then
+  # -O1 keeps sanitized tests quick while the stack traces stay readable; no benchmarks.
+  cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g" \
+    -DDRAPE_SANITIZE=ON -DDRAPE_WERROR=ON -DDRAPE_BUILD_BENCH=OFF >/dev/null
+  cmake --build build-asan -j"$jobs"
+  ASAN_OPTIONS=abort_on_error=1:detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+    ctest --test-dir build-asan --output-on-failure -j"$jobs"
+  stamp "sanitizer build and tests passed"
+fi
+
+if [[ "${DRAPE_SKIP_FUZZ:-0}" != 1 ]]; then
+  seconds=${DRAPE_FUZZ_SECONDS:-25}
+  cmake -S . -B build-fuzz -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+    -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g" -DDRAPE_FUZZ=ON -DDRAPE_WERROR=ON \
+    -DDRAPE_BUILD_TESTS=OFF -DDRAPE_BUILD_BENCH=OFF >/dev/null
+  # One line per reader: fuzz target, then its seed directories (see tests/fuzz/README.md).
+  targets=(
+    "checkpoint_fuzz build-fuzz/seeds/checkpoint tests/fuzz/regressions/checkpoint"
+  )
+  cmake --build build-fuzz -j"$jobs" --target checkpoint_seeds $(for t in "${targets[@]}"; do echo "${t%% *}"; done)
+  rm -rf build-fuzz/seeds && build-fuzz/tests/fuzz/checkpoint_seeds build-fuzz/seeds/checkpoint
+  for entry in "${targets[@]}"; do
+    read -r -a words <<<"$entry"
+    target=${words[0]}
+    corpus=build-fuzz/corpus/$target
+    mkdir -p "$corpus" build-fuzz/artifacts
+    echo "run-tests: fuzzing $target for $seconds s"
+    if ! build-fuzz/tests/fuzz/"$target" -max_total_time="$seconds" -print_final_stats=1 \
+        -artifact_prefix=build-fuzz/artifacts/"$target"- "$corpus" "${words[@]:1}" >build-fuzz/"$target".log 2>&1; then
+      tail -n 60 build-fuzz/"$target".log
+      echo "run-tests: $target found a crash; add the input under build-fuzz/artifacts/ to" \
+           "tests/fuzz/regressions/ and fix the reader" >&2
+      exit 1
+    fi
+    grep -E "stat::number_of_executed_units|Done" build-fuzz/"$target".log || true
+  done
+  stamp "fuzzing found nothing"
+fi

@@ -8,6 +8,7 @@ packages=(
   libeigen3-dev libtbb-dev libgtest-dev libgmock-dev libbenchmark-dev
   nlohmann-json3-dev libcli11-dev libfmt-dev libpng-dev
   python3 python3-matplotlib
+  clang libclang-rt-dev  # libFuzzer and the sanitizer runtimes (only recommended by clang)
 )
 # Extra packages a caller may ask for, e.g. DRAPE_EXTRA_PACKAGES="clang python3-matplotlib".
 if [[ -n "${DRAPE_EXTRA_PACKAGES:-}" ]]; then

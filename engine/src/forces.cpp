@@ -1,8 +1,10 @@
-// Force kernels: springs (eqs 6–7), damping (eq 4's C), anchors (eq 8).
+// Force kernels: springs (eqs 6–7), damping (eq 4's C), anchors (eq 8); obstacles (eq 9) live in obstacles.cpp.
 #include "forces.h"
 
 #include <algorithm>
 #include <cmath>
+
+#include "obstacles.h"
 
 namespace drape::detail {
 
@@ -178,8 +180,10 @@ void sheet_forces_by_rows(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Rea
     f.y[p] += an.stiffness[a] * (an.ty[a] - x.y[p]);
     f.z[p] += an.stiffness[a] * (an.tz[a] - x.z[p]);
   };
-  if (!std::is_sorted(an.point.begin(), an.point.end())) {
-    // anchors in no particular order: finish every force first, then hand over the sheet
+  // Obstacle forces (eq 9) follow the sheet's surface normal, which reads the rows on both
+  // sides of a point, so they cannot be added row by row once earlier rows have moved.
+  if (!s.near_obstacles.empty() || !std::is_sorted(an.point.begin(), an.point.end())) {
+    // finish every force first, then hand over the whole sheet
     springs_by_rows(t, x, f, ptr(s.row_scratch), 0, t.rows(), [&](std::uint32_t i) {
       if (!s.damping.empty()) {
         const std::size_t p = std::size_t(i) * t.cols();
@@ -187,14 +191,15 @@ void sheet_forces_by_rows(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Rea
       }
     });
     for (std::size_t a = 0; a < an.point.size(); ++a) anchor(a);
+    // eq (9): only obstacles the host stage found near this sheet
+    for (const NearObstacle& o : s.near_obstacles) obstacle_forces(t, o, x, f);
     if (sink.done) sink.done(sink.context, 0, s.size());
     return;
   }
   // Every term of row i is added as soon as its springs are final (same order as above:
   // springs, damping, anchors), then the row goes to the sink while it is still in cache.
-  // A new per-point force term (obstacles, contacts) belongs here, before the sink, and in
-  // the unsorted branch above; a term that cannot work row by row must make this function
-  // take the branch above for the sheets that have it.
+  // A new per-point force term (e.g. contacts) belongs in both branches; one that reads
+  // neighbouring rows' positions, like obstacles, must send its sheets to the branch above.
   const std::uint32_t cols = t.cols();
   const Real* c = s.damping.empty() ? nullptr : s.damping.data();
   std::size_t next_anchor = 0;

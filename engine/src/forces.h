@@ -38,7 +38,7 @@ template <class Real>
 void spring_forces(const Topology<Real>& topo, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row,
                    std::uint32_t row_begin, std::uint32_t row_end);
 
-// f = springs(x) − C·v + anchors(x): the total internal force of eq (4) without gravity,
+// f = springs(x) − C·v + anchors(x) + near obstacles(x): the total internal force of eq (4) without gravity,
 // which the integrators add as an acceleration.
 template <class Real>
 void sheet_forces(Sheet<Real>& sheet, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f);

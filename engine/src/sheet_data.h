@@ -13,6 +13,15 @@
 
 namespace drape::detail {
 
+struct Obstacle;  // obstacles.h
+
+// An obstacle the host stage found near a sheet, with the exponent cap this sheet uses
+// (obstacles.h, exponent_cap: it depends on the sheet's lightest point and on dt).
+struct NearObstacle {
+  const Obstacle* obstacle;
+  double exponent_cap;
+};
+
 // Edge buffer of a grid (paper Fig 1). Springs are stored in a fixed order so the force
 // kernel never reads a or b: first the horizontal springs row by row, spring i·n + j joining
 // (i, j)–(i, j+1); then the vertical ones, spring H + i·(n+1) + j joining (i, j)–(i+1, j),
@@ -109,6 +118,9 @@ struct Sheet {
   Pins<Real> pins;
   Vec3Array<Real> row_scratch;       // one row of horizontal spring forces
   std::vector<Real> integrator_scratch;  // extra state an integrator may keep
+  // Obstacles whose reach overlaps this sheet's bounding box, chosen by the world's host
+  // stage every substep (the world clears these lists whenever its obstacle pool changes).
+  std::vector<NearObstacle> near_obstacles;
 
   std::size_t size() const { return position.x.size(); }
 };

@@ -12,8 +12,10 @@
 #include <stdexcept>
 #include <string>
 
+#include "bounds.h"
 #include "diagnostics.h"
 #include "integrate.h"
+#include "obstacles.h"
 #include "sheet_data.h"
 
 namespace drape {
@@ -26,6 +28,7 @@ struct BasicWorld<Real>::Impl {
   struct Slot {
     std::optional<Sheet<Real>> sheet;
     std::uint32_t generation = 0;
+    double lightest_point = 0;  // kg, for the obstacle force bound (obstacles.h, exponent_cap)
   };
 
   WorldDef def;
@@ -35,6 +38,14 @@ struct BasicWorld<Real>::Impl {
   std::vector<std::uint32_t> active;  // live slots in the order sheets were added
   std::vector<std::shared_ptr<const Topology<Real>>> topologies;
   std::uint64_t steps = 0;
+
+  struct ObstacleSlot {
+    std::optional<detail::Obstacle> obstacle;
+    std::uint32_t generation = 0;
+  };
+  std::vector<ObstacleSlot> obstacle_slots;
+  std::vector<std::uint32_t> free_obstacle_slots;
+  std::vector<std::uint32_t> active_obstacles;  // live slots in the order obstacles were added
 
   explicit Impl(const WorldDef& d)
       : def(d), arena(d.threads > 0 ? d.threads : tbb::task_arena::automatic) {}
@@ -46,6 +57,37 @@ struct BasicWorld<Real>::Impl {
   const Sheet<Real>& sheet(SheetId id) const { return const_cast<Impl*>(this)->sheet(id); }
   bool contains(SheetId id) const {
     return id.index < slots.size() && slots[id.index].sheet && slots[id.index].generation == id.generation;
+  }
+
+  detail::Obstacle& obstacle(ObstacleId id) {
+    if (!contains(id))
+      throw std::invalid_argument("drape: unknown or removed ObstacleId " + std::to_string(id.index));
+    return *obstacle_slots[id.index].obstacle;
+  }
+  bool contains(ObstacleId id) const {
+    return id.index < obstacle_slots.size() && obstacle_slots[id.index].obstacle &&
+           obstacle_slots[id.index].generation == id.generation;
+  }
+  // The sheets' obstacle lists point into obstacle_slots: drop them when the pool changes.
+  void forget_near_obstacles() {
+    for (std::uint32_t index : active) slots[index].sheet->near_obstacles.clear();
+  }
+
+  // Host stage: each sheet's list of obstacles whose reach its bounding box overlaps, so a
+  // sheet far from every obstacle runs no obstacle term at all.
+  void assign_obstacles() {
+    if (active_obstacles.empty()) return;
+    for (std::uint32_t index : active) {
+      Sheet<Real>& s = *slots[index].sheet;
+      const double lightest = slots[index].lightest_point;
+      s.near_obstacles.clear();
+      const detail::Aabb box = detail::sheet_bounds(s);
+      for (std::uint32_t o : active_obstacles) {
+        const detail::Obstacle& obstacle = *obstacle_slots[o].obstacle;
+        if (detail::may_touch(obstacle, box))
+          s.near_obstacles.push_back({&obstacle, detail::exponent_cap(obstacle.def, lightest, def.dt)});
+      }
+    }
   }
 
   // Dozens of identical sheets keep one edge buffer between them.
@@ -74,7 +116,8 @@ struct BasicWorld<Real>::Impl {
   void substep() {
     const detail::StepParams<Real> params{static_cast<Real>(def.dt), static_cast<Real>(def.gravity.x),
                                           static_cast<Real>(def.gravity.y), static_cast<Real>(def.gravity.z)};
-    // 1. host stage: bounds, broad-phase and contact work go here (nothing yet between sheets)
+    // 1. host stage: bounds, broad-phase and contact work go here
+    assign_obstacles();
     // 2. parallel stage: per-sheet forces, then integration
     integrate_sheets(params);
     ++steps;
@@ -107,6 +150,7 @@ SheetId BasicWorld<Real>::add_sheet(const SheetDef& def) {
     impl_->slots.emplace_back();
   }
   auto& slot = impl_->slots[index];
+  slot.lightest_point = *std::min_element(sheet.mass.begin(), sheet.mass.end());
   slot.sheet = std::move(sheet);
   impl_->active.push_back(index);
   return {index, slot.generation};
@@ -132,6 +176,52 @@ std::vector<SheetId> BasicWorld<Real>::sheets() const {
   std::vector<SheetId> ids;
   for (std::uint32_t index : impl_->active) ids.push_back({index, impl_->slots[index].generation});
   return ids;
+}
+
+template <class Real>
+ObstacleId BasicWorld<Real>::add_obstacle(const ObstacleDef& def) {
+  if (std::string problem = validate(def); !problem.empty()) throw std::invalid_argument("drape: obstacle " + problem);
+  std::uint32_t index;
+  if (!impl_->free_obstacle_slots.empty()) {
+    index = impl_->free_obstacle_slots.back();
+    impl_->free_obstacle_slots.pop_back();
+  } else {
+    index = static_cast<std::uint32_t>(impl_->obstacle_slots.size());
+    impl_->obstacle_slots.emplace_back();
+  }
+  impl_->forget_near_obstacles();
+  auto& slot = impl_->obstacle_slots[index];
+  slot.obstacle = detail::make_obstacle(def);
+  impl_->active_obstacles.push_back(index);
+  return {index, slot.generation};
+}
+
+template <class Real>
+void BasicWorld<Real>::remove_obstacle(ObstacleId id) {
+  impl_->obstacle(id);  // throws on a stale id
+  impl_->forget_near_obstacles();
+  auto& slot = impl_->obstacle_slots[id.index];
+  slot.obstacle.reset();
+  ++slot.generation;
+  impl_->free_obstacle_slots.push_back(id.index);
+  std::erase(impl_->active_obstacles, id.index);
+}
+
+template <class Real>
+bool BasicWorld<Real>::contains(ObstacleId id) const { return impl_->contains(id); }
+template <class Real>
+std::size_t BasicWorld<Real>::obstacle_count() const { return impl_->active_obstacles.size(); }
+
+template <class Real>
+std::vector<ObstacleId> BasicWorld<Real>::obstacles() const {
+  std::vector<ObstacleId> ids;
+  for (std::uint32_t index : impl_->active_obstacles) ids.push_back({index, impl_->obstacle_slots[index].generation});
+  return ids;
+}
+
+template <class Real>
+const ObstacleDef& BasicWorld<Real>::obstacle(ObstacleId id) const {
+  return const_cast<Impl&>(*impl_).obstacle(id).def;
 }
 
 template <class Real>
@@ -168,8 +258,46 @@ template <class Real>
 std::uint64_t BasicWorld<Real>::step_count() const { return impl_->steps; }
 
 template <class Real>
+void BasicWorld<Real>::set_step_count(std::uint64_t steps) { impl_->steps = steps; }
+
+template <class Real>
+void BasicWorld<Real>::set_state(SheetId id, const SheetView<Real>& from) {
+  auto& s = impl_->sheet(id);
+  const std::size_t count = s.size();
+  for (std::size_t size : {from.x.size(), from.y.size(), from.z.size(), from.vx.size(), from.vy.size(), from.vz.size()})
+    if (size != count)
+      throw std::invalid_argument("drape: set_state of sheet " + std::to_string(id.index) + " needs " +
+                                  std::to_string(count) + " values per component, got " + std::to_string(size));
+  std::copy(from.x.begin(), from.x.end(), s.position.x.begin());
+  std::copy(from.y.begin(), from.y.end(), s.position.y.begin());
+  std::copy(from.z.begin(), from.z.end(), s.position.z.begin());
+  std::copy(from.vx.begin(), from.vx.end(), s.velocity.x.begin());
+  std::copy(from.vy.begin(), from.vy.end(), s.velocity.y.begin());
+  std::copy(from.vz.begin(), from.vz.end(), s.velocity.z.begin());
+}
+
+template <class Real>
+std::span<const Real> BasicWorld<Real>::integrator_memory(SheetId id) const {
+  return impl_->sheet(id).integrator_scratch;
+}
+
+template <class Real>
+void BasicWorld<Real>::set_integrator_memory(SheetId id, std::span<const Real> memory) {
+  impl_->sheet(id).integrator_scratch.assign(memory.begin(), memory.end());
+}
+
+template <class Real>
 SheetDiagnostics BasicWorld<Real>::diagnostics(SheetId id) const {
-  return detail::sheet_diagnostics(impl_->sheet(id), impl_->def.gravity);
+  const auto& sheet = impl_->sheet(id);
+  SheetDiagnostics d = detail::sheet_diagnostics(sheet, impl_->def.gravity);
+  // every obstacle, not only the near ones: the energy must not depend on the broad-phase
+  const double lightest = impl_->slots[id.index].lightest_point;
+  for (std::uint32_t o : impl_->active_obstacles) {
+    const detail::Obstacle& obstacle = *impl_->obstacle_slots[o].obstacle;
+    d.energy.obstacle += detail::obstacle_energy(sheet, obstacle, detail::exponent_cap(obstacle.def, lightest, impl_->def.dt));
+  }
+  d.finite = d.finite && std::isfinite(d.energy.total());
+  return d;
 }
 
 template <class Real>
@@ -181,6 +309,7 @@ Energies BasicWorld<Real>::energies() const {
     total.spring += e.spring;
     total.gravity += e.gravity;
     total.anchor += e.anchor;
+    total.obstacle += e.obstacle;
   }
   return total;
 }

@@ -1,6 +1,7 @@
 // Everything a program embedding drape needs.
 #pragma once
 
+#include <drape/obstacle.h>
 #include <drape/sheet.h>
 #include <drape/types.h>
 #include <drape/world.h>

@@ -6,6 +6,8 @@
 
 #include <drape/types.h>
 
+#include <string>
+
 namespace drape {
 
 enum class ObstacleShape {
@@ -26,6 +28,17 @@ struct ObstacleDef {
   // false (default): the force is projected on the sheet's unit surface normal, as in eq (9);
   // true: the full gradient −∇E is used.
   bool full_gradient = false;
+  // Force bound. The exponent −f/ξ is capped: deeper than f = −cap·ξ the energy continues
+  // linearly, so the force stops growing at (c/ξ)·e^cap·|∇f|. The cap is max_exponent, or
+  // lower where the potential would get stiffer than the step resolves: at most m/dt² for the
+  // sheet's lightest point m, a quarter of the explicit limit 4m/dt². A point that starts
+  // inside, or arrives faster than the potential can stop it, is pushed out by a finite force
+  // the integrator resolves, instead of one that overflows or throws it out with extra energy.
+  double max_exponent = 8.0;
 };
+
+// An empty string when the definition can be simulated; otherwise one message naming the
+// field and the problem, e.g. "xi must be positive and finite (got 0)".
+std::string validate(const ObstacleDef& def);
 
 }  // namespace drape

@@ -4,12 +4,14 @@
 // Real is the storage and arithmetic type of the hot loops (double or float).
 #pragma once
 
+#include <drape/obstacle.h>
 #include <drape/sheet.h>
 #include <drape/types.h>
 
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <type_traits>
 #include <vector>
 
 namespace drape {
@@ -26,7 +28,8 @@ struct Energies {
   double spring = 0;   // ½ Σ k (|x1 − x2| − ℓ)²
   double gravity = 0;  // −Σ m g·x (zero at the origin)
   double anchor = 0;   // ½ Σ k |x − p0|², eq (8)
-  double total() const { return kinetic + spring + gravity + anchor; }
+  double obstacle = 0; // Σ c·exp(−f/ξ) over points and obstacles, eq (9) (linear past the cap)
+  double total() const { return kinetic + spring + gravity + anchor + obstacle; }
 };
 
 struct SheetDiagnostics {
@@ -72,17 +75,58 @@ class BasicWorld {
   std::size_t sheet_count() const;
   std::vector<SheetId> sheets() const;  // in the order they were added
 
+  // Obstacles (eq 9). Throws std::invalid_argument with validate()'s message for a bad
+  // definition. Only sheets whose bounding box comes within the obstacle's reach pay for it.
+  ObstacleId add_obstacle(const ObstacleDef& def);
+  void remove_obstacle(ObstacleId id);
+  bool contains(ObstacleId id) const;
+  std::size_t obstacle_count() const;
+  std::vector<ObstacleId> obstacles() const;  // in the order they were added
+  const ObstacleDef& obstacle(ObstacleId id) const;
+
   SheetView<Real> view(SheetId id) const;
   SheetState<Real> state(SheetId id);
 
   // Advances every sheet by `substeps` steps of def().dt.
   void step(int substeps = 1);
 
+  // The per-frame loop of an embedding program: `frames` times, step(substeps_per_frame),
+  // then on_frame(frame) with frame = 1, 2, ... . The callback may read view(), write
+  // state(), add or remove sheets; if it returns bool, false stops the run early.
+  // Returns the number of frames run.
+  template <class OnFrame>
+  int run_frames(int frames, int substeps_per_frame, OnFrame&& on_frame) {
+    for (int frame = 1; frame <= frames; ++frame) {
+      step(substeps_per_frame);
+      if constexpr (std::is_same_v<std::invoke_result_t<OnFrame&, int>, bool>) {
+        if (!on_frame(frame)) return frame;
+      } else {
+        on_frame(frame);
+      }
+    }
+    return frames;
+  }
+
   const WorldDef& def() const;
   void set_integrator(Integrator integrator);
   void set_dt(double dt);
-  double time() const;                // s, simulated
+  double time() const;                // s, simulated: step_count()·dt
   std::uint64_t step_count() const;   // substeps taken
+
+  // Full state, for checkpoints. Everything step() changes is the step count, each sheet's
+  // positions and velocities, and the integrator's memory of each sheet; copying these out
+  // and back into a world built from the same definitions (same sheets added in the same
+  // order, same WorldDef) continues bit for bit. The engine does no I/O: a caller stores
+  // the spans as it likes (apps/common/checkpoint.h is one format).
+  void set_step_count(std::uint64_t steps);
+  // Copies positions and velocities into the sheet. Every span of `from` must hold exactly
+  // the sheet's point count (else std::invalid_argument). As with state(), pinned points
+  // go back to their pins at the next step.
+  void set_state(SheetId id, const SheetView<Real>& from);
+  // Values an integrator carries from one substep to the next (may be empty; its size may
+  // change when the integrator does). set_integrator_memory replaces them.
+  std::span<const Real> integrator_memory(SheetId id) const;
+  void set_integrator_memory(SheetId id, std::span<const Real> memory);
 
   SheetDiagnostics diagnostics(SheetId id) const;
   Energies energies() const;  // summed over sheets

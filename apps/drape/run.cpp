@@ -1,0 +1,177 @@
+// `drape run` / `drape info`: build a world from a scene, step it, write frames.
+#include "run.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <iomanip>
+#include <limits>
+#include <sstream>
+
+#include "export.h"
+
+namespace drape::app {
+
+namespace {
+
+template <class Real>
+BasicWorld<Real> build_world(const Scene& scene, int threads, std::vector<SheetId>& ids) {
+  WorldDef def = scene.world;
+  def.threads = threads;
+  BasicWorld<Real> world(def);
+  for (const auto& s : scene.sheets) ids.push_back(world.add_sheet(s));
+  for (const auto& o : scene.obstacles) world.add_obstacle(o);
+  return world;
+}
+
+std::string frame_name(int frame, std::string_view ext) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "frame_%05d.", frame);
+  return std::string(buf) + std::string(ext);
+}
+
+double min_gamma(const SheetDef& s) {
+  const std::size_t points = point_count(s.m, s.n);
+  double gamma = std::numeric_limits<double>::infinity();
+  for (std::size_t p = 0; p < points; ++p) {
+    const double c = s.point_damping.empty() ? s.damping : s.point_damping[p];
+    const double m = s.point_masses.empty() ? s.mass / double(points) : s.point_masses[p];
+    gamma = std::min(gamma, c / m);
+  }
+  return gamma;
+}
+
+template <class Real>
+int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
+  const int frames = opt.frames.value_or(scene.frames);
+  const auto formats = opt.formats.value_or(scene.output.formats);
+  const std::filesystem::path dir = opt.out_dir.value_or(scene.output.dir);
+
+  std::vector<SheetId> ids;
+  BasicWorld<Real> world = build_world<Real>(scene, opt.threads, ids);
+
+  // Warn (do not refuse) when dt is above the explicit integrators' estimated critical step.
+  const double dt = scene.world.dt;
+  for (std::size_t k = 0; k < ids.size(); ++k) {
+    const StableSteps st = stable_steps(scene.sheets[k], world.stable_step_estimate(ids[k]));
+    const double limit = scene.world.integrator == Integrator::ForwardEuler ? st.forward_euler : st.semi_implicit_euler;
+    if (dt > limit) {
+      log << "drape: warning: " << scene.file << ": sheets[" << k << "] (" << scene.sheet_names[k] << "): dt = " << dt
+          << " s is above the estimated stable step " << limit << " s of " << integrator_name(scene.world.integrator);
+      if (limit > 0)
+        log << "; a stable choice is dt = " << std::setprecision(2) << 0.9 * limit << std::setprecision(6) << " s\n";
+      else
+        log << "; forward_euler needs damping, or use semi_implicit_euler (stable below "
+            << st.semi_implicit_euler << " s)\n";
+    }
+  }
+
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec || !std::filesystem::is_directory(dir)) {
+    log << "drape: cannot create the output folder " << dir.string() << ": " << ec.message() << '\n';
+    return exit_write_failed;
+  }
+  std::vector<PvdEntry> pvd;
+  auto write_frame = [&](int frame) {
+    std::vector<SheetView<Real>> views;
+    for (SheetId id : ids) views.push_back(world.view(id));
+    const std::span<const SheetView<Real>> span(views);
+    for (MeshFormat f : formats) {
+      switch (f) {
+        case MeshFormat::Obj:
+          write_atomically(dir / frame_name(frame, "obj"),
+                           [&](std::ostream& out) { write_obj<Real>(out, span, scene.sheet_names); });
+          break;
+        case MeshFormat::Ply:
+          write_atomically(dir / frame_name(frame, "ply"), [&](std::ostream& out) { write_ply<Real>(out, span); });
+          break;
+        case MeshFormat::Vtk:
+          write_atomically(dir / frame_name(frame, "vtu"), [&](std::ostream& out) { write_vtu<Real>(out, span); });
+          pvd.push_back({world.time(), frame_name(frame, "vtu")});
+          write_atomically(dir / "frames.pvd", [&](std::ostream& out) { write_pvd(out, pvd); });
+          break;
+      }
+    }
+  };
+
+  const auto start = std::chrono::steady_clock::now();
+  const int line_every = std::max(1, frames / 10);
+  try {
+    write_frame(0);
+    for (int frame = 1; frame <= frames; ++frame) {
+      const std::uint64_t first = world.step_count() + 1;
+      world.step(scene.substeps);
+      if (!world.all_finite()) {
+        log << (opt.progress_bar ? "\n" : "") << "drape: " << scene.file << ": the simulation became unstable "
+            << "(a position or velocity is not finite) during frame " << frame << ", substeps " << first << "–"
+            << world.step_count() << " (t ≤ " << world.time() << " s). Frames 0–" << frame - 1
+            << " are written; nothing non-finite was. Lower dt (now " << dt << " s; estimated stable step "
+            << world.stable_step_estimate() << " s), add damping, or soften stiff springs and obstacles (smaller c, larger xi).\n";
+        return exit_unstable;
+      }
+      write_frame(frame);
+      if (opt.progress_bar) {
+        const int width = 30, done = frame * width / frames;
+        log << "\r[" << std::string(done, '#') << std::string(width - done, '.') << "] frame " << frame << "/" << frames
+            << std::flush;
+      } else if (frame % line_every == 0 || frame == frames) {
+        log << "drape: frame " << frame << "/" << frames << ", t = " << world.time() << " s\n";
+      }
+    }
+  } catch (const std::runtime_error& e) {
+    log << (opt.progress_bar ? "\n" : "") << "drape: " << e.what() << '\n';
+    return exit_write_failed;
+  }
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  log << (opt.progress_bar ? "\n" : "") << "drape: wrote " << frames + 1 << " frames to " << dir.string() << " in "
+      << std::setprecision(3) << seconds << " s\n";
+  return exit_ok;
+}
+
+template <class Real>
+void describe_world(const Scene& scene, std::ostream& out) {
+  std::vector<SheetId> ids;
+  BasicWorld<Real> world = build_world<Real>(scene, 1, ids);
+  out << scene.file << ": " << scene.sheets.size() << " sheet(s), " << scene.obstacles.size() << " obstacle(s)\n"
+      << "precision " << precision_name(scene.precision) << ", integrator " << integrator_name(scene.world.integrator)
+      << ", dt " << scene.world.dt << " s, " << scene.substeps << " substeps per frame, " << scene.frames
+      << " frames (" << scene.frames * scene.frame_time() << " s simulated)\n";
+  std::uint64_t points = 0, springs = 0;
+  for (std::size_t k = 0; k < ids.size(); ++k) {
+    const auto& s = scene.sheets[k];
+    const StableSteps st = stable_steps(s, world.stable_step_estimate(ids[k]));
+    points += point_count(s.m, s.n);
+    springs += spring_count(s.m, s.n);
+    out << "sheets[" << k << "] " << scene.sheet_names[k] << ": " << s.m << "x" << s.n << " cells, "
+        << point_count(s.m, s.n) << " points, " << spring_count(s.m, s.n) << " springs, about "
+        << estimated_bytes(s, scene.precision) / 1024.0 << " KiB; stable step: semi_implicit_euler "
+        << st.semi_implicit_euler << " s, forward_euler " << st.forward_euler << " s"
+        << (st.forward_euler == 0 ? " (undamped: unstable at any step)" : "") << '\n';
+  }
+  out << "total: " << points << " points, " << springs << " springs, about " << estimated_bytes(scene) / 1024.0
+      << " KiB\n";
+}
+
+}  // namespace
+
+StableSteps stable_steps(const SheetDef& sheet, double se) {
+  const double gamma = min_gamma(sheet);
+  const double fe = std::isinf(se) ? se : (std::isfinite(gamma) ? gamma * se * se / 4 : 0.0);
+  return {se, fe};
+}
+
+int run_scene(const Scene& scene, const RunOptions& options, std::ostream& log) {
+  return scene.precision == Precision::Float32 ? run_world<float>(scene, options, log)
+                                               : run_world<double>(scene, options, log);
+}
+
+void describe_scene(const Scene& scene, std::ostream& out) {
+  if (scene.precision == Precision::Float32)
+    describe_world<float>(scene, out);
+  else
+    describe_world<double>(scene, out);
+}
+
+}  // namespace drape::app

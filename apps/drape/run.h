@@ -1,0 +1,47 @@
+// `drape run` and `drape info`: step a loaded scene and write its frames; describe a scene.
+// Both are generic over the scene's precision (BasicWorld<double> or BasicWorld<float>).
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <ostream>
+#include <vector>
+
+#include "scene.h"
+
+namespace drape::app {
+
+// Exit codes of the drape program (docs/cli.md).
+enum ExitCode : int {
+  exit_ok = 0,
+  exit_unstable = 1,    // the simulation became non-finite; frames written before stay valid
+  exit_usage = 2,       // bad command line
+  exit_bad_scene = 3,   // the scene file is unreadable or invalid; nothing written
+  exit_write_failed = 4,  // an output file could not be written
+};
+
+struct RunOptions {
+  std::optional<std::filesystem::path> out_dir;      // overrides the scene's output.dir
+  std::optional<int> frames;                         // overrides the scene's frame count
+  std::optional<std::vector<MeshFormat>> formats;    // overrides the scene's output.formats
+  int threads = 0;                                   // 0: all cores
+  bool progress_bar = false;                         // true on a terminal: one redrawn line
+};
+
+// Steps the scene and writes frames 0..frames (0 is the initial state). Messages (warnings,
+// progress, errors) go to `log`. Returns an ExitCode.
+int run_scene(const Scene& scene, const RunOptions& options, std::ostream& log);
+
+// Writes points, springs, memory and the stable step per integrator to `out`.
+void describe_scene(const Scene& scene, std::ostream& out);
+
+// Largest stable dt per integrator for one sheet, from the engine's Gershgorin estimate for
+// semi-implicit Euler (2/ω_max). Forward Euler grows every undamped oscillation; with
+// damping γ = c/m per point it is stable for dt < γ/ω², i.e. γ·dt_se²/4 at ω_max.
+struct StableSteps {
+  double semi_implicit_euler;
+  double forward_euler;  // 0 when the sheet has no damping
+};
+StableSteps stable_steps(const SheetDef& sheet, double semi_implicit_estimate);
+
+}  // namespace drape::app

@@ -1,0 +1,489 @@
+// Scene loader: JSON → WorldDef, SheetDefs, ObstacleDefs. Every check names the JSON path
+// of the field it rejects, so a user can find the line to fix.
+#include "scene.h"
+
+#include <nlohmann/json.hpp>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <initializer_list>
+#include <numbers>
+#include <sstream>
+
+namespace drape::app {
+
+using nlohmann::json;
+
+std::string_view precision_name(Precision p) { return p == Precision::Float32 ? "float32" : "float64"; }
+
+std::string_view mesh_format_name(MeshFormat f) {
+  switch (f) {
+    case MeshFormat::Obj: return "obj";
+    case MeshFormat::Ply: return "ply";
+    case MeshFormat::Vtk: return "vtk";
+  }
+  return "unknown";
+}
+
+std::optional<MeshFormat> mesh_format_from_name(std::string_view name) {
+  for (MeshFormat f : {MeshFormat::Obj, MeshFormat::Ply, MeshFormat::Vtk})
+    if (mesh_format_name(f) == name) return f;
+  return std::nullopt;
+}
+
+std::uint64_t physical_memory_bytes() {
+  const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
+  return pages > 0 && page > 0 ? std::uint64_t(pages) * std::uint64_t(page) : 0;
+}
+
+std::uint64_t estimated_bytes(const SheetDef& s, Precision precision) {
+  const double real = precision == Precision::Float32 ? 4 : 8;
+  const double points = (double(s.m) + 1) * (double(s.n) + 1);
+  const double springs = (double(s.m) + 1) * s.n + double(s.m) * (s.n + 1);
+  // per point: position, velocity, force (3 each), mass, 1/mass, damping, and up to 12 values
+  // of integrator scratch; per spring: two endpoint indices, rest length, stiffness
+  const double bytes = points * 24 * real + springs * (8 + 2 * real);
+  return bytes >= 1.8e19 ? std::uint64_t(-1) : std::uint64_t(bytes);
+}
+
+std::uint64_t estimated_bytes(const Scene& scene) {
+  std::uint64_t total = 0;
+  for (const auto& s : scene.sheets) {
+    const std::uint64_t b = estimated_bytes(s, scene.precision);
+    total = b > std::uint64_t(-1) - total ? std::uint64_t(-1) : total + b;
+  }
+  return total;
+}
+
+namespace {
+
+std::string type_name(const json& j) {
+  switch (j.type()) {
+    case json::value_t::null: return "null";
+    case json::value_t::boolean: return "a boolean";
+    case json::value_t::string: return "a string";
+    case json::value_t::array: return "an array";
+    case json::value_t::object: return "an object";
+    case json::value_t::number_float:
+    case json::value_t::number_integer:
+    case json::value_t::number_unsigned: return "a number";
+    default: return "something else";
+  }
+}
+
+std::string number_text(double v) {
+  std::ostringstream out;
+  out << v;
+  return out.str();
+}
+
+// Reading context: the file name for messages and one JSON node with its path.
+class Node {
+ public:
+  Node(const std::string& file, const json& j, std::string path) : file_(file), j_(j), path_(std::move(path)) {}
+
+  [[noreturn]] void fail(const std::string& problem) const {
+    throw SceneError(file_ + ": " + (path_.empty() ? std::string("(top level)") : path_) + ": " + problem);
+  }
+  const json& value() const { return j_; }
+  const std::string& path() const { return path_; }
+
+  // An object whose keys must all be among `known` (unknown keys are errors: a typo must
+  // not silently fall back to a default).
+  void expect_object(std::initializer_list<std::string_view> known) const {
+    if (!j_.is_object()) fail("must be an object, got " + type_name(j_));
+    for (const auto& item : j_.items()) {
+      if (std::find(known.begin(), known.end(), item.key()) == known.end()) {
+        std::string list;
+        for (auto k : known) list += (list.empty() ? "" : ", ") + std::string(k);
+        child(item.key()).fail("unknown key (known here: " + list + ")");
+      }
+    }
+  }
+  bool has(const char* key) const { return j_.contains(key); }
+  Node child(const std::string& key) const {
+    static const json null_value;
+    const std::string p = path_.empty() ? key : path_ + "." + key;
+    return Node(file_, j_.contains(key) ? j_.at(key) : null_value, p);
+  }
+  Node at(std::size_t i) const { return Node(file_, j_.at(i), path_ + "[" + std::to_string(i) + "]"); }
+  Node required(const char* key) const {
+    if (!has(key)) child(key).fail("missing (required)");
+    return child(key);
+  }
+
+  double number() const {
+    if (!j_.is_number()) fail("must be a number, got " + type_name(j_));
+    const double v = j_.get<double>();
+    if (!std::isfinite(v)) fail("must be finite (got " + number_text(v) + ")");
+    return v;
+  }
+  double positive() const {
+    const double v = number();
+    if (!(v > 0)) fail("must be positive (got " + number_text(v) + ")");
+    return v;
+  }
+  double non_negative() const {
+    const double v = number();
+    if (v < 0) fail("must not be negative (got " + number_text(v) + ")");
+    return v;
+  }
+  std::uint64_t whole(std::uint64_t lowest, std::uint64_t highest) const {
+    const double v = number();
+    if (v != std::floor(v)) fail("must be a whole number (got " + number_text(v) + ")");
+    if (v < double(lowest) || v > double(highest))
+      fail("must be between " + std::to_string(lowest) + " and " + std::to_string(highest) + " (got " +
+           number_text(v) + ")");
+    return std::uint64_t(v);
+  }
+  bool boolean() const {
+    if (!j_.is_boolean()) fail("must be true or false, got " + type_name(j_));
+    return j_.get<bool>();
+  }
+  std::string string() const {
+    if (!j_.is_string()) fail("must be a string, got " + type_name(j_));
+    return j_.get<std::string>();
+  }
+  std::size_t array(std::size_t min_size = 0) const {
+    if (!j_.is_array()) fail("must be an array, got " + type_name(j_));
+    if (j_.size() < min_size) fail("must have at least " + std::to_string(min_size) + " entries");
+    return j_.size();
+  }
+  std::vector<double> numbers(std::size_t count) const {
+    if (!j_.is_array() || j_.size() != count)
+      fail("must be an array of " + std::to_string(count) + " numbers, got " +
+           (j_.is_array() ? "an array of " + std::to_string(j_.size()) : type_name(j_)));
+    std::vector<double> out;
+    for (std::size_t i = 0; i < count; ++i) out.push_back(at(i).number());
+    return out;
+  }
+  Vec3 vec3() const {
+    const auto v = numbers(3);
+    return {v[0], v[1], v[2]};
+  }
+  std::vector<double> positives(std::size_t count) const {
+    numbers(count);
+    std::vector<double> out;
+    for (std::size_t i = 0; i < count; ++i) out.push_back(at(i).positive());
+    return out;
+  }
+
+ private:
+  const std::string& file_;
+  const json& j_;
+  std::string path_;
+};
+
+// A rotation: {"axis": [x, y, z], "degrees": a} or a unit quaternion [w, x, y, z].
+Quat read_orientation(const Node& node) {
+  if (node.value().is_array()) {
+    const auto q = node.numbers(4);
+    const double norm = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    if (std::abs(norm - 1) > 1e-6) node.fail("must be a unit quaternion [w, x, y, z] (its norm is " + number_text(norm) + ")");
+    return {q[0], q[1], q[2], q[3]};
+  }
+  node.expect_object({"axis", "degrees"});
+  const Vec3 axis = node.required("axis").vec3();
+  if (axis.x == 0 && axis.y == 0 && axis.z == 0) node.child("axis").fail("must not be the zero vector");
+  const double degrees = node.required("degrees").number();
+  return quat_from_axis_angle(axis, degrees * std::numbers::pi / 180);
+}
+
+// The rotation that turns local +z into `normal` (the shortest arc).
+Quat rotation_to(const Node& node, Vec3 normal) {
+  const double len = std::sqrt(normal.x * normal.x + normal.y * normal.y + normal.z * normal.z);
+  if (len == 0) node.fail("must not be the zero vector");
+  const Vec3 n{normal.x / len, normal.y / len, normal.z / len};
+  const Vec3 axis{-n.y, n.x, 0};  // z × n
+  const double s = std::sqrt(axis.x * axis.x + axis.y * axis.y);
+  if (s == 0) return n.z > 0 ? Quat{} : quat_from_axis_angle({1, 0, 0}, std::numbers::pi);
+  return quat_from_axis_angle(axis, std::atan2(s, n.z));
+}
+
+// A set of grid points: "corners", "center"/"centre", or a list of point indices or [i, j] pairs.
+std::vector<std::uint32_t> read_points(const Node& node, std::uint32_t m, std::uint32_t n) {
+  if (node.value().is_string()) {
+    const std::string s = node.string();
+    if (s == "corners") return corner_points(m, n);
+    if (s == "center" || s == "centre") return {center_point(m, n)};
+    node.fail("must be \"corners\", \"center\" or a list of points (got \"" + s + "\")");
+  }
+  const std::size_t count = node.array(1);
+  const std::uint64_t points = std::uint64_t(m + 1) * (n + 1);
+  std::vector<std::uint32_t> out;
+  for (std::size_t k = 0; k < count; ++k) {
+    const Node p = node.at(k);
+    if (p.value().is_array()) {
+      if (p.value().size() != 2) p.fail("must be a point index or a pair [row, column]");
+      const auto i = p.at(0).whole(0, m), j = p.at(1).whole(0, n);
+      out.push_back(point_index(n, std::uint32_t(i), std::uint32_t(j)));
+    } else {
+      out.push_back(std::uint32_t(p.whole(0, points - 1)));
+    }
+  }
+  return out;
+}
+
+SheetDef read_sheet(const Node& node, Precision precision, std::string& name, std::size_t index) {
+  node.expect_object({"name", "grid", "size", "center", "orientation", "velocity", "mass", "point_mass", "stiffness",
+                      "stiffness_regions", "rest_length", "damping", "anchors", "pins"});
+  SheetDef s;
+  name = node.has("name") ? node.child("name").string() : "sheet" + std::to_string(index);
+  const Node grid = node.required("grid");
+  grid.numbers(2);
+  // at most 2^32 − 2 cells a side, so (m + 1) stays a 32-bit count; memory decides the rest
+  s.m = std::uint32_t(grid.at(0).whole(1, 4294967294u));
+  s.n = std::uint32_t(grid.at(1).whole(1, 4294967294u));
+  const std::uint64_t bytes = estimated_bytes(s, precision), memory = physical_memory_bytes();
+  if (memory > 0 && bytes > memory) {
+    std::ostringstream out;
+    out << "grid of " << (double(s.m) + 1) * (double(s.n) + 1) << " points needs about " << double(bytes) / 1e9
+        << " GB, more than this machine's " << double(memory) / 1e9 << " GB of memory";
+    grid.fail(out.str());
+  }
+  const std::uint64_t points = std::uint64_t(s.m + 1) * (s.n + 1);
+  if (points > (std::uint64_t(1) << 31)) grid.fail("gives " + std::to_string(points) + " points; a sheet holds at most 2^31");
+
+  const auto size = node.required("size").positives(2);
+  s.width = size[0];
+  s.height = size[1];
+  if (node.has("center")) s.center = node.child("center").vec3();
+  if (node.has("orientation")) s.orientation = read_orientation(node.child("orientation"));
+  if (node.has("velocity")) s.initial_velocity = node.child("velocity").vec3();
+  if (node.has("mass") && node.has("point_mass")) node.child("point_mass").fail("give either mass or point_mass, not both");
+  if (node.has("point_mass")) {
+    s.point_masses.assign(points, node.child("point_mass").positive());
+  } else {
+    s.mass = node.has("mass") ? node.child("mass").positive() : s.mass;
+  }
+  s.stiffness = node.required("stiffness").positive();
+  if (node.has("stiffness_regions")) {
+    const Node regions = node.child("stiffness_regions");
+    for (std::size_t k = 0, count = regions.array(); k < count; ++k) {
+      const Node r = regions.at(k);
+      r.expect_object({"rows", "columns", "stiffness"});
+      const Node rows = r.required("rows"), cols = r.required("columns");
+      rows.numbers(2);
+      cols.numbers(2);
+      StiffnessRegion reg;
+      reg.row_begin = std::uint32_t(rows.at(0).whole(0, s.m));
+      reg.row_end = std::uint32_t(rows.at(1).whole(reg.row_begin, s.m));
+      reg.col_begin = std::uint32_t(cols.at(0).whole(0, s.n));
+      reg.col_end = std::uint32_t(cols.at(1).whole(reg.col_begin, s.n));
+      reg.stiffness = r.required("stiffness").positive();
+      s.stiffness_regions.push_back(reg);
+    }
+  }
+  if (node.has("rest_length")) {
+    const auto rest = node.child("rest_length").numbers(2);
+    for (std::size_t k = 0; k < 2; ++k) node.child("rest_length").at(k).non_negative();
+    s.rest_length_h = rest[0];
+    s.rest_length_v = rest[1];
+  }
+  if (node.has("damping")) s.damping = node.child("damping").non_negative();
+  if (node.has("anchors")) {
+    const Node anchors = node.child("anchors");
+    for (std::size_t k = 0, count = anchors.array(); k < count; ++k) {
+      const Node a = anchors.at(k);
+      a.expect_object({"at", "stiffness", "target"});
+      const auto pts = read_points(a.required("at"), s.m, s.n);
+      const double k_anchor = a.required("stiffness").positive();
+      std::optional<Vec3> target;
+      if (a.has("target")) {
+        if (pts.size() != 1) a.child("target").fail("needs \"at\" to name exactly one point");
+        target = a.child("target").vec3();
+      }
+      for (std::uint32_t p : pts) s.anchors.push_back({p, k_anchor, target});
+    }
+  }
+  if (node.has("pins")) s.pins = read_points(node.child("pins"), s.m, s.n);
+  if (const std::string problem = validate(s); !problem.empty()) node.fail(problem);
+  return s;
+}
+
+ObstacleDef read_obstacle(const Node& node) {
+  if (!node.value().is_object()) node.fail("must be an object, got " + type_name(node.value()));
+  const std::string type = node.required("type").string();
+  ObstacleDef d;
+  if (type == "plane") {
+    node.expect_object({"type", "center", "normal", "c", "xi", "full_gradient", "max_exponent"});
+    d.shape = ObstacleShape::Plane;
+    if (node.has("normal")) d.orientation = rotation_to(node.child("normal"), node.child("normal").vec3());
+  } else if (type == "sphere") {
+    node.expect_object({"type", "center", "orientation", "radius", "c", "xi", "full_gradient", "max_exponent"});
+    d.shape = ObstacleShape::Sphere;
+    d.size = {node.required("radius").positive(), 0, 0};
+  } else if (type == "ellipsoid") {
+    node.expect_object({"type", "center", "orientation", "semi_axes", "c", "xi", "full_gradient", "max_exponent"});
+    d.shape = ObstacleShape::Ellipsoid;
+    d.size = node.required("semi_axes").vec3();
+    node.child("semi_axes").positives(3);
+  } else if (type == "torus") {
+    node.expect_object({"type", "center", "orientation", "major_radius", "minor_radius", "c", "xi", "full_gradient",
+                        "max_exponent"});
+    d.shape = ObstacleShape::Torus;
+    d.size = {node.required("major_radius").positive(), node.required("minor_radius").positive(), 0};
+  } else if (type == "box") {
+    node.expect_object({"type", "center", "orientation", "half_extents", "c", "xi", "full_gradient", "max_exponent"});
+    d.shape = ObstacleShape::Box;
+    d.size = node.required("half_extents").vec3();
+    node.child("half_extents").positives(3);
+  } else {
+    node.child("type").fail("unknown obstacle type \"" + type + "\" (known: plane, sphere, ellipsoid, torus, box)");
+  }
+  if (node.has("center")) d.center = node.child("center").vec3();
+  if (node.has("orientation")) d.orientation = read_orientation(node.child("orientation"));
+  if (node.has("c")) d.c = node.child("c").positive();
+  if (node.has("xi")) d.xi = node.child("xi").positive();
+  if (node.has("full_gradient")) d.full_gradient = node.child("full_gradient").boolean();
+  if (node.has("max_exponent")) d.max_exponent = node.child("max_exponent").positive();
+  if (const std::string problem = validate(d); !problem.empty()) node.fail(problem);
+  return d;
+}
+
+// "line L, column C" of a byte offset, for syntax errors.
+std::pair<std::size_t, std::size_t> line_column(std::string_view text, std::size_t byte) {
+  byte = std::min(byte, text.size());
+  std::size_t line = 1, column = 1;
+  for (std::size_t i = 0; i + 1 < byte; ++i) {
+    if (text[i] == '\n') {
+      ++line;
+      column = 1;
+    } else {
+      ++column;
+    }
+  }
+  return {line, column};
+}
+
+}  // namespace
+
+Scene parse_scene(std::string_view text, const std::string& file) {
+  json root;
+  try {
+    root = json::parse(text.begin(), text.end());
+  } catch (const json::out_of_range& e) {
+    // a number literal too large for a double (e.g. 1e999): nlohmann names the literal, not
+    // its place, so find it in the text
+    std::string what = e.what();
+    std::size_t byte = 0;
+    if (const auto q = what.find('\''); q != std::string::npos) {
+      const std::string literal = what.substr(q + 1, what.find('\'', q + 1) - q - 1);
+      byte = text.find(literal) + 1;
+      what = "number " + literal + " is not finite (too large for a double)";
+    }
+    const auto [line, column] = line_column(text, byte);
+    throw SceneError(file + ":" + std::to_string(line) + ":" + std::to_string(column) + ": " + what);
+  } catch (const json::parse_error& e) {
+    const auto [line, column] = line_column(text, e.byte);
+    // nlohmann's own text starts with "[json.exception.parse_error.101] parse error at …: "
+    std::string what = e.what();
+    if (const auto colon = what.find(": "); colon != std::string::npos) what = what.substr(colon + 2);
+    throw SceneError(file + ":" + std::to_string(line) + ":" + std::to_string(column) + ": syntax error: " + what);
+  }
+  const Node top(file, root, "");
+  top.expect_object({"description", "dt", "substeps", "fps", "frames", "duration", "integrator", "precision",
+                     "gravity", "sheets", "obstacles", "output", "camera"});
+  Scene scene;
+  scene.file = file;
+  if (top.has("description")) scene.description = top.child("description").string();
+  if (top.has("precision")) {
+    const std::string p = top.child("precision").string();
+    if (p == "float64") scene.precision = Precision::Float64;
+    else if (p == "float32") scene.precision = Precision::Float32;
+    else top.child("precision").fail("must be \"float64\" or \"float32\" (got \"" + p + "\")");
+  }
+  if (top.has("dt")) scene.world.dt = top.child("dt").positive();
+  if (top.has("gravity")) scene.world.gravity = top.child("gravity").vec3();
+  if (top.has("integrator")) {
+    const std::string name = top.child("integrator").string();
+    const auto integrator = integrator_from_name(name);
+    if (!integrator) top.child("integrator").fail("unknown integrator \"" + name + "\"");
+    scene.world.integrator = *integrator;
+  }
+  if (top.has("fps")) scene.fps = top.child("fps").positive();
+  if (top.has("substeps")) {
+    scene.substeps = int(top.child("substeps").whole(1, 100000000));
+  } else {
+    // one output frame every 1/fps s, rounded to whole substeps
+    scene.substeps = int(std::max(1.0, std::round(1.0 / (scene.fps * scene.world.dt))));
+  }
+  if (top.has("frames") && top.has("duration")) top.child("duration").fail("give either frames or duration, not both");
+  if (top.has("frames")) {
+    scene.frames = int(top.child("frames").whole(1, 10000000));
+  } else if (top.has("duration")) {
+    const double duration = top.child("duration").positive();
+    const double frames = std::ceil(duration / scene.frame_time() - 1e-9);
+    if (frames > 1e7) top.child("duration").fail("gives more than 10^7 frames");
+    scene.frames = int(std::max(1.0, frames));
+  } else {
+    top.child("frames").fail("missing: give frames or duration");
+  }
+  const Node sheets = top.required("sheets");
+  for (std::size_t k = 0, count = sheets.array(1); k < count; ++k) {
+    std::string name;
+    scene.sheets.push_back(read_sheet(sheets.at(k), scene.precision, name, k));
+    scene.sheet_names.push_back(name);
+  }
+  const std::uint64_t bytes = estimated_bytes(scene), memory = physical_memory_bytes();
+  if (memory > 0 && bytes > memory) {
+    std::ostringstream out;
+    out << "all sheets together need about " << double(bytes) / 1e9 << " GB, more than this machine's "
+        << double(memory) / 1e9 << " GB of memory";
+    sheets.fail(out.str());
+  }
+  if (top.has("obstacles")) {
+    const Node obstacles = top.child("obstacles");
+    for (std::size_t k = 0, count = obstacles.array(); k < count; ++k)
+      scene.obstacles.push_back(read_obstacle(obstacles.at(k)));
+  }
+  if (top.has("output")) {
+    const Node out = top.child("output");
+    out.expect_object({"dir", "formats"});
+    if (out.has("dir")) {
+      scene.output.dir = out.child("dir").string();
+      if (scene.output.dir.empty()) out.child("dir").fail("must not be empty");
+    }
+    if (out.has("formats")) {
+      const Node formats = out.child("formats");
+      scene.output.formats.clear();
+      for (std::size_t k = 0, count = formats.array(1); k < count; ++k) {
+        const std::string name = formats.at(k).string();
+        const auto f = mesh_format_from_name(name);
+        if (!f) formats.at(k).fail("unknown format \"" + name + "\" (known: obj, ply, vtk)");
+        if (std::find(scene.output.formats.begin(), scene.output.formats.end(), *f) == scene.output.formats.end())
+          scene.output.formats.push_back(*f);
+      }
+    }
+  }
+  if (top.has("camera")) {
+    const Node cam = top.child("camera");
+    cam.expect_object({"eye", "target", "up", "fov_degrees"});
+    Camera c;
+    if (cam.has("eye")) c.eye = cam.child("eye").vec3();
+    if (cam.has("target")) c.target = cam.child("target").vec3();
+    if (cam.has("up")) c.up = cam.child("up").vec3();
+    if (cam.has("fov_degrees")) {
+      c.fov_degrees = cam.child("fov_degrees").positive();
+      if (c.fov_degrees >= 180) cam.child("fov_degrees").fail("must be below 180");
+    }
+    if (c.eye == c.target) cam.child("target").fail("must differ from eye");
+    scene.camera = c;
+  }
+  return scene;
+}
+
+Scene load_scene(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  std::error_code ec;
+  if (!in || std::filesystem::is_directory(file, ec))
+    throw SceneError(file.string() + ": cannot read the file (missing, unreadable or a directory)");
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) throw SceneError(file.string() + ": cannot read the file");
+  return parse_scene(text.str(), file.string());
+}
+
+}  // namespace drape::app

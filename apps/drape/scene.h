@@ -1,0 +1,74 @@
+// Scene files: a JSON description of one simulation (world, sheets, obstacles, frames,
+// output), read into plain engine definitions. Field by field: docs/scene-format.md.
+// The loader never half-accepts a file: either every field is valid, or it throws one
+// SceneError naming the file, the JSON path of the field and the problem.
+#pragma once
+
+#include <drape/drape.h>
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace drape::app {
+
+// The storage and arithmetic type the world runs in: BasicWorld<double> or <float>.
+enum class Precision { Float64, Float32 };
+std::string_view precision_name(Precision p);
+
+enum class MeshFormat { Obj, Ply, Vtk };
+std::string_view mesh_format_name(MeshFormat f);
+std::optional<MeshFormat> mesh_format_from_name(std::string_view name);
+
+struct OutputSettings {
+  std::filesystem::path dir = "out";      // where frames go; relative to the current directory
+  std::vector<MeshFormat> formats{MeshFormat::Obj};
+};
+
+// Where a picture of the scene looks from (for `drape render`); optional in the file.
+struct Camera {
+  Vec3 eye{3, -3, 2};      // m
+  Vec3 target{0, 0, 0};    // m
+  Vec3 up{0, 0, 1};
+  double fov_degrees = 40;
+};
+
+struct Scene {
+  std::string file;        // as given to load_scene, used in messages
+  std::string description;
+  WorldDef world;          // dt, gravity, integrator (threads: set by the caller)
+  Precision precision = Precision::Float64;
+  double fps = 30;         // output frames per simulated second
+  int substeps = 1;        // substeps of world.dt per output frame
+  int frames = 1;          // output frames after the initial one
+  std::vector<std::string> sheet_names;  // one per sheet, "sheet0", … unless named
+  std::vector<SheetDef> sheets;
+  std::vector<ObstacleDef> obstacles;
+  OutputSettings output;
+  std::optional<Camera> camera;
+
+  double frame_time() const { return substeps * world.dt; }  // s between output frames
+};
+
+// One message: "FILE: PATH: problem", or "FILE:LINE:COLUMN: syntax error: …".
+class SceneError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Reads and checks a scene file. Throws SceneError.
+Scene load_scene(const std::filesystem::path& file);
+// The same from text; `file` only names the source in messages.
+Scene parse_scene(std::string_view text, const std::string& file);
+
+// Bytes the world will hold for the scene at its precision (points, springs, scratch).
+std::uint64_t estimated_bytes(const Scene& scene);
+std::uint64_t estimated_bytes(const SheetDef& sheet, Precision precision);
+// Physical memory of this machine in bytes (sysconf); 0 when unknown.
+std::uint64_t physical_memory_bytes();
+
+}  // namespace drape::app

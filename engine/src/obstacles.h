@@ -1,0 +1,61 @@
+// Obstacles: implicit functions with analytic gradients, the repulsion potential of eq (9)
+// around them, and the test that decides which sheets come near which obstacle.
+#pragma once
+
+#include <drape/obstacle.h>
+
+#include "bounds.h"
+#include "forces.h"
+#include "sheet_data.h"
+
+namespace drape::detail {
+
+// An obstacle as the step uses it: the definition plus its frame as a rotation matrix
+// (local → world columns) and the world box beyond which its potential is negligible.
+struct Obstacle {
+  ObstacleDef def;
+  double center[3] = {0, 0, 0};
+  double rot[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};  // rot[k][l]: world axis k, local axis l
+  bool bounded = true;  // false for the plane
+  Aabb reach;           // bounded shapes: world box of the shape inflated by reach_distance()
+  double reach_distance = 0;
+};
+
+// Beyond f = reach_exponent·ξ the potential is below e^−30 ≈ 1e−13 of c: sheets farther
+// away than that skip the obstacle.
+inline constexpr double reach_exponent = 30.0;
+
+Obstacle make_obstacle(const ObstacleDef& def);
+
+// f and ∇f in world coordinates; f > 0 outside, f < 0 inside.
+struct ImplicitSample {
+  double f = 0;
+  double grad[3] = {0, 0, 0};
+};
+ImplicitSample implicit_at(const Obstacle& o, const double p[3]);
+
+// The force bound. The exponent −f/ξ is capped at `cap`: past it E continues linearly, so the
+// force stops growing at (c/ξ)·e^cap·|∇f|. The cap is the definition's max_exponent, lowered
+// where needed so the potential's stiffness d²E/df² = (c/ξ²)·e^e stays at or below m/dt² for
+// the sheet's lightest point m: a quarter of the explicit step's limit 4m/dt² (ω·dt < 2), so a
+// point that arrives fast or starts inside meets a force the step resolves, not one that
+// throws it out with more energy than it brought.
+double exponent_cap(const ObstacleDef& def, double lightest_mass, double dt);
+
+// E(f) = c·exp(−f/ξ), continued linearly past the exponent cap, and −dE/df, the factor that
+// multiplies ∇f in the force.
+double potential_energy(const ObstacleDef& def, double f, double cap);
+double potential_force_scale(const ObstacleDef& def, double f, double cap);
+
+// Host stage: can a sheet whose bounding box is `box` feel the obstacle at all?
+bool may_touch(const Obstacle& o, const Aabb& box);
+
+// eq (9): adds the obstacle's repulsion to f for every point of the sheet; projected on the
+// sheet's unit normal (from the neighbouring grid points) unless def.full_gradient.
+template <class Real>
+void obstacle_forces(const Topology<Real>& topo, const NearObstacle& near, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f);
+
+template <class Real>
+double obstacle_energy(const Sheet<Real>& sheet, const Obstacle& o, double cap);
+
+}  // namespace drape::detail

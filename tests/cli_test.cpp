@@ -1,0 +1,242 @@
+// The drape program, run as a user runs it: exit codes, messages, nothing written on bad
+// input, and exported frames that read back to exactly the state they came from.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "scene.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Result {
+  int code;
+  std::string out, err;
+};
+
+class Cli : public ::testing::Test {
+ public:
+  fs::path dir;
+  void SetUp() override {
+    dir = fs::temp_directory_path() /
+          ("drape_cli_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
+           std::to_string(::getpid()));
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+  }
+  void TearDown() override { fs::remove_all(dir); }
+
+  fs::path write(const std::string& name, const std::string& text) {
+    std::ofstream(dir / name) << text;
+    return dir / name;
+  }
+  static std::string slurp(const fs::path& p) {
+    std::ifstream in(p);
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+  }
+  Result drape(const std::string& args) {
+    const std::string cmd = std::string(DRAPE_BIN) + " " + args + " > " + (dir / "stdout").string() + " 2> " +
+                            (dir / "stderr").string();
+    const int status = std::system(cmd.c_str());
+    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(dir / "stdout"), slurp(dir / "stderr")};
+  }
+};
+
+const std::string good_sheet = R"({"grid": [3, 4], "size": [0.8, 0.6], "stiffness": 40, "mass": 0.2, "damping": 0.01,
+  "anchors": [{"at": "corners", "stiffness": 100}]})";
+
+TEST_F(Cli, EveryBadSceneExitsThreeWithOneMessageAndWritesNothing) {
+  const std::pair<std::string, std::string> cases[] = {
+      {"{\"frames\": 1,\n\"sheets\": [", ":2:11: syntax error"},
+      {R"({"sheets": [)" + good_sheet + "]}", ": frames: missing"},
+      {R"({"frames": 1, "sheets": [{"grid": [3, 4], "size": [1, 1]}]})", ": sheets[0].stiffness: missing"},
+      {R"({"frames": [1], "sheets": [)" + good_sheet + "]}", ": frames: must be a number, got an array"},
+      {R"({"frames": 1, "wind": 3, "sheets": [)" + good_sheet + "]}", ": wind: unknown key"},
+      {R"({"frames": 1, "sheets": [)" + good_sheet + R"(], "obstacles": [{"type": "cylinder"}]})",
+       ": obstacles[0].type: unknown obstacle type"},
+      {R"({"frames": 1, "sheets": [{"grid": [3, 4], "size": [0, 1], "stiffness": 4}]})", ": sheets[0].size[0]: must be positive"},
+      {R"({"frames": 1, "sheets": [{"grid": [3, 4], "size": [1, 1], "stiffness": 4, "mass": -2}]})",
+       ": sheets[0].mass: must be positive"},
+      {R"({"frames": 1, "sheets": [{"grid": [3, 4], "size": [1, 1], "stiffness": 0}]})", ": sheets[0].stiffness: must be positive"},
+      {R"({"frames": 1, "dt": -0.001, "sheets": [)" + good_sheet + "]}", ": dt: must be positive"},
+      {R"({"frames": 1, "gravity": [0, 0, -1e400], "sheets": [)" + good_sheet + "]}", ":1:33: number -1e400 is not finite"},
+      {R"({"frames": 1, "sheets": [{"grid": [400000, 400000], "size": [1, 1], "stiffness": 4}]})",
+       ": sheets[0].grid: grid of"},
+  };
+  int k = 0;
+  for (const auto& [text, expected] : cases) {
+    const fs::path scene = write("bad" + std::to_string(k++) + ".json", text);
+    const fs::path out = dir / "out";
+    const Result r = drape("run " + scene.string() + " --out " + out.string());
+    EXPECT_EQ(r.code, 3) << text;
+    EXPECT_EQ(r.err.rfind("drape: " + scene.string() + expected, 0), 0u) << "stderr: " << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_FALSE(fs::exists(out)) << "wrote output for " << text;
+  }
+  const Result missing = drape("run " + (dir / "nope.json").string() + " --out " + (dir / "out").string());
+  EXPECT_EQ(missing.code, 3);
+  EXPECT_NE(missing.err.find("nope.json: cannot read"), std::string::npos) << missing.err;
+  EXPECT_FALSE(fs::exists(dir / "out"));
+}
+
+TEST_F(Cli, BadCommandLineExitsTwoAndHelpExitsZero) {
+  const fs::path scene = write("s.json", R"({"frames": 1, "sheets": [)" + good_sheet + "]}");
+  EXPECT_EQ(drape("").code, 2);
+  EXPECT_EQ(drape("fly " + scene.string()).code, 2);
+  EXPECT_EQ(drape("run " + scene.string() + " --frames 0 --out " + (dir / "o").string()).code, 2);
+  const Result f = drape("run " + scene.string() + " --format obj,stl --out " + (dir / "o").string());
+  EXPECT_EQ(f.code, 2);
+  EXPECT_NE(f.err.find("unknown format \"stl\""), std::string::npos) << f.err;
+  EXPECT_FALSE(fs::exists(dir / "o"));
+  for (const char* h : {"--help", "run --help", "info --help"}) {
+    const Result r = drape(h);
+    EXPECT_EQ(r.code, 0) << h;
+    EXPECT_NE(r.out.find("Usage"), std::string::npos) << h;
+  }
+}
+
+TEST_F(Cli, InfoCountsPointsAndSpringsByHand) {
+  const fs::path scene = write("s.json", R"({"frames": 1, "sheets": [)" + good_sheet + "]}");
+  const Result r = drape("info " + scene.string());
+  EXPECT_EQ(r.code, 0) << r.err;
+  // 3×4 cells: (3+1)·(4+1) = 20 points; 4·4 horizontal + 3·5 vertical = 31 springs
+  EXPECT_NE(r.out.find("20 points, 31 springs"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("semi_implicit_euler"), std::string::npos) << r.out;
+}
+
+// Parses "v x y z" lines and "f a b c d" lines.
+void read_obj(const fs::path& p, std::vector<double>& xyz, std::vector<std::vector<long>>& faces) {
+  std::ifstream in(p);
+  std::string line;
+  while (std::getline(in, line)) {
+    std::istringstream s(line);
+    std::string tag;
+    s >> tag;
+    if (tag == "v") {
+      for (int k = 0; k < 3; ++k) {
+        std::string t;
+        s >> t;
+        xyz.push_back(std::strtod(t.c_str(), nullptr));
+      }
+    } else if (tag == "f") {
+      std::vector<long> f;
+      long i;
+      while (s >> i) f.push_back(i);
+      faces.push_back(f);
+    }
+  }
+}
+
+template <class Real>
+void expect_frames_equal_state(Cli& t, const std::string& precision) {
+  const std::string text = R"({"frames": 2, "dt": 0.002, "fps": 50, "precision": ")" + precision +
+                           R"(", "sheets": [)" + good_sheet + "]}";
+  const fs::path scene = t.write("s.json", text);
+  const fs::path out = t.dir / "out";
+  const Result r = t.drape("run " + scene.string() + " --out " + out.string() + " --format obj,ply,vtk");
+  ASSERT_EQ(r.code, 0) << r.err;
+
+  // the state those frames came from, stepped here in-process
+  const auto s = drape::app::parse_scene(text, "s.json");
+  drape::BasicWorld<Real> world(s.world);
+  const auto id = world.add_sheet(s.sheets[0]);
+  world.step(2 * s.substeps);
+  const auto v = world.view(id);
+
+  std::vector<double> xyz;
+  std::vector<std::vector<long>> faces;
+  read_obj(out / "frame_00002.obj", xyz, faces);
+  ASSERT_EQ(xyz.size(), 3 * v.size());
+  for (std::size_t p = 0; p < v.size(); ++p) {
+    EXPECT_EQ(Real(xyz[3 * p]), v.x[p]);
+    EXPECT_EQ(Real(xyz[3 * p + 1]), v.y[p]);
+    EXPECT_EQ(Real(xyz[3 * p + 2]), v.z[p]);
+  }
+  ASSERT_EQ(faces.size(), 12u);  // 3·4 cells, one quad each, row-major
+  EXPECT_EQ(faces[0], (std::vector<long>{1, 2, 7, 6}));
+  EXPECT_EQ(faces[11], (std::vector<long>{14, 15, 20, 19}));
+
+  // PLY: header, then x y z per vertex, then "4 a b c d"
+  std::ifstream ply(out / "frame_00002.ply");
+  std::string line;
+  std::size_t vertices = 0;
+  while (std::getline(ply, line) && line != "end_header")
+    if (line.rfind("element vertex ", 0) == 0) vertices = std::stoul(line.substr(15));
+  ASSERT_EQ(vertices, v.size());
+  for (std::size_t p = 0; p < v.size(); ++p) {
+    std::string a, b, c;
+    ply >> a >> b >> c;
+    EXPECT_EQ(Real(std::strtod(a.c_str(), nullptr)), v.x[p]);
+    EXPECT_EQ(Real(std::strtod(b.c_str(), nullptr)), v.y[p]);
+    EXPECT_EQ(Real(std::strtod(c.c_str(), nullptr)), v.z[p]);
+  }
+  int count;
+  long a, b, c, d;
+  ply >> count >> a >> b >> c >> d;
+  EXPECT_EQ(count, 4);
+  EXPECT_EQ(std::vector<long>({a, b, c, d}), (std::vector<long>{0, 1, 6, 5}));
+
+  // VTU: the Points array, then the velocity array
+  const std::string vtu = Cli::slurp(out / "frame_00002.vtu");
+  auto array_after = [&](const std::string& marker) {
+    const auto start = vtu.find('>', vtu.find(marker)) + 1;
+    std::istringstream s(vtu.substr(start, vtu.find("</DataArray>", start) - start));
+    std::vector<double> values;
+    std::string tok;
+    while (s >> tok) values.push_back(std::strtod(tok.c_str(), nullptr));
+    return values;
+  };
+  const auto points = array_after("NumberOfComponents=\"3\"");
+  const auto vel = array_after("Name=\"velocity\"");
+  ASSERT_EQ(points.size(), 3 * v.size());
+  ASSERT_EQ(vel.size(), 3 * v.size());
+  for (std::size_t p = 0; p < v.size(); ++p) {
+    EXPECT_EQ(Real(points[3 * p + 2]), v.z[p]);
+    EXPECT_EQ(Real(vel[3 * p + 2]), v.vz[p]);
+  }
+  EXPECT_NE(vtu.find(sizeof(Real) == 4 ? "Float32" : "Float64"), std::string::npos);
+  const std::string pvd = Cli::slurp(out / "frames.pvd");
+  for (const char* f : {"frame_00000.vtu", "frame_00001.vtu", "frame_00002.vtu"})
+    EXPECT_NE(pvd.find(f), std::string::npos) << pvd;
+  for (const auto& e : fs::directory_iterator(out)) EXPECT_NE(e.path().extension(), ".tmp");
+}
+
+TEST_F(Cli, ExportedFramesReadBackEqualTheStateFloat64) { expect_frames_equal_state<double>(*this, "float64"); }
+TEST_F(Cli, ExportedFramesReadBackEqualTheStateFloat32) { expect_frames_equal_state<float>(*this, "float32"); }
+
+// dt far above the stable step: a warning naming a stable dt, then a stop with exit 1 once
+// the state is non-finite; the frames written before hold no NaN or inf.
+TEST_F(Cli, UnstableRunWarnsThenStopsWithoutWritingNaN) {
+  const fs::path scene = write("s.json", R"({"frames": 200, "dt": 0.05, "substeps": 5, "sheets": [{"grid": [6, 6],
+    "size": [1, 1], "stiffness": 500, "mass": 0.05, "anchors": [{"at": "corners", "stiffness": 100}]}]})");
+  const fs::path out = dir / "out";
+  const Result r = drape("run " + scene.string() + " --out " + out.string() + " --format obj,ply,vtk");
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_NE(r.err.find("warning"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("a stable choice is dt ="), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("became unstable"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("Lower dt"), std::string::npos) << r.err;
+  int files = 0;
+  for (const auto& e : fs::directory_iterator(out)) {
+    ++files;
+    std::string text = slurp(e.path());
+    std::transform(text.begin(), text.end(), text.begin(), ::tolower);
+    EXPECT_EQ(text.find("nan"), std::string::npos) << e.path();
+    EXPECT_EQ(text.find("inf"), std::string::npos) << e.path();
+  }
+  EXPECT_GT(files, 0);
+  EXPECT_FALSE(fs::exists(out / "frame_00200.obj"));
+}
+
+}  // namespace

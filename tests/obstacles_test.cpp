@@ -1,0 +1,438 @@
+// Obstacles (paper §3, eq 9): implicit functions against finite differences and hand-placed
+// points, the direction and size of the repulsion, and points that must not get through.
+#include <drape/drape.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <random>
+
+#include "obstacles.h"
+
+namespace {
+
+using drape::ObstacleDef;
+using drape::ObstacleShape;
+using drape::Vec3;
+
+ObstacleDef shape_def(ObstacleShape shape) {
+  ObstacleDef d;
+  d.shape = shape;
+  d.center = {0.3, -0.2, 0.1};
+  d.orientation = drape::quat_from_axis_angle({1, 2, 3}, 0.7);
+  switch (shape) {
+    case ObstacleShape::Plane: break;
+    case ObstacleShape::Sphere: d.size = {0.5, 0, 0}; break;
+    case ObstacleShape::Ellipsoid: d.size = {0.6, 0.4, 0.3}; break;
+    case ObstacleShape::Torus: d.size = {0.5, 0.2, 0}; break;
+    case ObstacleShape::Box: d.size = {0.4, 0.3, 0.2}; break;
+  }
+  return d;
+}
+
+const ObstacleShape all_shapes[] = {ObstacleShape::Plane, ObstacleShape::Sphere, ObstacleShape::Ellipsoid,
+                                    ObstacleShape::Torus, ObstacleShape::Box};
+
+double f_at(const drape::detail::Obstacle& o, Vec3 p) {
+  const double q[3] = {p.x, p.y, p.z};
+  return drape::detail::implicit_at(o, q).f;
+}
+
+Vec3 add(Vec3 a, Vec3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+Vec3 scaled(Vec3 a, double s) { return {a.x * s, a.y * s, a.z * s}; }
+
+void expect_gradient_matches_fd(ObstacleShape shape) {
+  const auto o = drape::detail::make_obstacle(shape_def(shape));
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  int checked = 0;
+  for (int trial = 0; trial < 400 && checked < 100; ++trial) {
+    const Vec3 p = add(shape_def(shape).center, {u(rng), u(rng), u(rng)});
+    const double q[3] = {p.x, p.y, p.z};
+    const auto s = drape::detail::implicit_at(o, q);
+    const double h = 1e-6;
+    double fd[3];
+    for (int k = 0; k < 3; ++k) {
+      double a[3] = {p.x, p.y, p.z}, b[3] = {p.x, p.y, p.z};
+      a[k] += h;
+      b[k] -= h;
+      fd[k] = (drape::detail::implicit_at(o, a).f - drape::detail::implicit_at(o, b).f) / (2 * h);
+    }
+    // The box's gradient jumps across the inside planes where two faces are equally near:
+    // there one-sided slopes disagree, so skip points whose central difference straddles one.
+    if (shape == ObstacleShape::Box && s.f < 0) {
+      double sum = 0;
+      for (int k = 0; k < 3; ++k) sum += fd[k] * fd[k];
+      if (std::abs(sum - 1) > 1e-6) continue;
+    }
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(s.grad[k], fd[k], 1e-6) << "axis " << k << " f " << s.f;
+    ++checked;
+  }
+  EXPECT_GE(checked, 50);
+}
+
+TEST(Obstacles, PlaneGradientMatchesFiniteDifference) { expect_gradient_matches_fd(ObstacleShape::Plane); }
+TEST(Obstacles, SphereGradientMatchesFiniteDifference) { expect_gradient_matches_fd(ObstacleShape::Sphere); }
+TEST(Obstacles, EllipsoidGradientMatchesFiniteDifference) { expect_gradient_matches_fd(ObstacleShape::Ellipsoid); }
+TEST(Obstacles, TorusGradientMatchesFiniteDifference) { expect_gradient_matches_fd(ObstacleShape::Torus); }
+TEST(Obstacles, BoxGradientMatchesFiniteDifference) { expect_gradient_matches_fd(ObstacleShape::Box); }
+
+// Hand-placed points, in world coordinates, whose f follows from the geometry alone.
+TEST(Obstacles, PositionAndOrientationMoveTheSurface) {
+  const Vec3 c{1, 2, 3};
+  const auto quarter_x = drape::quat_from_axis_angle({1, 0, 0}, std::numbers::pi / 2);  // local z → world −y
+  {
+    ObstacleDef d;
+    d.shape = ObstacleShape::Plane;
+    d.center = c;
+    d.orientation = quarter_x;
+    const auto o = drape::detail::make_obstacle(d);
+    EXPECT_NEAR(f_at(o, {5, 2 - 0.25, -7}), 0.25, 1e-12);  // outside is world −y
+    EXPECT_NEAR(f_at(o, {0, 2 + 0.5, 0}), -0.5, 1e-12);
+  }
+  {
+    ObstacleDef d;
+    d.shape = ObstacleShape::Torus;
+    d.center = c;
+    d.orientation = quarter_x;
+    d.size = {0.5, 0.2, 0};
+    const auto o = drape::detail::make_obstacle(d);
+    EXPECT_NEAR(f_at(o, c), 0.5 - 0.2, 1e-12);                  // centre of the hole
+    EXPECT_NEAR(f_at(o, {1.5, 2, 3}), -0.2, 1e-12);             // on the core circle (world x–z plane)
+    EXPECT_NEAR(f_at(o, {1, 2, 3 + 0.5 + 0.2}), 0.0, 1e-12);    // outer rim along world z
+    EXPECT_NEAR(f_at(o, {1, 2 + 0.3, 3}), std::hypot(0.5, 0.3) - 0.2, 1e-12);  // on the axis
+  }
+  {
+    ObstacleDef d;
+    d.shape = ObstacleShape::Box;
+    d.center = c;
+    d.orientation = drape::quat_from_axis_angle({0, 0, 1}, std::numbers::pi / 4);
+    d.size = {0.4, 0.1, 0.2};
+    const auto o = drape::detail::make_obstacle(d);
+    const double r = 0.4 / std::sqrt(2.0);
+    EXPECT_NEAR(f_at(o, {1 + r, 2 + r, 3}), 0.0, 1e-12);        // end of the long axis, turned 45°
+    EXPECT_NEAR(f_at(o, {1 + r + 0.3 / std::sqrt(2.0), 2 + r + 0.3 / std::sqrt(2.0), 3}), 0.3, 1e-12);
+    EXPECT_NEAR(f_at(o, c), -0.1, 1e-12);                        // nearest face is the short one
+  }
+  {
+    ObstacleDef d;
+    d.shape = ObstacleShape::Ellipsoid;
+    d.center = c;
+    d.orientation = drape::quat_from_axis_angle({0, 1, 0}, std::numbers::pi / 2);  // local x → world −z
+    d.size = {0.6, 0.4, 0.3};
+    const auto o = drape::detail::make_obstacle(d);
+    EXPECT_NEAR(f_at(o, {1, 2, 3 - 0.6}), 0.0, 1e-12);
+    EXPECT_NEAR(f_at(o, {1, 2 + 0.4, 3}), 0.0, 1e-12);
+    EXPECT_NEAR(f_at(o, {1 + 0.3, 2, 3}), 0.0, 1e-12);
+    EXPECT_NEAR(f_at(o, {1 + 0.5, 2, 3}), 0.2, 1e-12);  // along the smallest axis f is the distance
+  }
+  {
+    ObstacleDef d;
+    d.shape = ObstacleShape::Sphere;
+    d.center = c;
+    d.size = {0.5, 0, 0};
+    const auto o = drape::detail::make_obstacle(d);
+    EXPECT_NEAR(f_at(o, {1, 2 + 0.3, 3 + 0.4}), 0.0, 1e-12);
+    EXPECT_NEAR(f_at(o, c), -0.5, 1e-12);
+  }
+}
+
+// −dE/df by finite differences of the energy, on both sides of the exponent cap.
+TEST(Obstacles, ForceScaleIsMinusEnergySlopeAlsoPastTheCap) {
+  ObstacleDef d;
+  d.c = 0.02;
+  d.xi = 0.01;
+  d.max_exponent = 6;
+  for (double f : {0.05, 0.01, 0.0, -0.03, -0.059, -0.061, -0.2, -3.0}) {
+    const double h = 1e-7;
+    const double slope = (drape::detail::potential_energy(d, f + h, 6.0) - drape::detail::potential_energy(d, f - h, 6.0)) / (2 * h);
+    const double scale = drape::detail::potential_force_scale(d, f, 6.0);
+    EXPECT_NEAR(scale, -slope, 1e-5 * std::abs(slope)) << "f " << f;
+    EXPECT_LE(scale, d.c / d.xi * std::exp(d.max_exponent) * (1 + 1e-12));
+  }
+}
+
+drape::SheetDef point_def(Vec3 at, double mass = 0.01) {
+  drape::SheetDef s;
+  s.m = s.n = 0;
+  s.mass = mass;
+  s.center = at;
+  return s;
+}
+
+// eq (9) with the physically right sign: the force along +∇f, i.e. out of the obstacle.
+TEST(Obstacles, RepulsionPushesOutwardWithMinusEnergyGradient) {
+  for (ObstacleShape shape : all_shapes) {
+    ObstacleDef d = shape_def(shape);
+    d.c = 0.01;
+    d.xi = 0.02;
+    d.full_gradient = true;
+    const auto o = drape::detail::make_obstacle(d);
+    // a point just outside, along the obstacle's local +z from a surface point
+    const Vec3 base = add(d.center, drape::rotate(d.orientation, {0.05, 0.02, 0.0}));
+    const double q[3] = {base.x, base.y, base.z};
+    const auto s = drape::detail::implicit_at(o, q);
+    const double g = std::sqrt(s.grad[0] * s.grad[0] + s.grad[1] * s.grad[1] + s.grad[2] * s.grad[2]);
+    const Vec3 at = add(base, scaled({s.grad[0], s.grad[1], s.grad[2]}, (0.01 - s.f) / (g * g)));
+
+    drape::WorldDef wd;
+    wd.gravity = {0, 0, 0};
+    wd.dt = 1e-4;
+    drape::World world(wd);
+    const auto id = world.add_sheet(point_def(at));
+    world.add_obstacle(d);
+    // −∇E by central differences of the world's own energy report
+    const double h = 1e-6;
+    double grad_e[3];
+    for (int k = 0; k < 3; ++k) {
+      auto energy_at = [&](double delta) {
+        auto st = world.state(id);
+        st.x[0] = at.x + (k == 0) * delta;
+        st.y[0] = at.y + (k == 1) * delta;
+        st.z[0] = at.z + (k == 2) * delta;
+        return world.energies().obstacle;
+      };
+      grad_e[k] = (energy_at(h) - energy_at(-h)) / (2 * h);
+    }
+    auto st = world.state(id);
+    st.x[0] = at.x, st.y[0] = at.y, st.z[0] = at.z;
+    world.step();
+    const auto v = world.view(id);
+    const double mass = 0.01;
+    const double force[3] = {v.vx[0] * mass / wd.dt, v.vy[0] * mass / wd.dt, v.vz[0] * mass / wd.dt};
+    double outward = 0;
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_NEAR(force[k], -grad_e[k], 1e-5 * (1 + std::abs(grad_e[k]))) << "shape " << int(shape) << " axis " << k;
+      outward += force[k] * s.grad[k];
+    }
+    EXPECT_GT(outward, 0) << "shape " << int(shape);
+  }
+}
+
+// A flat sheet facing +z over an obstacle whose gradient is oblique: eq (9) keeps only the
+// component along the sheet's normal; full_gradient keeps the sideways part too.
+TEST(Obstacles, DefaultForceIsProjectedOnTheSheetNormal) {
+  for (bool full : {false, true}) {
+    drape::WorldDef wd;
+    wd.gravity = {0, 0, 0};
+    wd.dt = 1e-4;
+    drape::World world(wd);
+    drape::SheetDef s;
+    s.m = s.n = 2;
+    s.width = s.height = 0.2;
+    s.center = {0, 0, 0.52};
+    const auto id = world.add_sheet(s);
+    ObstacleDef d;
+    d.shape = ObstacleShape::Sphere;
+    d.size = {0.5, 0, 0};
+    d.c = 0.01;
+    d.xi = 0.05;
+    d.full_gradient = full;
+    world.add_obstacle(d);
+    world.step();
+    const auto v = world.view(id);
+    const std::uint32_t corner = drape::point_index(2, 2, 2);  // at (+0.1, +0.1)
+    EXPECT_GT(v.vz[corner], 0);
+    if (full) {
+      EXPECT_GT(v.vx[corner], 0);
+      EXPECT_NEAR(v.vx[corner] / v.vz[corner], 0.1 / 0.52, 0.05);  // along the sphere's radius
+    } else {
+      EXPECT_EQ(v.vx[corner], 0.0);  // the sheet is flat, its springs at rest: only the obstacle acts
+      EXPECT_EQ(v.vy[corner], 0.0);
+    }
+  }
+}
+
+// A damped point dropped onto the top of each obstacle stops outside it, and comes to rest
+// where the potential's force balances gravity: c/ξ·|∇f|·exp(−f/ξ) = m·g.
+TEST(Obstacles, DroppedPointDoesNotPassThroughAndRestsWhereForceBalancesGravity) {
+  const double g = 9.81, mass = 0.01;
+  for (ObstacleShape shape : all_shapes) {
+    ObstacleDef d;
+    d.shape = shape;
+    d.center = {0.1, 0.2, 0.0};
+    d.c = 0.01;
+    d.xi = 0.01;
+    d.full_gradient = true;
+    Vec3 top{0.1, 0.2, 0.0};  // highest point of the obstacle under the drop
+    switch (shape) {
+      case ObstacleShape::Plane: d.orientation = drape::quat_from_axis_angle({1, 0, 0}, 0.0); break;
+      case ObstacleShape::Sphere: d.size = {0.3, 0, 0}, top.z = 0.3; break;
+      case ObstacleShape::Ellipsoid: d.size = {0.5, 0.4, 0.2}, top.z = 0.2; break;
+      case ObstacleShape::Torus: d.size = {0.4, 0.15, 0}, top = {0.5, 0.2, 0.15}; break;
+      case ObstacleShape::Box: d.size = {0.3, 0.2, 0.25}, top.z = 0.25; break;
+    }
+    drape::WorldDef wd;
+    wd.dt = 5e-4;
+    drape::World world(wd);
+    drape::SheetDef p = point_def(add(top, {0, 0, 0.3}), mass);
+    p.damping = 0.05;
+    const auto id = world.add_sheet(p);
+    world.add_obstacle(d);
+    const auto o = drape::detail::make_obstacle(d);
+    double lowest = 1e9;
+    for (int k = 0; k < 6000; ++k) {
+      world.step();
+      const auto v = world.view(id);
+      lowest = std::min(lowest, f_at(o, {v.x[0], v.y[0], v.z[0]}));
+    }
+    ASSERT_TRUE(world.all_finite());
+    // Energy bound: the fall releases at most m·g·0.3 J, which the potential absorbs before
+    // c·exp(−f/ξ) exceeds it, so f never drops below −ξ·ln(m·g·0.3/c) (≈ −1.1 ξ).
+    EXPECT_GT(lowest, -d.xi * std::log(mass * g * 0.3 / d.c) - 1e-3) << "shape " << int(shape);
+    const auto v = world.view(id);
+    const double rest = f_at(o, {v.x[0], v.y[0], v.z[0]});
+    // |∇f| at the top is 1 for every shape here (the ellipsoid's top is on its smallest axis)
+    EXPECT_NEAR(rest, d.xi * std::log(d.c / (d.xi * mass * g)), 0.02 * d.xi) << "shape " << int(shape);
+    EXPECT_NEAR(v.x[0], top.x, 1e-9);
+    EXPECT_NEAR(v.y[0], top.y, 1e-9);
+  }
+}
+
+// Deep inside (f = −25ξ, far past the cap) the force is bounded, so the point is pushed out
+// at a finite speed; a point fired at 50 m/s into a plane is stopped and sent back.
+TEST(Obstacles, PointStartedInsideOrArrivingFastIsPushedOutWithoutNaN) {
+  for (ObstacleShape shape : all_shapes) {
+    ObstacleDef d = shape_def(shape);
+    d.c = 0.01;
+    d.xi = 0.01;
+    if (shape == ObstacleShape::Plane) d.size = {};
+    drape::WorldDef wd;
+    wd.gravity = {0, 0, 0};
+    wd.dt = 1e-3;
+    drape::World world(wd);
+    const auto o = drape::detail::make_obstacle(d);
+    // a point inside, deeper than the cap (checked below)
+    Vec3 local{0.0, 0.0, -0.1};
+    if (shape == ObstacleShape::Torus) local = {0.5, 0.0, 0.0};
+    if (shape == ObstacleShape::Box) local = {0.1, 0.1, -0.05};
+    const Vec3 at = add(d.center, drape::rotate(d.orientation, local));
+    ASSERT_LT(f_at(o, at), -d.xi * d.max_exponent) << "shape " << int(shape);
+    drape::SheetDef p = point_def(at);
+    p.damping = 0.2;
+    const auto id = world.add_sheet(p);
+    world.add_obstacle(d);
+    for (int k = 0; k < 2000; ++k) {
+      world.step();
+      ASSERT_TRUE(world.all_finite()) << "shape " << int(shape) << " step " << k;
+    }
+    const auto v = world.view(id);
+    EXPECT_GT(f_at(o, {v.x[0], v.y[0], v.z[0]}), 0) << "shape " << int(shape);
+  }
+  drape::WorldDef wd;
+  wd.gravity = {0, 0, 0};
+  wd.dt = 1e-3;
+  drape::World world(wd);
+  drape::SheetDef p = point_def({0, 0, 0.05});
+  p.initial_velocity = {0, 0, -50};
+  const auto id = world.add_sheet(p);
+  ObstacleDef plane;
+  plane.shape = ObstacleShape::Plane;
+  plane.c = 0.01;
+  plane.xi = 0.01;
+  world.add_obstacle(plane);
+  for (int k = 0; k < 500; ++k) {
+    world.step();
+    ASSERT_TRUE(world.all_finite()) << "step " << k;
+  }
+  EXPECT_GT(world.view(id).z[0], 0);
+  EXPECT_GT(world.view(id).vz[0], 0);
+}
+
+// Deep inside, the force is the bound: (c/ξ)·e^max_exponent for a heavy point, and m·ξ/dt²
+// (the potential no stiffer than m/dt²) for a light one, whichever is smaller.
+TEST(Obstacles, ForceDeepInsideIsBoundedByCapAndByWhatTheStepResolves) {
+  for (double mass : {10.0, 1e-3}) {
+    drape::WorldDef wd;
+    wd.gravity = {0, 0, 0};
+    wd.dt = 1e-3;
+    drape::World world(wd);
+    const auto id = world.add_sheet(point_def({0, 0, -1.0}, mass));
+    ObstacleDef plane;
+    plane.shape = ObstacleShape::Plane;
+    plane.c = 0.01;
+    plane.xi = 0.01;
+    world.add_obstacle(plane);
+    world.step();
+    const double force = world.view(id).vz[0] * mass / wd.dt;
+    const double expected = std::min(plane.c / plane.xi * std::exp(plane.max_exponent), mass * plane.xi / (wd.dt * wd.dt));
+    EXPECT_NEAR(force, expected, 1e-9 * expected) << "mass " << mass;
+  }
+}
+
+// Only sheets whose bounding box comes within reach (30 ξ) pay for an obstacle.
+TEST(Obstacles, OnlyBoxesWithinReachTouch) {
+  ObstacleDef d;
+  d.shape = ObstacleShape::Sphere;
+  d.size = {0.5, 0, 0};
+  d.xi = 0.01;
+  const auto o = drape::detail::make_obstacle(d);
+  drape::detail::Aabb near{{-0.1, -0.1, 0.5 + 0.29}, {0.1, 0.1, 1.0}};
+  drape::detail::Aabb far{{-0.1, -0.1, 0.5 + 0.31}, {0.1, 0.1, 1.0}};
+  EXPECT_TRUE(drape::detail::may_touch(o, near));
+  EXPECT_FALSE(drape::detail::may_touch(o, far));
+  ObstacleDef pd;
+  pd.shape = ObstacleShape::Plane;
+  pd.orientation = drape::quat_from_axis_angle({1, 0, 0}, std::numbers::pi / 4);  // normal (0, −½√2, ½√2)
+  pd.xi = 0.01;
+  const auto plane = drape::detail::make_obstacle(pd);
+  // corner (x, 1, 0.5): f = (0.5 − 1)/√2 < 0 → touches; a box above the plane by 1 m does not
+  EXPECT_TRUE(drape::detail::may_touch(plane, {{0, 0, 0.5}, {1, 1, 2}}));
+  EXPECT_FALSE(drape::detail::may_touch(plane, {{0, -1, 0.5}, {1, -0.9, 2}}));
+}
+
+// A world whose sheets never come near an obstacle steps exactly as one without it.
+TEST(Obstacles, FarObstacleLeavesTheSheetBitIdentical) {
+  auto run = [](bool with_obstacle) {
+    drape::World world;
+    drape::SheetDef s;
+    s.m = s.n = 6;
+    s.pins = drape::corner_points(6, 6);
+    const auto id = world.add_sheet(s);
+    if (with_obstacle) {
+      ObstacleDef d;
+      d.center = {0, 0, -5};
+      world.add_obstacle(d);
+    }
+    world.step(200);
+    const auto v = world.view(id);
+    return std::vector<double>(v.z.begin(), v.z.end());
+  };
+  EXPECT_EQ(run(false), run(true));
+}
+
+TEST(Obstacles, RemovedObstacleNoLongerActsAndItsIdIsStale) {
+  drape::WorldDef wd;
+  drape::World world(wd);
+  const auto id = world.add_sheet(point_def({0, 0, 0.05}));
+  ObstacleDef plane;
+  plane.shape = ObstacleShape::Plane;
+  plane.c = 0.01;
+  plane.xi = 0.01;
+  const auto oid = world.add_obstacle(plane);
+  world.step(10);
+  world.remove_obstacle(oid);
+  EXPECT_FALSE(world.contains(oid));
+  EXPECT_THROW(world.remove_obstacle(oid), std::invalid_argument);
+  const double vz = world.view(id).vz[0];
+  world.step();
+  EXPECT_NEAR(world.view(id).vz[0] - vz, -9.81 * wd.dt, 1e-12);  // free fall only
+}
+
+TEST(Obstacles, BadDefinitionIsRejectedWithItsField) {
+  drape::World world;
+  ObstacleDef d;
+  d.xi = 0;
+  try {
+    world.add_obstacle(d);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("xi"), std::string::npos);
+  }
+  d = ObstacleDef{};
+  d.shape = ObstacleShape::Torus;
+  d.size = {0.5, -1, 0};
+  EXPECT_NE(drape::validate(d).find("minor radius"), std::string::npos);
+}
+
+}  // namespace

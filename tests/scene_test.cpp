@@ -1,0 +1,218 @@
+// Scene files: the loader's defaults and checks, and the paper's figure scenes checked
+// against what each figure shows (Figs 5, 9, 11, 12).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+#include "scene.h"
+
+namespace {
+
+using drape::app::parse_scene;
+using drape::app::Scene;
+using drape::app::SceneError;
+
+std::string error_of(const std::string& text) {
+  try {
+    parse_scene(text, "test.json");
+  } catch (const SceneError& e) {
+    return e.what();
+  }
+  return "(accepted)";
+}
+
+const char* minimal = R"({"frames": 2, "sheets": [{"grid": [4, 3], "size": [1, 2], "stiffness": 50}]})";
+
+TEST(SceneFile, MinimalSceneGetsDocumentedDefaults) {
+  const Scene s = parse_scene(minimal, "m.json");
+  EXPECT_EQ(s.world.dt, 1e-3);
+  EXPECT_EQ(s.world.gravity, (drape::Vec3{0, 0, -9.81}));
+  EXPECT_EQ(s.world.integrator, drape::Integrator::SemiImplicitEuler);
+  EXPECT_EQ(s.precision, drape::app::Precision::Float64);
+  EXPECT_EQ(s.substeps, 33);  // round(1 / (30 fps · 1 ms))
+  EXPECT_EQ(s.frames, 2);
+  ASSERT_EQ(s.sheets.size(), 1u);
+  EXPECT_EQ(s.sheets[0].m, 4u);
+  EXPECT_EQ(s.sheets[0].n, 3u);
+  EXPECT_EQ(s.sheets[0].width, 1.0);
+  EXPECT_EQ(s.sheets[0].height, 2.0);
+  EXPECT_EQ(s.sheet_names[0], "sheet0");
+}
+
+TEST(SceneFile, DurationBecomesWholeFramesOfWholeSubsteps) {
+  const Scene s = parse_scene(
+      R"({"dt": 0.002, "fps": 25, "duration": 1.0, "sheets": [{"grid": [1, 1], "size": [1, 1], "stiffness": 5}]})", "d.json");
+  EXPECT_EQ(s.substeps, 20);  // 1 / (25 · 0.002)
+  EXPECT_EQ(s.frames, 25);
+}
+
+TEST(SceneFile, AnchorsPinsRegionsAndObstaclesAreRead) {
+  const Scene s = parse_scene(R"({"frames": 1, "precision": "float32", "integrator": "forward_euler",
+    "sheets": [{"grid": [4, 4], "size": [1, 1], "stiffness": 50,
+                "anchors": [{"at": "corners", "stiffness": 7}, {"at": [[2, 3]], "stiffness": 9, "target": [0, 0, 1]}],
+                "pins": "center", "stiffness_regions": [{"rows": [0, 1], "columns": [0, 4], "stiffness": 3}]}],
+    "obstacles": [{"type": "torus", "major_radius": 0.5, "minor_radius": 0.1, "c": 2, "xi": 0.05},
+                  {"type": "plane", "normal": [0, 1, 0]}]})", "a.json");
+  EXPECT_EQ(s.precision, drape::app::Precision::Float32);
+  EXPECT_EQ(s.world.integrator, drape::Integrator::ForwardEuler);
+  const auto& sh = s.sheets[0];
+  ASSERT_EQ(sh.anchors.size(), 5u);
+  EXPECT_EQ(sh.anchors[4].point, 2u * 5 + 3);
+  EXPECT_EQ(sh.anchors[4].target, (drape::Vec3{0, 0, 1}));
+  EXPECT_EQ(sh.pins, (std::vector<std::uint32_t>{12}));
+  ASSERT_EQ(s.obstacles.size(), 2u);
+  EXPECT_EQ(s.obstacles[0].shape, drape::ObstacleShape::Torus);
+  EXPECT_EQ(s.obstacles[0].size.x, 0.5);
+  // the plane's normal: local +z turned onto world +y
+  const drape::Vec3 n = drape::rotate(s.obstacles[1].orientation, {0, 0, 1});
+  EXPECT_NEAR(n.x, 0, 1e-12);
+  EXPECT_NEAR(n.y, 1, 1e-12);
+  EXPECT_NEAR(n.z, 0, 1e-12);
+}
+
+// Every class of bad input: one message with the file, the JSON path and the problem.
+TEST(SceneFile, EveryBadInputNamesFilePathAndProblem) {
+  struct Case {
+    std::string text, expected;
+  };
+  const std::string sheet = R"("grid": [4, 4], "size": [1, 1], "stiffness": 50)";
+  const Case cases[] = {
+      {"{\"frames\": 1,\n  \"sheets\": [}", "test.json:2:14: syntax error"},
+      {R"({"frames": 1})", "test.json: sheets: missing (required)"},
+      {R"({"sheets": [{)" + sheet + "}]}", "test.json: frames: missing: give frames or duration"},
+      {R"({"frames": 1, "sheets": [{"grid": [4, 4], "size": [1, 1]}]})", "test.json: sheets[0].stiffness: missing"},
+      {R"({"frames": "ten", "sheets": [{)" + sheet + "}]}", "test.json: frames: must be a number, got a string"},
+      {R"({"frames": 1, "sheets": [{)" + sheet + R"(, "colour": 1}]})", "test.json: sheets[0].colour: unknown key"},
+      {R"({"frames": 1, "sheets": [{)" + sheet + R"(}], "obstacles": [{"type": "cone"}]})",
+       "test.json: obstacles[0].type: unknown obstacle type \"cone\""},
+      {R"({"frames": 1, "sheets": [{)" + sheet + R"(}], "obstacles": [{"type": "torus", "radius": 1}]})",
+       "test.json: obstacles[0].radius: unknown key"},
+      {R"({"frames": 1, "sheets": [{"grid": [4, 4], "size": [1, -1], "stiffness": 50}]})",
+       "test.json: sheets[0].size[1]: must be positive (got -1)"},
+      {R"({"frames": 1, "sheets": [{"grid": [0, 4], "size": [1, 1], "stiffness": 50}]})",
+       "test.json: sheets[0].grid[0]: must be between 1 and"},
+      {R"({"frames": 1, "sheets": [{)" + sheet + R"(, "mass": 0}]})", "test.json: sheets[0].mass: must be positive (got 0)"},
+      {R"({"frames": 1, "sheets": [{"grid": [4, 4], "size": [1, 1], "stiffness": -3}]})",
+       "test.json: sheets[0].stiffness: must be positive (got -3)"},
+      {R"({"frames": 1, "dt": 0, "sheets": [{)" + sheet + "}]}", "test.json: dt: must be positive (got 0)"},
+      {R"({"frames": 1, "dt": 1e999, "sheets": [{)" + sheet + "}]}", "test.json:1:21: number 1e999 is not finite"},
+      {R"({"frames": 1, "sheets": [{)" + sheet + R"(, "center": [0, NaN, 0]}]})", "test.json:1:90: syntax error"},
+      {R"({"frames": 1, "sheets": [{"grid": [3000000000, 3000000000], "size": [1, 1], "stiffness": 5}]})",
+       "test.json: sheets[0].grid: grid of 9e+18 points needs about"},
+      {R"({"frames": 1, "integrator": "leapfrog", "sheets": [{)" + sheet + "}]}",
+       "test.json: integrator: unknown integrator \"leapfrog\""},
+      {R"({"frames": 1, "precision": "float16", "sheets": [{)" + sheet + "}]}", "test.json: precision: must be"},
+      {R"({"frames": 1, "sheets": [{)" + sheet + R"(, "anchors": [{"at": [99], "stiffness": 5}]}]})",
+       "test.json: sheets[0].anchors[0].at[0]: must be between 0 and 24 (got 99)"},
+      {R"({"frames": 1, "sheets": [{)" + sheet + R"(}], "obstacles": [{"type": "sphere", "radius": 1, "xi": 0}]})",
+       "test.json: obstacles[0].xi: must be positive (got 0)"},
+  };
+  for (const auto& c : cases) {
+    const std::string message = error_of(c.text);
+    EXPECT_EQ(message.rfind(c.expected, 0), 0u) << "input: " << c.text << "\nmessage: " << message;
+    EXPECT_EQ(message.find('\n'), std::string::npos) << message;  // one line
+  }
+}
+
+TEST(SceneFile, UnreadableFileIsReported) {
+  try {
+    drape::app::load_scene("/nonexistent/scene.json");
+    FAIL();
+  } catch (const SceneError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("/nonexistent/scene.json: cannot read", 0), 0u) << e.what();
+  }
+}
+
+// --- the paper's figures ----------------------------------------------------------------
+
+template <class Real = double>
+struct Loaded {
+  Scene scene;
+  drape::BasicWorld<Real> world;
+  std::vector<drape::SheetId> ids;
+  explicit Loaded(const std::string& name)
+      : scene(drape::app::load_scene(std::string(DRAPE_SCENES_DIR) + "/" + name)), world(scene.world) {
+    for (const auto& s : scene.sheets) ids.push_back(world.add_sheet(s));
+    for (const auto& o : scene.obstacles) world.add_obstacle(o);
+  }
+  void run() { world.step(scene.frames * scene.substeps); }
+};
+
+// Fig 5: stiffer surfaces sag less. The weight is the same for all five, so the sag of the
+// centre must fall strictly as k grows (2, 5, 10, 20, 50 N/m).
+TEST(PaperScenes, Fig05StifferSurfacesSagLess) {
+  Loaded<> l("fig05.json");
+  l.run();
+  ASSERT_TRUE(l.world.all_finite());
+  double previous = 1e9;
+  for (std::size_t k = 0; k < l.ids.size(); ++k) {
+    const auto& d = l.scene.sheets[k];
+    const double sag = d.center.z - l.world.view(l.ids[k]).z[drape::center_point(d.m, d.n)];
+    EXPECT_GT(sag, 0);
+    EXPECT_LT(sag, previous) << "sheet " << k << " (k = " << d.stiffness << ")";
+    previous = sag;
+  }
+}
+
+// Fig 9: the cloth ends at rest on the ellipsoid: nearly no kinetic energy left, its centre
+// just above the top of the ellipsoid, no point inside it.
+TEST(PaperScenes, Fig09ClothComesToRestOnTheEllipsoid) {
+  Loaded<> l("fig09.json");
+  l.run();
+  const auto& o = l.scene.obstacles.at(0);
+  const auto& d = l.scene.sheets.at(0);
+  const auto v = l.world.view(l.ids[0]);
+  const double weight = d.mass * 9.81;
+  const auto e = l.world.diagnostics(l.ids[0]).energy;
+  EXPECT_LT(e.kinetic, 1e-3 * weight * (d.center.z - o.center.z));  // at rest: tiny against the fall
+  const double top = o.center.z + o.size.z;
+  const double centre = v.z[drape::center_point(d.m, d.n)];
+  EXPECT_GT(centre, top);
+  EXPECT_LT(centre, top + 10 * o.xi);
+  for (std::size_t p = 0; p < v.size(); ++p) {
+    const double q = std::pow((v.x[p] - o.center.x) / o.size.x, 2) + std::pow((v.y[p] - o.center.y) / o.size.y, 2) +
+                     std::pow((v.z[p] - o.center.z) / o.size.z, 2);
+    EXPECT_GT(q, 1.0) << "point " << p << " inside the ellipsoid";
+  }
+}
+
+// Fig 11: the hole is small: the surface drapes over the torus and its centre never goes
+// below the torus's middle plane (it would have to, to fall through).
+TEST(PaperScenes, Fig11SheetStaysAboveTheTorus) {
+  Loaded<> l("fig11.json");
+  const auto& o = l.scene.obstacles.at(0);
+  const auto& d = l.scene.sheets.at(0);
+  const std::uint32_t c = drape::center_point(d.m, d.n);
+  double lowest = 1e9;
+  for (int f = 0; f < l.scene.frames; ++f) {
+    l.world.step(l.scene.substeps);
+    lowest = std::min(lowest, double(l.world.view(l.ids[0]).z[c]));
+  }
+  ASSERT_TRUE(l.world.all_finite());
+  EXPECT_GT(lowest, o.center.z);
+  EXPECT_LT(l.world.diagnostics(l.ids[0]).energy.kinetic, 0.01 * d.mass * 9.81);  // settled, not bouncing away
+}
+
+// Fig 12: the small sheet passes through the hole and ends entirely below the torus.
+TEST(PaperScenes, Fig12SmallSheetEndsBelowTheTorus) {
+  Loaded<> l("fig12.json");
+  l.run();
+  const auto& o = l.scene.obstacles.at(0);
+  const auto v = l.world.view(l.ids[0]);
+  for (std::size_t p = 0; p < v.size(); ++p) EXPECT_LT(v.z[p], o.center.z - o.size.y) << "point " << p;
+}
+
+// The same scene in float32 runs through BasicWorld<float> and agrees with float64 to
+// float precision over a short run.
+TEST(PaperScenes, Float32PrecisionRunsTheSameScene) {
+  Loaded<double> a("fig09.json");
+  Loaded<float> b("fig09.json");
+  a.world.step(100);
+  b.world.step(100);
+  const auto va = a.world.view(a.ids[0]);
+  const auto vb = b.world.view(b.ids[0]);
+  for (std::size_t p = 0; p < va.size(); p += 37) EXPECT_NEAR(va.z[p], vb.z[p], 1e-4);
+}
+
+}  // namespace

@@ -1,0 +1,111 @@
+// Building sheets: the paper's grid numbering (eqs 2–3), placement in space, the helper
+// point sets of Figs 5–8, validation of definitions, and ids that outlive removal.
+#include <drape/drape.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+namespace {
+
+TEST(Sheet, PointsAreNumberedRowMajorWithThePaperSpacings) {
+  drape::World world;
+  drape::SheetDef d;
+  d.m = 3;  // rows i = 0..3, h2 = Lv/m = 0.5
+  d.n = 4;  // columns j = 0..4, h1 = Lh/n = 0.5
+  d.width = 2.0;
+  d.height = 1.5;
+  d.center = {10, 20, 30};
+  const auto v = world.view(world.add_sheet(d));
+  ASSERT_EQ(v.size(), 20u);
+  for (std::uint32_t i = 0; i <= d.m; ++i)
+    for (std::uint32_t j = 0; j <= d.n; ++j) {
+      const std::uint32_t p = i * (d.n + 1) + j;
+      EXPECT_DOUBLE_EQ(v.x[p], 10 - 1.0 + 0.5 * j);
+      EXPECT_DOUBLE_EQ(v.y[p], 20 - 0.75 + 0.5 * i);
+      EXPECT_DOUBLE_EQ(v.z[p], 30);
+    }
+}
+
+TEST(Sheet, OrientationTurnsTheGridAboutItsCentre) {
+  // a quarter turn about x takes local +y (the grid's rows) to world +z
+  drape::World world;
+  drape::SheetDef d;
+  d.m = d.n = 2;
+  d.width = d.height = 2.0;
+  d.center = {1, 2, 3};
+  d.orientation = drape::quat_from_axis_angle({1, 0, 0}, std::numbers::pi / 2);
+  const auto v = world.view(world.add_sheet(d));
+  const std::uint32_t top_left = drape::point_index(d.n, 2, 0);  // local (−1, +1, 0)
+  EXPECT_NEAR(v.x[top_left], 0.0, 1e-12);
+  EXPECT_NEAR(v.y[top_left], 2.0, 1e-12);
+  EXPECT_NEAR(v.z[top_left], 4.0, 1e-12);
+  const auto r = drape::rotate(d.orientation, {0, 0, 1});  // the normal now points along −y
+  EXPECT_NEAR(r.y, -1.0, 1e-12);
+}
+
+TEST(Sheet, CornerAndCentrePointsOfThePaperSetUps) {
+  EXPECT_EQ(drape::corner_points(4, 6), (std::vector<std::uint32_t>{0, 6, 28, 34}));
+  EXPECT_EQ(drape::center_point(4, 6), 2u * 7 + 3);
+  EXPECT_EQ(drape::corner_points(0, 3), (std::vector<std::uint32_t>{0, 3}));  // a rope has two ends
+  EXPECT_EQ(drape::corner_points(0, 0), (std::vector<std::uint32_t>{0}));
+}
+
+TEST(Sheet, ValidationNamesTheFieldAndTheProblem) {
+  struct Case {
+    const char* field;
+    void (*spoil)(drape::SheetDef&);
+  };
+  const Case cases[] = {
+      {"width", [](drape::SheetDef& d) { d.width = 0; }},
+      {"height", [](drape::SheetDef& d) { d.height = -1; }},
+      {"mass", [](drape::SheetDef& d) { d.mass = std::nan(""); }},
+      {"stiffness", [](drape::SheetDef& d) { d.stiffness = -5; }},
+      {"damping", [](drape::SheetDef& d) { d.damping = INFINITY; }},
+      {"rest_length_h", [](drape::SheetDef& d) { d.rest_length_h = -0.1; }},
+      {"point_masses", [](drape::SheetDef& d) { d.point_masses = {1.0, 2.0}; }},
+      {"anchors[0].point", [](drape::SheetDef& d) { d.anchors = {{999, 1.0, std::nullopt}}; }},
+      {"anchors[0].stiffness", [](drape::SheetDef& d) { d.anchors = {{0, 0.0, std::nullopt}}; }},
+      {"pins[1]", [](drape::SheetDef& d) { d.pins = {0, 121}; }},
+      {"orientation", [](drape::SheetDef& d) { d.orientation = {2, 0, 0, 0}; }},
+      {"stiffness_regions[0].rows", [](drape::SheetDef& d) { d.stiffness_regions = {{5, 11, 0, 1, 1.0}}; }},
+      {"center", [](drape::SheetDef& d) { d.center.y = INFINITY; }},
+  };
+  drape::World world;
+  for (const auto& c : cases) {
+    drape::SheetDef d;  // 10×10 cells, valid as it stands
+    ASSERT_EQ(drape::validate(d), "");
+    c.spoil(d);
+    const std::string message = drape::validate(d);
+    EXPECT_EQ(message.rfind(c.field, 0), 0u) << "field " << c.field << ": message \"" << message << "\"";
+    EXPECT_THROW(world.add_sheet(d), std::invalid_argument) << c.field;
+  }
+  EXPECT_EQ(world.sheet_count(), 0u);
+}
+
+TEST(World, RemovedSheetIdsAreRecognisedAsStale) {
+  drape::World world;
+  drape::SheetDef d;
+  const auto a = world.add_sheet(d);
+  world.remove_sheet(a);
+  EXPECT_FALSE(world.contains(a));
+  const auto b = world.add_sheet(d);  // reuses the slot with a new generation
+  EXPECT_EQ(a.index, b.index);
+  EXPECT_NE(a, b);
+  EXPECT_TRUE(world.contains(b));
+  EXPECT_THROW(world.view(a), std::invalid_argument);
+  EXPECT_EQ(world.sheets(), std::vector<drape::SheetId>{b});
+}
+
+TEST(World, FloatAndDoubleWorldsBuildTheSameGrid) {
+  drape::SheetDef d;
+  d.m = 4;
+  d.n = 4;
+  drape::World wd;
+  drape::WorldF wf;
+  const auto vd = wd.view(wd.add_sheet(d));
+  const auto vf = wf.view(wf.add_sheet(d));
+  for (std::size_t i = 0; i < vd.size(); ++i) EXPECT_EQ(static_cast<float>(vd.x[i]), vf.x[i]);
+}
+
+}  // namespace
