@@ -30,9 +30,17 @@ drape::WorldDef one_thread() {
 // substep (worst case), 33 once per frame as drape-demo does (30 frames/s at dt = 1 ms).
 constexpr int demo_frame = 33;
 
-void run(benchmark::State& state, Features f, int finite_check_every = 0) {
+void run(benchmark::State& state, Features f, int finite_check_every = 0, bool obstacle = false) {
   drape::World world(one_thread());
   add_sheets(world, f);
+  if (obstacle) {  // one floor 5 mm under every sheet: eq (9) acts on all of their points
+    drape::ObstacleDef floor;
+    floor.shape = drape::ObstacleShape::Plane;
+    floor.center = {0.0, 0.0, -0.005};
+    floor.c = 0.01;
+    floor.xi = 0.01;
+    world.add_obstacle(floor);
+  }
   int until_check = finite_check_every;
   for (auto _ : state) {
     world.step(1);
@@ -41,6 +49,7 @@ void run(benchmark::State& state, Features f, int finite_check_every = 0) {
       until_check = finite_check_every;
     }
   }
+  if (!world.all_finite()) state.SkipWithError("the scene blew up; its figures would be meaningless");
   drape::bench::set_point_rate(state, double(sheet_count) * side * side);
 }
 
@@ -50,7 +59,8 @@ void BM_Feature_anchors(benchmark::State& state) { run(state, {false, true, fals
 void BM_Feature_damping(benchmark::State& state) { run(state, {false, false, true}); }
 void BM_Feature_finite_check_per_frame(benchmark::State& state) { run(state, {false, false, false}, demo_frame); }
 void BM_Feature_finite_check_per_substep(benchmark::State& state) { run(state, {false, false, false}, 1); }
-void BM_Feature_all(benchmark::State& state) { run(state, {true, true, true}, demo_frame); }
+void BM_Feature_obstacle(benchmark::State& state) { run(state, {false, false, false}, 0, true); }
+void BM_Feature_all(benchmark::State& state) { run(state, {true, true, true}, demo_frame, true); }
 
 // The bare kernel with no world around it: the same sheets built by the engine and stepped
 // by calling the integrator directly, so "bare" minus this is the world's own overhead
@@ -76,9 +86,8 @@ BENCHMARK(BM_Feature_anchors);
 BENCHMARK(BM_Feature_damping);
 BENCHMARK(BM_Feature_finite_check_per_frame);
 BENCHMARK(BM_Feature_finite_check_per_substep);
+BENCHMARK(BM_Feature_obstacle);
 BENCHMARK(BM_Feature_all);
-// TODO(obstacles merge): BM_Feature_obstacle — the bare scene plus one torus under the
-// sheets (world.add_obstacle), to price the eq (9) term.
 // TODO(contacts merge): BM_Feature_contacts — the bare scene with sheets stacked so the
 // host stage finds pairs, to price the contact term.
 

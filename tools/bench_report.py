@@ -398,9 +398,9 @@ class Report:
             "damping": "+ damping −Cẋ (eq 4)",
             "finite_check_per_frame": "+ all_finite() once per 33 substeps (a 30 frame/s frame)",
             "finite_check_per_substep": "+ all_finite() after every substep",
-            "obstacle": "+ one obstacle (eq 9)",
+            "obstacle": "+ a floor (eq 9) under every sheet, acting on all points",
             "contacts": "+ contacts between sheets",
-            "all": "pins + anchors + damping + guard per frame",
+            "all": "pins + anchors + damping + floor + guard per frame",
         }
         found = {}
         for name in self.runs:
