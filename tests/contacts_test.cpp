@@ -113,7 +113,7 @@ TEST(Contacts, ForceIsMinusGradientOfBruteForcePotentialOverAllCells) {
     const ContactForces<double>& got = side == &a ? work.on_a : work.on_b;
     for (std::uint32_t p = 0; p < side->size(); p += 3) {
       for (int k = 0; k < 3; ++k) {
-        std::vector<double>& axis = k == 0 ? side->position.x : k == 1 ? side->position.y : side->position.z;
+        auto& axis = k == 0 ? side->position.x : k == 1 ? side->position.y : side->position.z;
         const double x0 = axis[p];
         axis[p] = x0 + delta;
         const double up = energy();
@@ -242,8 +242,8 @@ TEST(Contacts, GatherAddsSourcesInOrderWithinTheRange) {
   Vec3Array<double> out;
   out.resize(4, 9.0);  // stale values must be cleared in the range, kept outside it
   gather_contacts<double>(sources, out, 0, 2);
-  EXPECT_EQ(out.x, (std::vector<double>{0.0, 1.25, 9.0, 9.0}));
-  EXPECT_EQ(out.z, (std::vector<double>{0.0, 2.0, 9.0, 9.0}));
+  EXPECT_EQ(std::vector<double>(out.x.begin(), out.x.end()), (std::vector<double>{0.0, 1.25, 9.0, 9.0}));
+  EXPECT_EQ(std::vector<double>(out.z.begin(), out.z.end()), (std::vector<double>{0.0, 2.0, 9.0, 9.0}));
 }
 
 }  // namespace

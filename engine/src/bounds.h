@@ -29,7 +29,7 @@ struct Aabb {
 template <class Real>
 Aabb sheet_bounds(const Sheet<Real>& s) {
   Aabb box;
-  const std::vector<Real>* axes[3] = {&s.position.x, &s.position.y, &s.position.z};
+  const AlignedArray<Real>* axes[3] = {&s.position.x, &s.position.y, &s.position.z};
   for (int k = 0; k < 3; ++k) {
     const Real* a = axes[k]->data();
     const std::size_t count = axes[k]->size();

@@ -165,7 +165,7 @@ void points_against_cells(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb
       typename ContactGrid<Real>::Cell cell{{}, {}, p[0], i, j};
       Aabb box;
       for (int k = 0; k < 3; ++k) {
-        const std::vector<Real>& a = k == 0 ? X.x : k == 1 ? X.y : X.z;
+        const auto& a = k == 0 ? X.x : k == 1 ? X.y : X.z;
         cell.lo[k] = std::min(std::min(a[p[0]], a[p[1]]), std::min(a[p[2]], a[p[3]]));
         cell.hi[k] = std::max(std::max(a[p[0]], a[p[1]]), std::max(a[p[2]], a[p[3]]));
         box.lo[k] = cell.lo[k] - R;

@@ -1,9 +1,10 @@
 // Force kernels: springs (eqs 6–7), damping (eq 4's C), anchors (eq 8); obstacles (eq 9) live in obstacles.cpp.
 #include "forces.h"
 
-#include "obstacles.h"
-
+#include <algorithm>
 #include <cmath>
+
+#include "obstacles.h"
 
 namespace drape::detail {
 
@@ -20,15 +21,34 @@ inline Real spring_scale(Real dx, Real dy, Real dz, Real rest, Real k) {
   return -k * (len - rest) * inv;
 }
 
+// Where a kernel finds k and ℓ of spring e: per-spring arrays, or one constant for the
+// whole run (Topology::uniform), chosen once per sheet so the loops carry no branch.
+template <class Real>
+struct PerSpring {
+  const Real* __restrict rest;
+  const Real* __restrict k;
+  Real rest_at(std::size_t e) const { return rest[e]; }
+  Real k_at(std::size_t e) const { return k[e]; }
+  PerSpring offset(std::size_t e) const { return {rest + e, k + e}; }
+};
+
+template <class Real>
+struct SameSpring {
+  Real rest, k;
+  Real rest_at(std::size_t) const { return rest; }
+  Real k_at(std::size_t) const { return k; }
+  SameSpring offset(std::size_t) const { return *this; }
+};
+
 // Horizontal springs of one row: forces go to a scratch row first, so the scatter into
 // both endpoints becomes a dependency-free second loop the compiler can vectorise.
-template <class Real>
+template <class Real, class Springs>
 inline void row_springs(std::uint32_t n, const Real* __restrict x, const Real* __restrict y, const Real* __restrict z,
-                        const Real* __restrict rest, const Real* __restrict k, Real* __restrict sx, Real* __restrict sy,
-                        Real* __restrict sz, Real* __restrict fx, Real* __restrict fy, Real* __restrict fz) {
+                        Springs springs, Real* __restrict sx, Real* __restrict sy, Real* __restrict sz,
+                        Real* __restrict fx, Real* __restrict fy, Real* __restrict fz) {
   for (std::uint32_t j = 0; j < n; ++j) {
     const Real dx = x[j] - x[j + 1], dy = y[j] - y[j + 1], dz = z[j] - z[j + 1];
-    const Real s = spring_scale(dx, dy, dz, rest[j], k[j]);
+    const Real s = spring_scale(dx, dy, dz, springs.rest_at(j), springs.k_at(j));
     sx[j] = s * dx;
     sy[j] = s * dy;
     sz[j] = s * dz;
@@ -52,97 +72,136 @@ inline void row_springs(std::uint32_t n, const Real* __restrict x, const Real* _
 }
 
 // Vertical springs between row `a` and the row below it, `b`: no two iterations touch
-// the same point, so it vectorises as it stands.
-template <class Real>
+// the same point, so it vectorises as it stands. A block of rows that does not own row a
+// (or b) still evaluates the spring, with the same arithmetic, and adds only to its own
+// row: forces of a row are then bit-identical however the sheet is split.
+template <bool ToA, bool ToB, class Real, class Springs>
 inline void column_springs(std::uint32_t cols, const Real* __restrict xa, const Real* __restrict ya,
                            const Real* __restrict za, const Real* __restrict xb, const Real* __restrict yb,
-                           const Real* __restrict zb, const Real* __restrict rest, const Real* __restrict k,
-                           Real* __restrict fxa, Real* __restrict fya, Real* __restrict fza, Real* __restrict fxb,
-                           Real* __restrict fyb, Real* __restrict fzb) {
+                           const Real* __restrict zb, Springs springs, Real* __restrict fxa, Real* __restrict fya,
+                           Real* __restrict fza, Real* __restrict fxb, Real* __restrict fyb, Real* __restrict fzb) {
   for (std::uint32_t j = 0; j < cols; ++j) {
     const Real dx = xa[j] - xb[j], dy = ya[j] - yb[j], dz = za[j] - zb[j];
-    const Real s = spring_scale(dx, dy, dz, rest[j], k[j]);
-    fxa[j] += s * dx;
-    fya[j] += s * dy;
-    fza[j] += s * dz;
-    fxb[j] -= s * dx;
-    fyb[j] -= s * dy;
-    fzb[j] -= s * dz;
+    const Real s = spring_scale(dx, dy, dz, springs.rest_at(j), springs.k_at(j));
+    if constexpr (ToA) {
+      fxa[j] += s * dx;
+      fya[j] += s * dy;
+      fza[j] += s * dz;
+    }
+    if constexpr (ToB) {
+      fxb[j] -= s * dx;
+      fyb[j] -= s * dy;
+      fzb[j] -= s * dz;
+    }
+  }
+}
+
+// Rows [begin, end) of the sheet; every row sums its terms in the same order
+// (own horizontal springs, spring to the row above, spring to the row below). done(i) is
+// called as soon as row i's spring forces are final, while the row is still in cache, so
+// per-point terms can be added in the same sweep instead of another pass over the sheet.
+template <class Real, class Springs, class RowDone>
+void spring_rows(const Topology<Real>& t, Springs horizontal_springs, Springs vertical_springs, ConstVec3Ptr<Real> x,
+                 Vec3Ptr<Real> f, Vec3Ptr<Real> row, std::uint32_t begin, std::uint32_t end, RowDone done) {
+  const std::uint32_t n = t.n, cols = t.cols();
+  auto horizontal = [&](std::uint32_t i) {
+    const std::size_t p = std::size_t(i) * cols;
+    row_springs(n, x.x + p, x.y + p, x.z + p, horizontal_springs.offset(std::size_t(i) * n), row.x, row.y, row.z,
+                f.x + p, f.y + p, f.z + p);
+  };
+  auto vertical = [&]<bool ToA, bool ToB>(std::uint32_t i) {
+    const std::size_t a = std::size_t(i) * cols, b = a + cols;
+    column_springs<ToA, ToB>(cols, x.x + a, x.y + a, x.z + a, x.x + b, x.y + b, x.z + b,
+                             vertical_springs.offset(std::size_t(i) * cols), f.x + a, f.y + a, f.z + a, f.x + b,
+                             f.y + b, f.z + b);
+  };
+  if (begin >= end) return;
+  // Row i+1's horizontal springs assign its forces before the vertical springs of rows
+  // i–i+1 add to them, so f needs no separate clearing pass.
+  horizontal(begin);
+  if (begin > 0) vertical.template operator()<false, true>(begin - 1);
+  for (std::uint32_t i = begin; i + 1 < end; ++i) {
+    horizontal(i + 1);
+    vertical.template operator()<true, true>(i);
+    done(i);
+  }
+  if (end - 1 < t.m) vertical.template operator()<true, false>(end - 1);
+  done(end - 1);
+}
+
+// Picks the spring parameters once per call: constants when the topology is uniform.
+template <class Real, class RowDone>
+void springs_by_rows(const Topology<Real>& t, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row,
+                     std::uint32_t row_begin, std::uint32_t row_end, RowDone done) {
+  if (t.uniform) {
+    const auto& u = *t.uniform;
+    spring_rows(t, SameSpring<Real>{u.rest_h, u.stiffness}, SameSpring<Real>{u.rest_v, u.stiffness}, x, f, row,
+                row_begin, row_end, done);
+  } else {
+    const Real* rest = t.rest_length.data();
+    const Real* k = t.stiffness.data();
+    const std::size_t vertical = t.horizontal_count();
+    spring_rows(t, PerSpring<Real>{rest, k}, PerSpring<Real>{rest + vertical, k + vertical}, x, f, row, row_begin,
+                row_end, done);
+  }
+}
+
+// Contact forces the host stage gathered for this substep (contacts.h), on `count` points.
+template <class Real>
+inline void add_contacts(std::size_t count, const Real* __restrict cx, const Real* __restrict cy,
+                         const Real* __restrict cz, Real* __restrict fx, Real* __restrict fy, Real* __restrict fz) {
+  for (std::size_t i = 0; i < count; ++i) {
+    fx[i] += cx[i];
+    fy[i] += cy[i];
+    fz[i] += cz[i];
+  }
+}
+
+// eq (4): −C ẋ on `count` points, C diagonal.
+template <class Real>
+inline void damp(std::size_t count, const Real* __restrict c, const Real* __restrict vx, const Real* __restrict vy,
+                 const Real* __restrict vz, Real* __restrict fx, Real* __restrict fy, Real* __restrict fz) {
+  for (std::size_t i = 0; i < count; ++i) {
+    fx[i] -= c[i] * vx[i];
+    fy[i] -= c[i] * vy[i];
+    fz[i] -= c[i] * vz[i];
   }
 }
 
 }  // namespace
 
 template <class Real>
-void spring_forces_rows(const Topology<Real>& t, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row,
-                        std::uint32_t r0, std::uint32_t r1) {
-  const std::uint32_t n = t.n, cols = t.cols();
-  const Real* rest = t.rest_length.data();
-  const Real* k = t.stiffness.data();
-  const std::uint32_t vertical = t.horizontal_count();
-  auto horizontal = [&](std::uint32_t i) {
-    const std::size_t p = std::size_t(i) * cols, e = std::size_t(i) * n;
-    row_springs(n, x.x + p, x.y + p, x.z + p, rest + e, k + e, row.x, row.y, row.z, f.x + p, f.y + p, f.z + p);
-  };
-  // The vertical springs between rows i and i+1, each block keeping only the share of the
-  // endpoint in its rows: `upper` the a-side (row i), otherwise the b-side (row i+1).
-  auto boundary = [&](std::uint32_t i, bool upper) {
-    const std::size_t a = std::size_t(i) * cols, b = a + cols, e = vertical + std::size_t(i) * cols;
-    for (std::uint32_t j = 0; j < cols; ++j) {
-      const Real dx = x.x[a + j] - x.x[b + j], dy = x.y[a + j] - x.y[b + j], dz = x.z[a + j] - x.z[b + j];
-      const Real s = spring_scale(dx, dy, dz, rest[e + j], k[e + j]);
-      if (upper) {
-        f.x[a + j] += s * dx;
-        f.y[a + j] += s * dy;
-        f.z[a + j] += s * dz;
-      } else {
-        f.x[b + j] -= s * dx;
-        f.y[b + j] -= s * dy;
-        f.z[b + j] -= s * dz;
-      }
-    }
-  };
-  // Row i+1's horizontal springs assign its forces before the vertical springs of rows
-  // i–i+1 add to them, so f needs no separate clearing pass. Every row thus gets: its
-  // horizontal springs, then the spring above it, then the spring below it.
-  horizontal(r0);
-  if (r0 > 0) boundary(r0 - 1, false);
-  for (std::uint32_t i = r0; i + 1 < r1; ++i) {
-    horizontal(i + 1);
-    const std::size_t a = std::size_t(i) * cols, b = a + cols, e = vertical + std::size_t(i) * cols;
-    column_springs(cols, x.x + a, x.y + a, x.z + a, x.x + b, x.y + b, x.z + b, rest + e, k + e, f.x + a, f.y + a,
-                   f.z + a, f.x + b, f.y + b, f.z + b);
-  }
-  if (r1 <= t.m) boundary(r1 - 1, true);
+void spring_forces(const Topology<Real>& t, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row,
+                   std::uint32_t row_begin, std::uint32_t row_end) {
+  springs_by_rows(t, x, f, row, row_begin, row_end, [](std::uint32_t) {});
 }
 
 template <class Real>
 void spring_forces(const Topology<Real>& t, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row) {
-  spring_forces_rows(t, x, f, row, 0, t.rows());
+  spring_forces(t, x, f, row, 0, t.rows());
+}
+
+// The per-point terms of points [p, p + count), in the one order every path uses:
+// damping, then contacts (anchors and obstacles follow).
+template <class Real>
+inline void row_terms(const Sheet<Real>& s, std::size_t p, std::size_t count, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f) {
+  if (!s.damping.empty())
+    damp<Real>(count, s.damping.data() + p, v.x + p, v.y + p, v.z + p, f.x + p, f.y + p, f.z + p);
+  if (s.has_contacts) {
+    const auto& c = s.contact_force;
+    add_contacts<Real>(count, c.x.data() + p, c.y.data() + p, c.z.data() + p, f.x + p, f.y + p, f.z + p);
+  }
 }
 
 template <class Real>
-void sheet_forces_rows(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f,
-                       Vec3Ptr<Real> row, std::uint32_t r0, std::uint32_t r1) {
-  spring_forces_rows(*s.topology, x, f, row, r0, r1);
-  const std::size_t cols = s.topology->cols(), begin = r0 * cols, end = r1 * cols;
-  if (!s.damping.empty()) {  // eq (4): −C ẋ, C diagonal
-    const Real* c = s.damping.data();
-    for (std::size_t i = begin; i < end; ++i) {
-      f.x[i] -= c[i] * v.x[i];
-      f.y[i] -= c[i] * v.y[i];
-      f.z[i] -= c[i] * v.z[i];
-    }
-  }
-  if (s.has_contacts) {  // gathered by the host stage (contacts.h)
-    const auto& c = s.contact_force;
-    for (std::size_t i = begin; i < end; ++i) {
-      f.x[i] += c.x[i];
-      f.y[i] += c.y[i];
-      f.z[i] += c.z[i];
-    }
-  }
+void sheet_forces_rows(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f, Vec3Ptr<Real> row,
+                       std::uint32_t row_begin, std::uint32_t row_end) {
+  const Topology<Real>& t = *s.topology;
+  const std::size_t cols = t.cols();
+  springs_by_rows(t, x, f, row, row_begin, row_end,
+                  [&](std::uint32_t i) { row_terms(s, std::size_t(i) * cols, cols, v, f); });
   const auto& an = s.anchors;
+  const std::size_t begin = row_begin * cols, end = row_end * cols;
   for (std::size_t a = 0; a < an.point.size(); ++a) {  // eq (8): k (p0 − x)
     const std::uint32_t p = an.point[a];
     if (p < begin || p >= end) continue;
@@ -150,27 +209,64 @@ void sheet_forces_rows(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> 
     f.y[p] += an.stiffness[a] * (an.ty[a] - x.y[p]);
     f.z[p] += an.stiffness[a] * (an.tz[a] - x.z[p]);
   }
-  // eq (9): only obstacles the host stage found near this sheet (whole sheets only: the
-  // world never splits a sheet into row blocks while an obstacle is near it)
-  for (const NearObstacle& o : s.near_obstacles) obstacle_forces(*s.topology, o, x, f);
+}
+
+template <class Real>
+void sheet_forces_by_rows(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f, RowSink sink) {
+  const Topology<Real>& t = *s.topology;
+  const auto& an = s.anchors;
+  auto anchor = [&](std::size_t a) {  // eq (8): k (p0 − x)
+    const std::uint32_t p = an.point[a];
+    f.x[p] += an.stiffness[a] * (an.tx[a] - x.x[p]);
+    f.y[p] += an.stiffness[a] * (an.ty[a] - x.y[p]);
+    f.z[p] += an.stiffness[a] * (an.tz[a] - x.z[p]);
+  };
+  // Obstacle forces (eq 9) follow the sheet's surface normal, which reads the rows on both
+  // sides of a point, so they cannot be added row by row once earlier rows have moved.
+  if (!s.near_obstacles.empty() || !std::is_sorted(an.point.begin(), an.point.end())) {
+    // finish every force first, then hand over the whole sheet
+    springs_by_rows(t, x, f, ptr(s.row_scratch), 0, t.rows(),
+                    [&](std::uint32_t i) { row_terms(s, std::size_t(i) * t.cols(), t.cols(), v, f); });
+    for (std::size_t a = 0; a < an.point.size(); ++a) anchor(a);
+    // eq (9): only obstacles the host stage found near this sheet
+    for (const NearObstacle& o : s.near_obstacles) obstacle_forces(t, o, x, f);
+    if (sink.done) sink.done(sink.context, 0, s.size());
+    return;
+  }
+  // Every term of row i is added as soon as its springs are final (same order as above:
+  // springs, damping, contacts, anchors), then the row goes to the sink while it is still
+  // in cache. A new per-point force term belongs in row_terms; one that reads neighbouring
+  // rows' positions, like obstacles, must send its sheets to the branch above.
+  const std::uint32_t cols = t.cols();
+  std::size_t next_anchor = 0;
+  springs_by_rows(t, x, f, ptr(s.row_scratch), 0, t.rows(), [&](std::uint32_t i) {
+    const std::size_t p = std::size_t(i) * cols;
+    row_terms(s, p, cols, v, f);
+    for (; next_anchor < an.point.size() && an.point[next_anchor] < p + cols; ++next_anchor) anchor(next_anchor);
+    if (sink.done) sink.done(sink.context, p, cols);
+  });
 }
 
 template <class Real>
 void sheet_forces(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f) {
-  sheet_forces_rows(s, x, v, f, ptr(s.row_scratch), 0, s.topology->rows());
+  sheet_forces_by_rows(s, x, v, f, RowSink{});
 }
 
 template void spring_forces<double>(const Topology<double>&, ConstVec3Ptr<double>, Vec3Ptr<double>, Vec3Ptr<double>);
 template void spring_forces<float>(const Topology<float>&, ConstVec3Ptr<float>, Vec3Ptr<float>, Vec3Ptr<float>);
-template void spring_forces_rows<double>(const Topology<double>&, ConstVec3Ptr<double>, Vec3Ptr<double>,
-                                         Vec3Ptr<double>, std::uint32_t, std::uint32_t);
-template void spring_forces_rows<float>(const Topology<float>&, ConstVec3Ptr<float>, Vec3Ptr<float>, Vec3Ptr<float>,
-                                        std::uint32_t, std::uint32_t);
+template void spring_forces<double>(const Topology<double>&, ConstVec3Ptr<double>, Vec3Ptr<double>, Vec3Ptr<double>,
+                                    std::uint32_t, std::uint32_t);
+template void spring_forces<float>(const Topology<float>&, ConstVec3Ptr<float>, Vec3Ptr<float>, Vec3Ptr<float>,
+                                   std::uint32_t, std::uint32_t);
 template void sheet_forces_rows<double>(Sheet<double>&, ConstVec3Ptr<double>, ConstVec3Ptr<double>, Vec3Ptr<double>,
                                         Vec3Ptr<double>, std::uint32_t, std::uint32_t);
 template void sheet_forces_rows<float>(Sheet<float>&, ConstVec3Ptr<float>, ConstVec3Ptr<float>, Vec3Ptr<float>,
                                        Vec3Ptr<float>, std::uint32_t, std::uint32_t);
 template void sheet_forces<double>(Sheet<double>&, ConstVec3Ptr<double>, ConstVec3Ptr<double>, Vec3Ptr<double>);
 template void sheet_forces<float>(Sheet<float>&, ConstVec3Ptr<float>, ConstVec3Ptr<float>, Vec3Ptr<float>);
+template void sheet_forces_by_rows<double>(Sheet<double>&, ConstVec3Ptr<double>, ConstVec3Ptr<double>, Vec3Ptr<double>,
+                                           RowSink);
+template void sheet_forces_by_rows<float>(Sheet<float>&, ConstVec3Ptr<float>, ConstVec3Ptr<float>, Vec3Ptr<float>,
+                                          RowSink);
 
 }  // namespace drape::detail

@@ -31,24 +31,46 @@ Vec3Ptr<Real> ptr(Vec3Array<Real>& a) { return {a.x.data(), a.y.data(), a.z.data
 template <class Real>
 void spring_forces(const Topology<Real>& topo, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row);
 
-// Rows [row_begin, row_end) of spring_forces: each row's force is computed from the same
-// operations in the same order as in the whole-sheet call (a boundary spring is evaluated
-// by both blocks, each keeping its own endpoint's share), so splitting a sheet into row
-// blocks changes no bit. spring_forces is the single block [0, m+1).
+// The same for rows [row_begin, row_end) only: writes f of those rows, reading x of the
+// rows next to them. Each row's result is bit-identical to the whole-sheet call, so a
+// sheet split into blocks of rows (one per task) gives the same state for any split.
 template <class Real>
-void spring_forces_rows(const Topology<Real>& topo, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row,
-                        std::uint32_t row_begin, std::uint32_t row_end);
+void spring_forces(const Topology<Real>& topo, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row,
+                   std::uint32_t row_begin, std::uint32_t row_end);
 
-// Rows [row_begin, row_end) of sheet_forces, with `row` as the block's scratch row.
+// Rows [row_begin, row_end) of sheet_forces, with `row` as the block's scratch row; each
+// point's terms are added in the same order as in sheet_forces, so a split sheet's forces
+// are bit-identical. Never called for a sheet with obstacles near it (they read normals
+// across rows): the world keeps such sheets whole.
 template <class Real>
 void sheet_forces_rows(Sheet<Real>& sheet, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f,
                        Vec3Ptr<Real> row, std::uint32_t row_begin, std::uint32_t row_end);
 
-// f = springs(x) − C·v + contacts + anchors(x) + near obstacles(x): the total force of eq (4) without gravity,
-// which the integrators add as an acceleration. Contact forces are the ones the host stage
-// gathered from the positions at the start of the substep; a multi-stage integrator holds
-// them constant over the substep.
+// f = springs(x) − C·v + contacts + anchors(x) + near obstacles(x): the total force of
+// eq (4) without gravity, which the integrators add as an acceleration. Contact forces are
+// the ones the host stage gathered from the positions at the start of the substep; a
+// multi-stage integrator holds them constant over the substep.
 template <class Real>
 void sheet_forces(Sheet<Real>& sheet, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f);
+
+// Receives points [first, first + count) of a sheet once their total force is final.
+struct RowSink {
+  void* context = nullptr;
+  void (*done)(void* context, std::size_t first, std::size_t count) = nullptr;
+
+  // Wraps a callable taking (first, count); it must outlive the sink.
+  template <class F>
+  static RowSink of(F& f) {
+    return {&f, [](void* c, std::size_t first, std::size_t count) { (*static_cast<F*>(c))(first, count); }};
+  }
+};
+
+// sheet_forces, handing each row to `sink` as soon as its force is final, while it is
+// still in cache. An explicit integrator may move the row's points (x, v) in the sink: no
+// later force of this sweep reads them. This saves the integrator a pass over the whole
+// sheet's forces (a sheet beyond the caches streams half the bytes per step).
+template <class Real>
+void sheet_forces_by_rows(Sheet<Real>& sheet, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f,
+                          RowSink sink);
 
 }  // namespace drape::detail

@@ -27,35 +27,67 @@ void apply_pins(Sheet<Real>& s, std::size_t begin = 0, std::size_t end = SIZE_MA
   }
 }
 
-// One component of forward Euler: x and v both advance from the old state.
+// Both first-order updates run over all three axes in one pass, so inv_mass is read once
+// and every array is streamed once per substep.
 template <class Real>
-void forward_euler_axis(std::size_t count, Real dt, Real g, Real* __restrict x, Real* __restrict v,
-                        const Real* __restrict f, const Real* __restrict inv_mass) {
+struct FirstOrderArrays {
+  Real* __restrict x;
+  Real* __restrict y;
+  Real* __restrict z;
+  Real* __restrict vx;
+  Real* __restrict vy;
+  Real* __restrict vz;
+  const Real* __restrict fx;
+  const Real* __restrict fy;
+  const Real* __restrict fz;
+  const Real* __restrict inv_mass;
+};
+
+// Forward Euler (SemiImplicit = false): x and v both advance from the old state.
+// Semi-implicit Euler (SemiImplicit = true): the new velocity moves the point.
+template <class Real, bool SemiImplicit>
+void first_order_update(std::size_t count, const StepParams<Real>& p, FirstOrderArrays<Real> a) {
+  Real* __restrict x = a.x;
+  Real* __restrict y = a.y;
+  Real* __restrict z = a.z;
+  Real* __restrict vx = a.vx;
+  Real* __restrict vy = a.vy;
+  Real* __restrict vz = a.vz;
+  const Real* __restrict fx = a.fx;
+  const Real* __restrict fy = a.fy;
+  const Real* __restrict fz = a.fz;
+  const Real* __restrict im = a.inv_mass;
+  const Real dt = p.dt, gx = p.gx, gy = p.gy, gz = p.gz;
   for (std::size_t i = 0; i < count; ++i) {
-    const Real a = f[i] * inv_mass[i] + g;
-    x[i] += dt * v[i];
-    v[i] += dt * a;
+    if constexpr (!SemiImplicit) {
+      x[i] += dt * vx[i];
+      y[i] += dt * vy[i];
+      z[i] += dt * vz[i];
+    }
+    vx[i] += dt * (fx[i] * im[i] + gx);
+    vy[i] += dt * (fy[i] * im[i] + gy);
+    vz[i] += dt * (fz[i] * im[i] + gz);
+    if constexpr (SemiImplicit) {
+      x[i] += dt * vx[i];
+      y[i] += dt * vy[i];
+      z[i] += dt * vz[i];
+    }
   }
 }
 
-// One component of semi-implicit Euler: the new velocity moves the point.
-template <class Real>
-void semi_implicit_euler_axis(std::size_t count, Real dt, Real g, Real* __restrict x, Real* __restrict v,
-                              const Real* __restrict f, const Real* __restrict inv_mass) {
-  for (std::size_t i = 0; i < count; ++i) {
-    v[i] += dt * (f[i] * inv_mass[i] + g);
-    x[i] += dt * v[i];
-  }
-}
-
-template <class Real, class AxisUpdate>
-void first_order_step(Sheet<Real>& s, const StepParams<Real>& p, AxisUpdate update) {
-  sheet_forces(s, cptr(s.position), cptr(s.velocity), ptr(s.force));
-  const std::size_t count = s.size();
-  const Real* inv_mass = s.inv_mass.data();
-  update(count, p.dt, p.gx, s.position.x.data(), s.velocity.x.data(), s.force.x.data(), inv_mass);
-  update(count, p.dt, p.gy, s.position.y.data(), s.velocity.y.data(), s.force.y.data(), inv_mass);
-  update(count, p.dt, p.gz, s.position.z.data(), s.velocity.z.data(), s.force.z.data(), inv_mass);
+// Each row is updated as soon as its force is final (sheet_forces_by_rows), so forces
+// never leave the cache.
+template <class Real, class Update>
+void first_order_step(Sheet<Real>& s, const StepParams<Real>& p, Update update) {
+  auto row_done = [&](std::size_t first, std::size_t count) {
+    update(count, p,
+           FirstOrderArrays<Real>{s.position.x.data() + first, s.position.y.data() + first,
+                                  s.position.z.data() + first, s.velocity.x.data() + first,
+                                  s.velocity.y.data() + first, s.velocity.z.data() + first,
+                                  s.force.x.data() + first, s.force.y.data() + first, s.force.z.data() + first,
+                                  s.inv_mass.data() + first});
+  };
+  sheet_forces_by_rows(s, cptr(s.position), cptr(s.velocity), ptr(s.force), RowSink::of(row_done));
 }
 
 // a = f(x, v)/m + g into s.force, with pinned points held at zero acceleration so that
@@ -173,8 +205,8 @@ void rk4_step(Sheet<Real>& s, const StepParams<Real>& p) {
 template <class Real>
 void integrate(Integrator integrator, Sheet<Real>& s, const StepParams<Real>& p) {
   switch (integrator) {
-    case Integrator::ForwardEuler: first_order_step(s, p, forward_euler_axis<Real>); break;
-    case Integrator::SemiImplicitEuler: first_order_step(s, p, semi_implicit_euler_axis<Real>); break;
+    case Integrator::ForwardEuler: first_order_step(s, p, first_order_update<Real, false>); break;
+    case Integrator::SemiImplicitEuler: first_order_step(s, p, first_order_update<Real, true>); break;
     case Integrator::VelocityVerlet: velocity_verlet_step(s, p); break;
     case Integrator::RK4: rk4_step(s, p); break;
     case Integrator::ImplicitEuler: implicit_euler_step(s, p); break;
@@ -189,16 +221,18 @@ bool updates_per_point(Integrator integrator) {
 template <class Real>
 void update_points(Integrator integrator, Sheet<Real>& s, const StepParams<Real>& p, std::size_t begin,
                    std::size_t end) {
+  // the same update as the whole-sheet step, on this block's points only
   auto run = [&](auto update) {
-    const std::size_t count = end - begin;
-    const Real* inv_mass = s.inv_mass.data() + begin;
-    update(count, p.dt, p.gx, s.position.x.data() + begin, s.velocity.x.data() + begin, s.force.x.data() + begin, inv_mass);
-    update(count, p.dt, p.gy, s.position.y.data() + begin, s.velocity.y.data() + begin, s.force.y.data() + begin, inv_mass);
-    update(count, p.dt, p.gz, s.position.z.data() + begin, s.velocity.z.data() + begin, s.force.z.data() + begin, inv_mass);
+    update(end - begin, p,
+           FirstOrderArrays<Real>{s.position.x.data() + begin, s.position.y.data() + begin,
+                                  s.position.z.data() + begin, s.velocity.x.data() + begin,
+                                  s.velocity.y.data() + begin, s.velocity.z.data() + begin,
+                                  s.force.x.data() + begin, s.force.y.data() + begin, s.force.z.data() + begin,
+                                  s.inv_mass.data() + begin});
   };
   switch (integrator) {
-    case Integrator::ForwardEuler: run(forward_euler_axis<Real>); break;
-    case Integrator::SemiImplicitEuler: run(semi_implicit_euler_axis<Real>); break;
+    case Integrator::ForwardEuler: run(first_order_update<Real, false>); break;
+    case Integrator::SemiImplicitEuler: run(first_order_update<Real, true>); break;
     default: break;  // updates_per_point() keeps the other integrators whole: never split
   }
   apply_pins(s, begin, end);

@@ -190,6 +190,7 @@ Sheet<Real> build_sheet(const SheetDef& d) {
     for (std::uint32_t e = 0; e < springs; ++e)
       if (inside(topo->a[e]) && inside(topo->b[e])) topo->stiffness[e] = static_cast<Real>(reg.stiffness);
   }
+  topo->find_uniform();
 
   Sheet<Real> s;
   s.topology = std::move(topo);

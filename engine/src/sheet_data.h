@@ -7,6 +7,8 @@
 
 #include <cstdint>
 #include <memory>
+#include <new>
+#include <optional>
 #include <vector>
 
 namespace drape::detail {
@@ -32,6 +34,15 @@ struct Topology {
   std::vector<Real> rest_length;  // ℓ per spring, m
   std::vector<Real> stiffness;    // k per spring, N/m
 
+  // Set when every spring has one stiffness and each direction one rest length (any sheet
+  // without stiffness regions): the spring kernel then reads constants instead of two
+  // arrays, chosen once per sheet. Empty means per spring, which is always correct.
+  struct Uniform {
+    Real stiffness, rest_h, rest_v;
+    friend bool operator==(const Uniform&, const Uniform&) = default;
+  };
+  std::optional<Uniform> uniform;
+
   std::uint32_t cols() const { return n + 1; }
   std::uint32_t rows() const { return m + 1; }
   std::uint32_t points() const { return rows() * cols(); }
@@ -39,6 +50,18 @@ struct Topology {
   std::uint32_t springs() const { return static_cast<std::uint32_t>(a.size()); }
 
   friend bool operator==(const Topology&, const Topology&) = default;
+
+  // Fills `uniform` from the arrays; call after the last change to them.
+  void find_uniform() {
+    uniform.reset();
+    const std::size_t h = horizontal_count();
+    if (rest_length.empty()) return;
+    const Real k = stiffness.front(), rh = h > 0 ? rest_length.front() : Real(0);
+    const Real rv = rest_length.size() > h ? rest_length[h] : Real(0);
+    for (std::size_t e = 0; e < rest_length.size(); ++e)
+      if (stiffness[e] != k || rest_length[e] != (e < h ? rh : rv)) return;
+    uniform = Uniform{k, rh, rv};
+  }
 };
 
 template <class Real>
@@ -55,10 +78,28 @@ struct Pins {
   bool empty() const { return point.empty(); }
 };
 
+// Allocates on 64-byte boundaries, so a sweep streams whole cache lines and no 64-byte
+// vector access straddles two of them (the machine-ceiling benchmark showed the sweep of a
+// sheet beyond the caches losing a third of its speed to misaligned arrays).
+template <class T>
+struct CacheAligned {
+  using value_type = T;
+  static constexpr std::size_t alignment = 64;
+  CacheAligned() = default;
+  template <class U>
+  constexpr CacheAligned(const CacheAligned<U>&) noexcept {}
+  T* allocate(std::size_t n) { return static_cast<T*>(::operator new(n * sizeof(T), std::align_val_t(alignment))); }
+  void deallocate(T* p, std::size_t) noexcept { ::operator delete(p, std::align_val_t(alignment)); }
+  friend bool operator==(const CacheAligned&, const CacheAligned&) { return true; }
+};
+
+template <class Real>
+using AlignedArray = std::vector<Real, CacheAligned<Real>>;
+
 // Three parallel arrays, the unit every kernel reads and writes.
 template <class Real>
 struct Vec3Array {
-  std::vector<Real> x, y, z;
+  AlignedArray<Real> x, y, z;
   void resize(std::size_t count, Real value = Real(0)) {
     x.assign(count, value);
     y.assign(count, value);
@@ -75,9 +116,9 @@ template <class Real>
 struct Sheet {
   std::shared_ptr<const Topology<Real>> topology;
   Vec3Array<Real> position, velocity;
-  Vec3Array<Real> force;             // scratch of the force kernels
-  std::vector<Real> mass, inv_mass;  // per point
-  std::vector<Real> damping;         // per point; empty: the sheet has no damping term
+  Vec3Array<Real> force;              // scratch of the force kernels
+  AlignedArray<Real> mass, inv_mass;  // per point
+  AlignedArray<Real> damping;         // per point; empty: the sheet has no damping term
   Anchors<Real> anchors;
   Pins<Real> pins;
   Vec3Array<Real> row_scratch;       // one row of horizontal spring forces

@@ -1,0 +1,58 @@
+// Scenes and counters shared by the benchmark files. Every figure in docs/BENCHMARKS.md
+// is a rate of point-steps per second (points × steps ÷ s), so files stay comparable.
+#pragma once
+
+#include <benchmark/benchmark.h>
+#include <drape/drape.h>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace drape::bench {
+
+// The terms a benchmarked sheet carries, to price each one separately.
+struct Features {
+  bool pins = false;     // four corners hard-pinned (the paper's Figs 5, 7 set-up)
+  bool anchors = false;  // four corners held by eq (8) springs instead
+  bool damping = false;  // eq (4)'s C
+};
+
+// A flat side×side-point sheet of cloth, 1 m square, 1 kg, k = 100 N/m: the Fig 13 scene.
+inline SheetDef square_sheet(std::uint32_t side, Features f = {true, false, false}, Vec3 center = {}) {
+  SheetDef sd;
+  sd.m = sd.n = side - 1;
+  sd.center = center;
+  sd.stiffness = 100.0;
+  if (f.pins) sd.pins = corner_points(sd.m, sd.n);
+  if (f.anchors) sd.anchors = anchors_at(corner_points(sd.m, sd.n), 1000.0);
+  if (f.damping) sd.damping = 1e-3;
+  return sd;
+}
+
+// Half the explicit stability limit, so no run blows up (non-finite or denormal values
+// would change the cost being measured).
+template <class W>
+void set_stable_dt(W& world) {
+  world.set_dt(0.5 * world.stable_step_estimate());
+}
+
+inline void set_point_rate(benchmark::State& state, double points_per_step) {
+  state.counters["points"] = points_per_step;
+  state.counters["point_steps_per_s"] =
+      benchmark::Counter(points_per_step * double(state.iterations()), benchmark::Counter::kIsRate);
+}
+
+// Every integrator the engine has: the enum is walked until integrator_name stops knowing
+// a value, so a new integrator is benchmarked as soon as it has a name.
+inline std::vector<Integrator> all_integrators() {
+  std::vector<Integrator> all;
+  for (int i = 0; i < 64; ++i) {
+    const auto integrator = static_cast<Integrator>(i);
+    if (integrator_name(integrator) == "unknown") break;
+    all.push_back(integrator);
+  }
+  return all;
+}
+
+}  // namespace drape::bench

@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# Runs drape's benchmark suite and regenerates docs/BENCHMARKS.md and docs/img/*.png.
+#
+# Build: Release (-O3 -DNDEBUG) with -march=native and -fno-math-errno (see the top-level
+# CMakeLists.txt, drape_flags), in its own build directory so a Debug or sanitizer build in
+# build/ is never measured. Run: one drape_bench process, every benchmark --benchmark_repetitions
+# times for --benchmark_min_time seconds each, repetitions of different benchmarks randomly
+# interleaved so a slow spell of a shared machine does not land on one benchmark; the report
+# uses the medians.
+#
+# Environment (all optional):
+#   DRAPE_BENCH_BUILD_DIR   build directory              (build-bench)
+#   DRAPE_BENCH_MIN_TIME    seconds per repetition        (0.2)
+#   DRAPE_BENCH_REPETITIONS repetitions per benchmark     (3)
+#   PYTHON                  interpreter with matplotlib   (/usr/bin/python3, Debian's)
+# Extra arguments go to drape_bench, e.g. --benchmark_filter=Fig13 for a partial report.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+tools/setup.sh
+build=${DRAPE_BENCH_BUILD_DIR:-build-bench}
+min_time=${DRAPE_BENCH_MIN_TIME:-0.2}
+repetitions=${DRAPE_BENCH_REPETITIONS:-3}
+python=${PYTHON:-/usr/bin/python3}
+json=docs/benchmarks.json
+
+cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release -DDRAPE_NATIVE=ON -DDRAPE_WERROR=ON \
+  -DDRAPE_BUILD_TESTS=OFF -DDRAPE_BUILD_APPS=OFF >/dev/null
+cmake --build "$build" --target drape_bench -j"$(nproc)"
+
+mkdir -p docs/img
+command=("$build/bench/drape_bench" "--benchmark_min_time=$min_time" "--benchmark_repetitions=$repetitions"
+  --benchmark_enable_random_interleaving=true --benchmark_report_aggregates_only=true "$@")
+# Written next to the report only when the run completes, so a failed run leaves the old one.
+"${command[@]}" --benchmark_out="$json.tmp" --benchmark_out_format=json
+mv "$json.tmp" "$json"
+"$python" tools/bench_report.py --json "$json" --build-dir "$build" --out docs/BENCHMARKS.md --img docs/img \
+  --command "tools/bench.sh (${command[*]:1})"

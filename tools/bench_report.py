@@ -1,0 +1,596 @@
+#!/usr/bin/env python3
+"""Turns the JSON of one drape_bench run into docs/BENCHMARKS.md and docs/img/*.png.
+
+Every number in the report comes from the JSON (and, for the machine and the flags, from
+/proc/cpuinfo, the compiler and the build's compile_commands.json); none are typed in.
+Usage: tools/bench_report.py --json docs/benchmarks.json --build-dir build-bench
+Normally run by tools/bench.sh.
+"""
+
+import argparse
+import json
+import math
+import os
+import re
+import shlex
+import subprocess
+import sys
+from collections import defaultdict
+
+# Issue 6's targets, in one place.
+TARGET_SLOPE = 1.00
+TARGET_SLOPE_TOL = 0.05
+TARGET_1000_POINTS_US = 10.0
+TARGET_CEILING_FRACTION = 0.50
+TARGET_SPEEDUP_SHEETS = 1.85
+TARGET_SPEEDUP_HUGE = 1.7
+TARGET_OVERHEAD = 0.05  # world with no obstacles/contacts vs the bare kernel
+TARGET_BROADPHASE_SHARE = 0.05
+
+PAPER_INTEGRATOR = "semi_implicit_euler"
+
+
+def fail(message):
+    print(f"bench_report: {message}", file=sys.stderr)
+    sys.exit(1)
+
+
+class Run:
+    """One benchmark: median over repetitions when there were several."""
+
+    def __init__(self, name, entry, cv):
+        self.name = name
+        self.rate = entry.get("point_steps_per_s")  # points × steps / s
+        self.points = entry.get("points")
+        self.real_time = name.endswith("/real_time")
+        unit = {"ns": 1e-9, "us": 1e-6, "ms": 1e-3, "s": 1.0}[entry["time_unit"]]
+        self.seconds = (entry["real_time"] if self.real_time else entry["cpu_time"]) * unit
+        self.cv = cv  # coefficient of variation over repetitions, or None
+
+    @property
+    def step_seconds(self):
+        """Time of one iteration (one substep of the benchmarked scene)."""
+        return self.seconds
+
+
+def load_runs(path):
+    try:
+        with open(path) as f:
+            data = json.load(f)
+    except (OSError, json.JSONDecodeError) as e:
+        fail(f"cannot read benchmark JSON {path}: {e}")
+    by_name = defaultdict(dict)
+    for b in data.get("benchmarks", []):
+        name = b.get("run_name", b["name"])
+        if b.get("run_type") == "aggregate":
+            by_name[name][b["aggregate_name"]] = b
+        elif "error_occurred" not in b:
+            by_name[name].setdefault("single", b)
+    runs = {}
+    for name, entries in by_name.items():
+        entry = entries.get("median") or entries.get("single")
+        if entry is None:
+            continue
+        cv = None
+        if "cv" in entries:
+            c = entries["cv"]
+            cv = c["real_time"] if name.endswith("/real_time") else c["cpu_time"]
+        runs[name] = Run(name, entry, cv)
+    if not runs:
+        fail(f"{path} holds no benchmark results")
+    return data["context"], runs
+
+
+def cpu_model():
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return "unknown"
+
+
+def compiler_and_flags(build_dir):
+    compiler, flags = "unknown", "unknown"
+    try:
+        with open(os.path.join(build_dir, "compile_commands.json")) as f:
+            commands = json.load(f)
+        entry = next(c for c in commands if c["file"].endswith("forces.cpp"))
+        args = shlex.split(entry["command"])
+        compiler = args[0]
+        kept, skip = [], False
+        for a in args[1:]:
+            if skip:
+                skip = False
+                continue
+            if a in ("-o", "-c", "-isystem", "-I"):
+                skip = True
+                continue
+            if a.startswith("-I") or a.endswith(".cpp"):
+                continue
+            kept.append(a)
+        flags = " ".join(kept)
+        version = subprocess.run([compiler, "--version"], capture_output=True, text=True).stdout.splitlines()
+        if version:
+            compiler = version[0]
+    except (OSError, StopIteration, json.JSONDecodeError, subprocess.SubprocessError):
+        pass
+    return compiler, flags
+
+
+def loglog_slope(xs, ys):
+    lx = [math.log(x) for x in xs]
+    ly = [math.log(y) for y in ys]
+    n = len(lx)
+    mx, my = sum(lx) / n, sum(ly) / n
+    sxx = sum((a - mx) ** 2 for a in lx)
+    return sum((a - mx) * (b - my) for a, b in zip(lx, ly)) / sxx if sxx > 0 else float("nan")
+
+
+def us(seconds):
+    return f"{seconds * 1e6:,.1f}"
+
+
+def mrate(rate):
+    return f"{rate / 1e6:,.1f}"
+
+
+def pct(x):
+    return f"{100 * x:.0f} %"
+
+
+def cv_text(run):
+    return f" (±{100 * run.cv:.0f} %)" if run.cv is not None else ""
+
+
+def verdict(met):
+    return "met" if met else "**missed**"
+
+
+class Report:
+    def __init__(self, context, runs, build_dir, img_dir, md_dir):
+        self.context, self.runs = context, runs
+        self.build_dir, self.img_dir, self.md_dir = build_dir, img_dir, md_dir
+        self.lines, self.targets, self.used = [], [], set()
+        self.plt = None
+        try:
+            import matplotlib
+
+            matplotlib.use("Agg")
+            import matplotlib.pyplot as plt
+
+            self.plt = plt
+        except ImportError:
+            print("bench_report: matplotlib missing (tools/setup.sh installs python3-matplotlib); no plots",
+                  file=sys.stderr)
+
+    def get(self, name):
+        run = self.runs.get(name)
+        if run is not None:
+            self.used.add(name)
+        return run
+
+    def out(self, *lines):
+        self.lines.extend(lines)
+
+    def target(self, what, value, goal, met, by):
+        self.targets.append((what, value, goal, verdict(met) if met is not None else "not measured", by))
+
+    def image(self, fig, name, alt):
+        if fig is None:
+            return
+        os.makedirs(self.img_dir, exist_ok=True)
+        path = os.path.join(self.img_dir, name)
+        fig.savefig(path, dpi=110, bbox_inches="tight")
+        self.plt.close(fig)
+        self.out(f"![{alt}]({os.path.relpath(path, self.md_dir)})", "")
+
+    # --- sections ---------------------------------------------------------------------------
+
+    def fig13(self):
+        series = defaultdict(dict)  # (integrator, precision) -> side -> Run
+        for name, run in self.runs.items():
+            m = re.fullmatch(r"BM_Fig13/(\w+)/(f32|f64)/(\d+)", name)
+            if m:
+                series[(m.group(1), m.group(2))][int(m.group(3))] = self.get(name)
+        ceiling = {}
+        for name in self.runs:
+            m = re.fullmatch(r"BM_CeilingSheet/(\d+)", name)
+            if m:
+                ceiling[int(m.group(1))] = self.get(name)
+        if not series:
+            return
+        sides = sorted({s for runs in series.values() for s in runs})
+        keys = sorted(series, key=lambda k: (k[0] != PAPER_INTEGRATOR, k[0], k[1] != "f64"))
+        self.out("## Fig 13: time per step of one sheet against its points", "",
+                 "One sheet of side×side points, corners pinned, gravity, dt half the explicit stability limit, "
+                 "one thread. Time per step in µs (CPU time of the stepping thread); the last row is the "
+                 "least-squares slope of log time against log points (the paper's claim: 1, linear cost).", "")
+        header = "| points | " + " | ".join(f"{i} {p}" for i, p in keys) + " | ceiling (plain arrays, f64) |"
+        self.out(header, "|" + "---|" * (len(keys) + 2))
+        for side in sides:
+            cells = []
+            for k in keys:
+                r = series[k].get(side)
+                cells.append(us(r.step_seconds) if r else "–")
+            c = ceiling.get(side)
+            self.out(f"| {side}×{side} = {side * side:,} | " + " | ".join(cells) + f" | {us(c.step_seconds) if c else '–'} |")
+        slopes = {}
+        for k in keys:
+            pts = sorted(series[k])
+            if len(pts) >= 2:
+                slopes[k] = loglog_slope([s * s for s in pts], [series[k][s].step_seconds for s in pts])
+        ceiling_slope = (loglog_slope([s * s for s in sorted(ceiling)], [ceiling[s].step_seconds for s in sorted(ceiling)])
+                         if len(ceiling) >= 2 else None)
+        ceiling_cell = f"**{ceiling_slope:.3f}**" if ceiling_slope is not None else "–"
+        self.out("| **log–log slope** | " + " | ".join(f"**{slopes[k]:.3f}**" if k in slopes else "–" for k in keys)
+                 + f" | {ceiling_cell} |")
+        # the same fit on the small and the large half, to show where the memory hierarchy bends it
+        split = sides[len(sides) // 2] if sides else None
+        self.split_slopes = {}
+        for label, keep in ((f"≤ {split}²", lambda s: s <= split), (f"≥ {split}²", lambda s: s >= split)):
+            cells = []
+            for k in keys + [None]:
+                data = ceiling if k is None else series[k]
+                pts = [s for s in sorted(data) if keep(s)]
+                slope = loglog_slope([s * s for s in pts], [data[s].step_seconds for s in pts]) if len(pts) >= 2 else None
+                self.split_slopes[(k, label)] = slope
+                cells.append(f"{slope:.3f}" if slope is not None else "–")
+            self.out(f"| slope, sides {label} | " + " | ".join(cells) + " |")
+        self.out("")
+        self.split_label = (f"≤ {split}²", f"≥ {split}²")
+        self.fig13_slope = slopes.get((PAPER_INTEGRATOR, "f64"))
+        self.ceiling_slope = ceiling_slope
+        if self.fig13_slope is not None:
+            lo, hi = min(series[(PAPER_INTEGRATOR, "f64")]), max(series[(PAPER_INTEGRATOR, "f64")])
+            miss = abs(self.fig13_slope - TARGET_SLOPE) - TARGET_SLOPE_TOL
+            self.target(f"Fig 13 slope, {PAPER_INTEGRATOR} f64, {lo}² … {hi}² points", f"{self.fig13_slope:.3f}",
+                        f"{TARGET_SLOPE:.2f} ± {TARGET_SLOPE_TOL:.2f}", miss <= 0,
+                        "" if miss <= 0 else f"outside the band by {miss:.3f}")
+        # rates across sizes, to show where the cache hierarchy bends the line
+        self.out("Rates in million point-steps per second, and the fraction of the machine ceiling "
+                 "(the same sheet stepped by plain arrays in the same run):", "")
+        f64_keys = [k for k in keys if k[1] == "f64"]
+        self.out("| points | " + " | ".join(f"{i} f64" for i, _ in f64_keys) + " | ceiling |",
+                 "|" + "---|" * (len(f64_keys) + 2))
+        for side in sides:
+            c = ceiling.get(side)
+            cells = []
+            for k in f64_keys:
+                r = series[k].get(side)
+                if r is None:
+                    cells.append("–")
+                else:
+                    frac = f" ({pct(r.rate / c.rate)})" if c else ""
+                    cells.append(mrate(r.rate) + frac)
+            self.out(f"| {side * side:,} | " + " | ".join(cells) + f" | {mrate(c.rate) if c else '–'} |")
+        self.out("")
+        if self.plt:
+            fig, ax = self.plt.subplots(figsize=(7, 5))
+            for k in keys:
+                pts = sorted(series[k])
+                ax.loglog([s * s for s in pts], [series[k][s].step_seconds * 1e6 for s in pts], marker="o",
+                          linestyle="-" if k[1] == "f64" else "--", label=f"{k[0]} {k[1]} (slope {slopes.get(k, float('nan')):.2f})")
+            if ceiling:
+                pts = sorted(ceiling)
+                ax.loglog([s * s for s in pts], [ceiling[s].step_seconds * 1e6 for s in pts], color="black",
+                          marker="x", linestyle=":", label=f"machine ceiling f64 (slope {ceiling_slope:.2f})")
+            ax.set_xlabel("points in the sheet")
+            ax.set_ylabel("time per step (µs)")
+            ax.set_title("Fig 13 on this machine: time per step against points")
+            ax.grid(True, which="both", alpha=0.3)
+            ax.legend(fontsize=8)
+            self.image(fig, "fig13.png", "Fig 13: time per step against points, log-log")
+
+    def paper_size(self):
+        r = self.get("BM_Paper1000Points/32")
+        if r is None:
+            return
+        t = r.step_seconds * 1e6
+        self.out("## The paper's 1000 points", "",
+                 f"One 32×32 sheet (1,024 points), {PAPER_INTEGRATOR}, float64: **{t:.2f} µs per step**{cv_text(r)}, "
+                 f"{mrate(r.rate)} M point-steps/s, i.e. {1e6 / t:,.0f} steps per second of wall time, "
+                 f"{1e6 / t / 30:,.0f} steps per frame at 30 frames/s.", "")
+        self.target("1000-point sheet (32×32), semi-implicit f64, per step", f"{t:.2f} µs",
+                    f"< {TARGET_1000_POINTS_US:.0f} µs", t < TARGET_1000_POINTS_US,
+                    "" if t < TARGET_1000_POINTS_US else f"{t - TARGET_1000_POINTS_US:.2f} µs over")
+
+    def threads(self):
+        groups = [("48 sheets of 64×64, f64", "BM_Sheets48_f64", TARGET_SPEEDUP_SHEETS),
+                  ("48 sheets of 64×64, f32", "BM_Sheets48_f32", None),
+                  ("one 1024×1024 sheet, f64", "BM_HugeSheet", TARGET_SPEEDUP_HUGE)]
+        rows, plot = [], []
+        for label, base, goal in groups:
+            one = self.get(f"{base}/threads:1/real_time")
+            two = self.get(f"{base}/threads:2/real_time")
+            if one is None or two is None:
+                continue
+            speedup = one.step_seconds / two.step_seconds
+            rows.append(f"| {label} | {us(one.step_seconds)}{cv_text(one)} | {us(two.step_seconds)}{cv_text(two)} | "
+                        f"{mrate(one.rate)} | {mrate(two.rate)} | {speedup:.2f} |")
+            plot.append((label, one.rate, two.rate))
+            if goal is not None:
+                self.target(f"2-thread speedup, {label}", f"{speedup:.2f}", f"≥ {goal}", speedup >= goal,
+                            "" if speedup >= goal else f"{goal - speedup:.2f} short")
+        if not rows:
+            return
+        self.out("## Thread scaling", "",
+                 "Wall-clock time per step; the world's task arena sized to 1 or 2 threads. Speedup = time at 1 "
+                 "thread ÷ time at 2 threads.", "",
+                 "| scene | 1 thread (µs) | 2 threads (µs) | M pt-steps/s, 1 | M pt-steps/s, 2 | speedup |",
+                 "|---|---|---|---|---|---|", *rows, "")
+        if self.plt:
+            fig, ax = self.plt.subplots(figsize=(7, 4))
+            width = 0.38
+            xs = range(len(plot))
+            ax.bar([x - width / 2 for x in xs], [p[1] / 1e6 for p in plot], width, label="1 thread")
+            ax.bar([x + width / 2 for x in xs], [p[2] / 1e6 for p in plot], width, label="2 threads")
+            for x, p in zip(xs, plot):
+                ax.annotate(f"×{p[2] / p[1]:.2f}", (x + width / 2, p[2] / 1e6), ha="center", va="bottom", fontsize=8)
+            ax.set_xticks(list(xs))
+            ax.set_xticklabels([p[0] for p in plot], fontsize=8)
+            ax.set_ylabel("million point-steps per second")
+            ax.set_title("Thread scaling")
+            ax.legend()
+            self.image(fig, "threads.png", "Thread scaling: rates at 1 and 2 threads")
+
+    def ceiling(self):
+        ceil_cpu = self.get("BM_CeilingSheets48")
+        ceil_wall = self.get("BM_CeilingSheets48/real_time")
+        pairs = [("engine, corners pinned (BM_Feature_pins)", "CPU", self.get("BM_Feature_pins"), ceil_cpu),
+                 ("engine, bare springs (BM_Feature_bare)", "CPU", self.get("BM_Feature_bare"), ceil_cpu),
+                 ("engine, corners pinned, 1-thread world (BM_Sheets48_f64)", "wall",
+                  self.get("BM_Sheets48_f64/threads:1/real_time"), ceil_wall)]
+        pairs = [p for p in pairs if p[2] is not None and p[3] is not None]
+        if not pairs:
+            return
+        self.out("## Against the machine ceiling", "",
+                 "The ceiling is the simplest explicit spring step this machine runs for the same 48 sheets of "
+                 "64×64: plain arrays, one stiffness, one rest length, one mass, semi-implicit Euler, fused by "
+                 "rows, corners pinned, one thread (bench/bench_ceiling.cpp). Each engine figure is divided by the "
+                 "ceiling measured the same way (CPU time, or wall time).", "",
+                 "| 48 sheets of 64×64, one thread | clock | M point-steps/s | ceiling, M point-steps/s | fraction |",
+                 "|---|---|---|---|---|")
+        for label, clock, r, c in pairs:
+            self.out(f"| {label} | {clock} | {mrate(r.rate)}{cv_text(r)} | {mrate(c.rate)}{cv_text(c)} | "
+                     f"{pct(r.rate / c.rate)} |")
+        self.out("")
+        label, clock, r, c = pairs[0]
+        frac = r.rate / c.rate
+        self.target(f"48 sheets of 64×64, engine ÷ ceiling ({clock} time)", pct(frac), f"≥ {pct(TARGET_CEILING_FRACTION)}",
+                    frac >= TARGET_CEILING_FRACTION,
+                    "" if frac >= TARGET_CEILING_FRACTION else f"{100 * (TARGET_CEILING_FRACTION - frac):.0f} points short")
+
+    def precision(self):
+        rows = []
+        for name, run in sorted(self.runs.items()):
+            m = re.fullmatch(r"BM_Fig13/(\w+)/f32/(\d+)", name)
+            if m:
+                r64 = self.runs.get(f"BM_Fig13/{m.group(1)}/f64/{m.group(2)}")
+                if r64:
+                    rows.append((m.group(1), int(m.group(2)), run, r64))
+        if not rows:
+            return
+        rows.sort(key=lambda r: (r[0], r[1]))
+        self.out("## float32 against float64", "",
+                 "Same scenes (Fig 13), WorldF against World. Speedup = float64 time ÷ float32 time.", "",
+                 "| integrator | points | f64 (µs) | f32 (µs) | f32 speedup |", "|---|---|---|---|---|")
+        for integrator, side, r32, r64 in rows:
+            self.out(f"| {integrator} | {side * side:,} | {us(r64.step_seconds)} | {us(r32.step_seconds)} | "
+                     f"{r64.step_seconds / r32.step_seconds:.2f} |")
+        s64 = self.runs.get("BM_Sheets48_f64/threads:1/real_time")
+        s32 = self.runs.get("BM_Sheets48_f32/threads:1/real_time")
+        if s64 and s32:
+            self.out(f"| 48 sheets, 1 thread | {48 * 64 * 64:,} | {us(s64.step_seconds)} | {us(s32.step_seconds)} | "
+                     f"{s64.step_seconds / s32.step_seconds:.2f} |")
+        self.out("")
+
+    def features(self):
+        order = ["kernel_only", "bare", "pins", "anchors", "damping", "finite_check_per_frame",
+                 "finite_check_per_substep", "obstacle", "contacts", "all"]
+        meaning = {
+            "kernel_only": "spring kernel + integrator called directly, no World",
+            "bare": "World: springs + semi-implicit Euler + gravity",
+            "pins": "+ 4 hard pins per sheet",
+            "anchors": "+ 4 eq (8) anchors per sheet",
+            "damping": "+ damping −Cẋ (eq 4)",
+            "finite_check_per_frame": "+ all_finite() once per 33 substeps (a 30 frame/s frame)",
+            "finite_check_per_substep": "+ all_finite() after every substep",
+            "obstacle": "+ a floor (eq 9) under every sheet, acting on all points",
+            "contacts": "+ contacts between sheets",
+            "all": "pins + anchors + damping + floor + guard per frame",
+        }
+        found = {}
+        for name in self.runs:
+            m = re.fullmatch(r"BM_Feature_(\w+)", name)
+            if m:
+                found[m.group(1)] = self.get(name)
+        bare = found.get("bare")
+        if bare is None:
+            return
+        self.out("## Feature prices", "",
+                 "48 sheets of 64×64 on one thread (CPU time), one term added at a time. Price = extra time per "
+                 "substep relative to the bare World.", "",
+                 "| scene | what it adds | µs per substep | M point-steps/s | price vs bare |", "|---|---|---|---|---|")
+        names = [n for n in order if n in found] + sorted(n for n in found if n not in order)
+        for n in names:
+            r = found[n]
+            price = r.step_seconds / bare.step_seconds - 1
+            self.out(f"| {n} | {meaning.get(n, '')} | {us(r.step_seconds)}{cv_text(r)} | {mrate(r.rate)} | "
+                     f"{'–' if n == 'bare' else f'{100 * price:+.1f} %'} |")
+        self.out("")
+        for n in ("obstacle", "contacts"):
+            if n not in found:
+                self.out(f"- `{n}`: not in this run (its benchmark is added when that term is merged).")
+        self.out("")
+        kernel = found.get("kernel_only")
+        if kernel is not None:
+            over = bare.step_seconds / kernel.step_seconds - 1
+            self.target("World without obstacles/contacts vs bare kernel", f"{100 * over:+.1f} %",
+                        f"within {pct(TARGET_OVERHEAD)}", over <= TARGET_OVERHEAD,
+                        "" if over <= TARGET_OVERHEAD else f"{100 * (over - TARGET_OVERHEAD):.1f} points over")
+        if self.plt:
+            fig, ax = self.plt.subplots(figsize=(7, 4))
+            ax.barh([n for n in names][::-1], [found[n].step_seconds * 1e3 for n in names][::-1], color="tab:blue")
+            ax.axvline(bare.step_seconds * 1e3, color="black", linestyle=":", label="bare")
+            ax.set_xlabel("ms per substep (48 sheets of 64×64, one thread)")
+            ax.set_title("Feature prices")
+            ax.legend()
+            self.image(fig, "features.png", "Feature prices: time per substep with each term")
+
+    def broad_phase(self):
+        found = {n: r for n, r in self.runs.items() if "BroadPhase" in n or "broad_phase" in n.lower()}
+        if not found:
+            self.target("Broad-phase for 10,000 sheets, share of the world step", "–",
+                        f"< {pct(TARGET_BROADPHASE_SHARE)}", None, "no broad-phase benchmark in this run")
+            return
+        self.out("## Broad-phase", "", "| benchmark | µs per call |", "|---|---|")
+        for n in sorted(found):
+            self.used.add(n)
+            self.out(f"| {n} | {us(found[n].step_seconds)}{cv_text(found[n])} |")
+        self.out("")
+
+    def notes(self):
+        """Why a missed target was missed, from this run's own numbers."""
+        notes = []
+        load = (self.context.get("load_avg") or [0])[0]
+        cpus = self.context.get("num_cpus", 2)
+        missed = {what for what, _, _, v, _ in self.targets if v == verdict(False)}
+        if any(w.startswith("Fig 13 slope") for w in missed) and getattr(self, "fig13_slope", None) is not None:
+            small, large = self.split_label
+            s_small = self.split_slopes.get(((PAPER_INTEGRATOR, "f64"), small))
+            s_large = self.split_slopes.get(((PAPER_INTEGRATOR, "f64"), large))
+            c_all = self.ceiling_slope
+            l2 = next((c["size"] for c in self.context.get("caches", []) if c["level"] == 2), None)
+            text = (f"- **Fig 13 slope.** The fit over all sizes is {self.fig13_slope:.3f}; over sides {small} it is "
+                    f"{s_small:.3f} and over sides {large} it is {s_large:.3f}.")
+            if c_all is not None:
+                text += (f" The plain-array ceiling, which has no engine around it, shows {c_all:.3f} over the same "
+                         "sizes, so the bend is the machine's memory hierarchy, not the engine's algorithm: the cost per "
+                         "point is constant while a sheet's arrays fit the cache"
+                         + (f" (L2: {l2 // 1024} KiB per core)" if l2 else "")
+                         + " and grows once every step streams them from L3 or memory.")
+            f32 = self.runs.get(f"BM_Fig13/{PAPER_INTEGRATOR}/f32/16")
+            text += (" What would close it: fewer bytes per point per step — float32 halves them"
+                     + (" (see its slope above)" if f32 else "")
+                     + " — or sweeping a large sheet in bands of rows for several substeps at a time so each band "
+                     "stays in cache (temporal blocking; it gives the same result for explicit steps, since a row "
+                     "only needs its neighbours).")
+            notes.append(text)
+        speed_missed = [w for w in missed if w.startswith("2-thread speedup")]
+        if speed_missed:
+            text = "- **Thread speedups.** "
+            if load > 0.5:
+                text += (f"The run started with a load average of {load:.2f} on {cpus} logical cores: the second "
+                         "thread competed with other jobs for a core, so these speedups say little about drape. ")
+            text += ("48 sheets give the parallel stage 48 independent tasks with no shared writes, so nothing in "
+                     "drape serialises them; what remains is the cache and memory bandwidth the two cores share. ")
+            one = self.runs.get("BM_HugeSheet/threads:1/real_time")
+            two = self.runs.get("BM_HugeSheet/threads:2/real_time")
+            if any("1024×1024" in w for w in speed_missed) and one and two:
+                if one.step_seconds / two.step_seconds < 1.15:
+                    text += ("The huge sheet ran on one thread: one sheet is one task unless the world splits it "
+                             "into blocks of rows (spring_forces over a row range is bit-identical to the whole "
+                             "sheet, ready for that split).")
+                else:
+                    text += ("The huge sheet is split, but each step streams its arrays from L3 or memory, whose "
+                             "bandwidth the two cores share; fusing more work per byte (temporal blocking, above) "
+                             "would help both.")
+            notes.append(text)
+        bare, kernel = self.runs.get("BM_Feature_bare"), self.runs.get("BM_Feature_kernel_only")
+        if any(w.startswith("World without") for w in missed) and bare and kernel:
+            over = bare.step_seconds / kernel.step_seconds - 1
+            noise = max(bare.cv or 0, kernel.cv or 0)
+            extra = (bare.step_seconds - kernel.step_seconds) * 1e6
+            if over <= 2 * noise:
+                notes.append(f"- **World overhead.** The World costs {100 * over:+.1f} % over the bare kernel, within "
+                             f"twice this run's repetition noise (±{100 * noise:.0f} %); rerun on a quiet machine.")
+            else:
+                pins = self.runs.get("BM_Feature_pins")
+                text = (f"- **World overhead.** The World adds {extra:.1f} µs per substep ({100 * over:+.1f} %) to the "
+                        "bare kernel.")
+                if pins and pins.step_seconds < bare.step_seconds:
+                    text += (" The same run has the pinned scene, which does more work, faster than the bare one, so "
+                             "differences of this size are the machine's noise here; rerun on a quiet machine.")
+                else:
+                    text += (" What is left between them is the parallel stage's own cost (task-arena entry, "
+                             "parallel_for over the sheets); stepping several substeps per arena entry would "
+                             "amortise it.")
+                notes.append(text)
+        if notes:
+            self.out("## Notes on missed targets", "", *notes, "")
+
+    def others(self):
+        rest = sorted(n for n in self.runs if n not in self.used)
+        if not rest:
+            return
+        self.out("## Other benchmarks in this run", "", "| benchmark | µs per iteration | M point-steps/s |", "|---|---|---|")
+        for n in rest:
+            r = self.runs[n]
+            self.out(f"| {n} | {us(r.step_seconds)}{cv_text(r)} | {mrate(r.rate) if r.rate else '–'} |")
+        self.out("")
+
+    def render(self, command):
+        ctx = self.context
+        compiler, flags = compiler_and_flags(self.build_dir)
+        load = ctx.get("load_avg") or []
+        self.fig13_slope = None
+        body_start = len(self.lines)
+        self.paper_size()
+        self.fig13()
+        self.ceiling()
+        self.threads()
+        self.precision()
+        self.features()
+        self.broad_phase()
+        self.notes()
+        self.others()
+        body = self.lines[body_start:]
+        self.lines = self.lines[:body_start]
+        caches = ", ".join(f"L{c['level']} {c['type'].lower()} {c['size'] // 1024} KiB"
+                           + (f" (shared by {c['num_sharing']})" if c.get("num_sharing", 1) > 1 else "")
+                           for c in ctx.get("caches", []))
+        self.out("# Benchmarks", "",
+                 "Generated by `tools/bench.sh` (which runs `tools/bench_report.py`); do not edit by hand. Every "
+                 "number below comes from one run of `drape_bench`, whose raw output is "
+                 "[`benchmarks.json`](benchmarks.json). Rates are points × steps ÷ seconds.", "",
+                 "## Machine and build", "",
+                 f"- CPU: {cpu_model()}, {ctx.get('num_cpus', '?')} logical cores at {ctx.get('mhz_per_cpu', '?')} MHz",
+                 f"- Caches: {caches}" if caches else "- Caches: unknown",
+                 f"- Compiler: {compiler}",
+                 f"- Flags (engine, bench): `{flags}`",
+                 f"- Run: {ctx.get('date', '?')}, `{command}`",
+                 f"- Load average when the run started: {', '.join(f'{x:.2f}' for x in load) if load else 'unknown'}"
+                 + (" — other jobs were sharing the CPU, so these numbers are noisy; rerun on a quiet machine"
+                    if load and load[0] > 0.5 else ""),
+                 "- Each figure is the median of the repetitions; ± is their coefficient of variation.", "")
+        self.out("## Targets (issue 6)", "", "| target | measured | goal | verdict | by how much |", "|---|---|---|---|---|")
+        for what, value, goal, v, by in self.targets:
+            self.out(f"| {what} | {value} | {goal} | {v} | {by} |")
+        self.out("")
+        self.lines.extend(body)
+        return "\n".join(self.lines).rstrip() + "\n"
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--json", required=True, help="benchmark_out JSON of drape_bench")
+    ap.add_argument("--build-dir", default="build-bench", help="build whose compile_commands.json names the flags")
+    ap.add_argument("--out", default="docs/BENCHMARKS.md")
+    ap.add_argument("--img", default="docs/img")
+    ap.add_argument("--command", default="tools/bench.sh", help="how the run was made, for the report")
+    args = ap.parse_args()
+    context, runs = load_runs(args.json)
+    report = Report(context, runs, args.build_dir, args.img, os.path.dirname(os.path.abspath(args.out)))
+    text = report.render(args.command)
+    tmp = args.out + ".tmp"
+    with open(tmp, "w") as f:
+        f.write(text)
+    os.replace(tmp, args.out)
+    print(f"bench_report: wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()
