@@ -7,6 +7,7 @@
 #include <drape/world.h>
 
 #include <filesystem>
+#include <cstdint>
 #include <functional>
 #include <ostream>
 #include <span>
@@ -31,5 +32,20 @@ struct PvdEntry {
   std::string file;  // relative to the .pvd
 };
 void write_pvd(std::ostream& out, std::span<const PvdEntry> entries);
+
+// The points of one frame file (.obj, .ply or .vtu, as written above), read back exactly: a
+// number parsed as Real gives the value that was written. Sheets one after another.
+template <class Real>
+struct FramePoints {
+  std::vector<Real> x, y, z;
+  // Points per sheet where the file says (OBJ objects, VTU pieces); empty for PLY, which
+  // holds all sheets as one vertex list.
+  std::vector<std::uint64_t> sheet_sizes;
+};
+
+// Reads a frame file chosen by its extension. Throws std::runtime_error naming the file (and
+// the line for OBJ and PLY) and the problem.
+template <class Real>
+FramePoints<Real> read_frame(const std::filesystem::path& file);
 
 }  // namespace drape::app
