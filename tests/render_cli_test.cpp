@@ -4,53 +4,20 @@
 // exit code and no file.
 #include <gtest/gtest.h>
 #include <render/render.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <numbers>
-#include <sstream>
 #include <string>
 #include <tuple>
 
-namespace fs = std::filesystem;
+#include "cli_fixture.h"
 
 namespace {
 
-struct Result {
-  int code;
-  std::string err;
-};
-
-class RenderCli : public ::testing::Test {
- public:
-  fs::path dir;
-  void SetUp() override {
-    dir = fs::temp_directory_path() /
-          ("drape_render_cli_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
-           std::to_string(::getpid()));
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-  }
-  void TearDown() override { fs::remove_all(dir); }
-
-  fs::path write(const std::string& name, const std::string& text) {
-    std::ofstream(dir / name) << text;
-    return dir / name;
-  }
-  Result drape(const std::string& args) {
-    const std::string cmd = std::string(DRAPE_BIN) + " " + args + " > /dev/null 2> " + (dir / "stderr").string();
-    const int status = std::system(cmd.c_str());
-    std::ifstream in(dir / "stderr");
-    std::stringstream s;
-    s << in.rdbuf();
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, s.str()};
-  }
-};
+using RenderCli = Cli;
 
 // A 1 m × 0.8 m sheet, 4×5 cells, centred at the origin in the x–y plane; a sphere below it.
 std::string scene_text(const std::string& precision, const std::string& formats) {
