@@ -10,10 +10,12 @@
 #include <filesystem>
 #include <fstream>
 #include <numbers>
+#include <sstream>
 #include <string>
 #include <tuple>
 
 #include "cli_fixture.h"
+#include "export.h"
 
 namespace {
 
@@ -178,5 +180,50 @@ TEST_F(RenderCli, EveryBadInputGivesOneMessageItsExitCodeAndNoFile) {
   const Result help = drape("render --help");
   EXPECT_EQ(help.code, 0);
 }
+
+// The readers behind `drape render DIR` give back exactly the numbers the writers wrote,
+// split into the sheets where the format says so.
+template <class Real>
+void expect_exact_read_back() {
+  drape::BasicWorld<Real> world;
+  drape::SheetDef a, b;
+  a.m = 2, a.n = 3;
+  b.m = 1, b.n = 1;
+  b.center = {0.3, 0.1, 0.7};
+  a.pins = drape::corner_points(a.m, a.n);
+  const drape::SheetId ia = world.add_sheet(a), ib = world.add_sheet(b);
+  world.step(7);  // positions with full-length mantissas
+  std::vector<drape::SheetView<Real>> views{world.view(ia), world.view(ib)};
+  const std::string names[] = {"a", "b"};
+  for (const std::string ext : {".obj", ".ply", ".vtu"}) {
+    std::ostringstream out;
+    if (ext == ".obj") drape::app::write_obj<Real>(out, views, names);
+    if (ext == ".ply") drape::app::write_ply<Real>(out, views);
+    if (ext == ".vtu") drape::app::write_vtu<Real>(out, views);
+    const auto f = drape::app::parse_frame<Real>(out.str(), ext, "f" + ext);
+    ASSERT_EQ(f.x.size(), 12u + 4u) << ext;
+    if (ext == ".ply") EXPECT_TRUE(f.sheet_sizes.empty());
+    else EXPECT_EQ(f.sheet_sizes, (std::vector<std::uint64_t>{12, 4})) << ext;
+    std::size_t p = 0;
+    for (const auto& v : views)
+      for (std::size_t q = 0; q < v.size(); ++q, ++p) {
+        EXPECT_EQ(f.x[p], v.x[q]) << ext;
+        EXPECT_EQ(f.y[p], v.y[q]) << ext;
+        EXPECT_EQ(f.z[p], v.z[q]) << ext;
+      }
+    // cut in the middle of the points: refused with the file's name
+    const std::string cut = out.str().substr(0, out.str().size() / 2);
+    try {
+      const auto g = drape::app::parse_frame<Real>(cut, ext, "cut" + ext);
+      if (ext != ".obj") ADD_FAILURE() << ext << " cut in half was read";
+      else EXPECT_LT(g.x.size(), 16u);  // an OBJ cut after a whole line is a shorter frame
+    } catch (const std::runtime_error& e) {
+      EXPECT_EQ(std::string(e.what()).rfind("cut" + ext + ":", 0), 0u) << e.what();
+    }
+  }
+}
+
+TEST(FrameReader, ReadsBackEveryFormatExactlyFloat64) { expect_exact_read_back<double>(); }
+TEST(FrameReader, ReadsBackEveryFormatExactlyFloat32) { expect_exact_read_back<float>(); }
 
 }  // namespace

@@ -172,7 +172,7 @@ class Cursor {
   std::string_view next_line() {
     const std::size_t end = std::min(text_.find('\n', pos_), text_.size());
     const std::string_view l = text_.substr(pos_, end - pos_);
-    pos_ = end + 1;
+    pos_ = std::min(end + 1, text_.size());
     return l;
   }
   std::size_t pos() const { return pos_; }
@@ -262,9 +262,25 @@ void read_vtu(Cursor& c, FramePoints<Real>& f) {
     f.sheet_sizes.push_back(points);
   }
   if (f.sheet_sizes.empty()) c.fail("no <Piece> with points");
+  if (c.find("</VTKFile>") == std::string_view::npos) c.fail("incomplete file (no </VTKFile> after the pieces)");
 }
 
 }  // namespace
+
+template <class Real>
+FramePoints<Real> parse_frame(std::string_view text, std::string_view extension, const std::string& file) {
+  Cursor c(text, file);
+  FramePoints<Real> f;
+  if (extension == ".obj")
+    read_obj(c, f);
+  else if (extension == ".ply")
+    read_ply(c, f);
+  else if (extension == ".vtu")
+    read_vtu(c, f);
+  else
+    throw std::runtime_error(file + ": unknown frame format (expected .obj, .ply or .vtu)");
+  return f;
+}
 
 template <class Real>
 FramePoints<Real> read_frame(const std::filesystem::path& file) {
@@ -272,21 +288,11 @@ FramePoints<Real> read_frame(const std::filesystem::path& file) {
   if (!in) throw std::runtime_error(file.string() + ": cannot read the file");
   std::ostringstream text;
   text << in.rdbuf();
-  const std::string all = text.str();
-  Cursor c(all, file.string());
-  FramePoints<Real> f;
-  const std::string ext = file.extension().string();
-  if (ext == ".obj")
-    read_obj(c, f);
-  else if (ext == ".ply")
-    read_ply(c, f);
-  else if (ext == ".vtu")
-    read_vtu(c, f);
-  else
-    throw std::runtime_error(file.string() + ": unknown frame format (expected .obj, .ply or .vtu)");
-  return f;
+  return parse_frame<Real>(text.str(), file.extension().string(), file.string());
 }
 
+template FramePoints<double> parse_frame<double>(std::string_view, std::string_view, const std::string&);
+template FramePoints<float> parse_frame<float>(std::string_view, std::string_view, const std::string&);
 template FramePoints<double> read_frame<double>(const std::filesystem::path&);
 template FramePoints<float> read_frame<float>(const std::filesystem::path&);
 

@@ -6,12 +6,13 @@
 
 #include <drape/world.h>
 
-#include <filesystem>
 #include <cstdint>
+#include <filesystem>
 #include <functional>
 #include <ostream>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace drape::app {
@@ -47,5 +48,9 @@ struct FramePoints {
 // the line for OBJ and PLY) and the problem.
 template <class Real>
 FramePoints<Real> read_frame(const std::filesystem::path& file);
+// The same from the file's text; `extension` (".obj", ".ply", ".vtu") picks the format and
+// `file` names the source in messages.
+template <class Real>
+FramePoints<Real> parse_frame(std::string_view text, std::string_view extension, const std::string& file);
 
 }  // namespace drape::app
