@@ -150,6 +150,9 @@ TEST_F(RenderCli, EveryBadInputGivesOneMessageItsExitCodeAndNoFile) {
   const fs::path bare = dir / "bare";
   fs::create_directories(bare);
 
+  // dt far above the stable step: the state is non-finite long before frame 200
+  const fs::path unstable = write("unstable.json", R"({"frames": 200, "dt": 0.05, "substeps": 5, "sheets": [{"grid": [6, 6],
+    "size": [1, 1], "stiffness": 500, "mass": 0.05, "anchors": [{"at": "corners", "stiffness": 100}]}]})");
   const fs::path png = dir / "p.png";
   const std::string o = " -o " + png.string();
   const std::tuple<std::string, int, std::string> cases[] = {
@@ -167,6 +170,7 @@ TEST_F(RenderCli, EveryBadInputGivesOneMessageItsExitCodeAndNoFile) {
       {"render " + cut.string() + o, 3, "drape: " + (cut / "frame_00003.obj").string() + ":"},
       {"render " + scene.string() + " -o " + (dir / "no" / "p.png").string(), 4, "drape: cannot write "},
       {"render " + scene.string() + " -o " + out.string(), 4, "drape: cannot write "},
+      {"render " + unstable.string() + o, 1, "drape: " + unstable.string() + ": the simulation became unstable"},
   };
   for (const auto& [args, code, message] : cases) {
     const Result r = drape(args);
