@@ -151,6 +151,9 @@ int render_or_throw(const RenderArgs& args, std::ostream& log) {
   const auto size = parse_size(args.size);
   if (!size) throw Failure{exit_usage, "--size: expected WxH with 1 to 8192 pixels per side, got \"" + args.size + "\""};
   const auto [width, height] = *size;
+  if (const std::size_t n = std::max<std::size_t>(1, args.frames.size()); std::uint64_t(width) * n > 8192)
+    throw Failure{exit_usage, "--size, --frame: " + std::to_string(n) + " panels of " + std::to_string(width) +
+                                  " pixels are wider than 8192 pixels"};
 
   // Refuse an output nobody can write before spending time on the simulation.
   const fs::path out = args.output;
@@ -195,9 +198,6 @@ int render_or_throw(const RenderArgs& args, std::ostream& log) {
     frames = f32 ? simulate<float>(scene, wanted) : simulate<double>(scene, wanted);
   }
   const int panels = int(wanted.size());
-  if (std::int64_t(width) * panels > 8192)
-    throw Failure{exit_usage, "--size, --frame: " + std::to_string(panels) + " panels of " + std::to_string(width) +
-                                  " pixels are wider than 8192 pixels"};
 
   // One camera for every panel, so the panels compare; the automatic one frames them all.
   std::vector<std::vector<render::SheetMesh>> meshes;
@@ -249,7 +249,7 @@ CLI::App* add_render_subcommand(CLI::App& app, RenderArgs& args) {
                      "Frame to draw, 0 = initial state (default: the last); several, comma-separated, give a strip "
                      "of panels left to right, all seen by the same camera")
       ->delimiter(',')
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::Range(0, 10000000));
   render->add_option("--camera", args.camera,
                      "Camera fields to change, e.g. \"eye=4,-3,2;target=0,0,0;up=0,0,1;fov=35\" (others keep the "
                      "scene's camera, or the automatic framing when the scene has none)");
