@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Sets up a fresh Debian machine, builds drape and runs the main job.
+# Sets up a fresh Debian machine, builds drape and runs the small engine demo (one sheet
+# pinned at its corners; prints the sag and energies per frame). The main job is run-main.sh.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 tools/setup.sh

@@ -36,6 +36,7 @@ if [[ "${DRAPE_SKIP_FUZZ:-0}" != 1 ]]; then
   # One line per reader: fuzz target, then its seed directories (see tests/fuzz/README.md).
   targets=(
     "checkpoint_fuzz build-fuzz/seeds/checkpoint tests/fuzz/regressions/checkpoint"
+    "frame_fuzz tests/fuzz/seeds/frame"
   )
   cmake --build build-fuzz -j"$jobs" --target checkpoint_seeds $(for t in "${targets[@]}"; do echo "${t%% *}"; done)
   rm -rf build-fuzz/seeds && build-fuzz/tests/fuzz/checkpoint_seeds build-fuzz/seeds/checkpoint

@@ -6,11 +6,13 @@
 
 #include <drape/world.h>
 
+#include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <ostream>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace drape::app {
@@ -31,5 +33,24 @@ struct PvdEntry {
   std::string file;  // relative to the .pvd
 };
 void write_pvd(std::ostream& out, std::span<const PvdEntry> entries);
+
+// The points of one frame file (.obj, .ply or .vtu, as written above), read back exactly: a
+// number parsed as Real gives the value that was written. Sheets one after another.
+template <class Real>
+struct FramePoints {
+  std::vector<Real> x, y, z;
+  // Points per sheet where the file says (OBJ objects, VTU pieces); empty for PLY, which
+  // holds all sheets as one vertex list.
+  std::vector<std::uint64_t> sheet_sizes;
+};
+
+// Reads a frame file chosen by its extension. Throws std::runtime_error naming the file (and
+// the line for OBJ and PLY) and the problem.
+template <class Real>
+FramePoints<Real> read_frame(const std::filesystem::path& file);
+// The same from the file's text; `extension` (".obj", ".ply", ".vtu") picks the format and
+// `file` names the source in messages.
+template <class Real>
+FramePoints<Real> parse_frame(std::string_view text, std::string_view extension, const std::string& file);
 
 }  // namespace drape::app

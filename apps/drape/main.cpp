@@ -7,6 +7,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "render_command.h"
 #include "run.h"
 #include "scene.h"
 
@@ -53,12 +54,16 @@ int main(int argc, char** argv) {
   CLI::App* info = app.add_subcommand("info", "Print points, springs, memory and the stable step per integrator");
   info->add_option("SCENE", scene_file, "Scene file (JSON)")->required();
 
+  RenderArgs render_args;  // `drape render`: render_command.h
+  CLI::App* render = add_render_subcommand(app, render_args);
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     const int code = app.exit(e);
     return code == 0 ? exit_ok : exit_usage;
   }
+  if (render->parsed()) return render_command(render_args, std::cerr);
 
   RunOptions options;
   if (run->parsed()) {

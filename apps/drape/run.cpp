@@ -13,8 +13,6 @@
 
 namespace drape::app {
 
-namespace {
-
 template <class Real>
 BasicWorld<Real> build_world(const Scene& scene, int threads, std::vector<SheetId>& ids) {
   WorldDef def = scene.world;
@@ -24,6 +22,10 @@ BasicWorld<Real> build_world(const Scene& scene, int threads, std::vector<SheetI
   for (const auto& o : scene.obstacles) world.add_obstacle(o);
   return world;
 }
+template BasicWorld<double> build_world<double>(const Scene&, int, std::vector<SheetId>&);
+template BasicWorld<float> build_world<float>(const Scene&, int, std::vector<SheetId>&);
+
+namespace {
 
 std::string frame_name(int frame, std::string_view ext) {
   char buf[32];
@@ -75,6 +77,14 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
   std::filesystem::create_directories(dir, ec);
   if (ec || !std::filesystem::is_directory(dir)) {
     log << "drape: cannot create the output folder " << dir.string() << ": " << ec.message() << '\n';
+    return exit_write_failed;
+  }
+  // The scene goes with its frames, so `drape render DIR` finds the sheets' grids, the
+  // obstacles and the camera without being told which scene made them.
+  try {
+    write_atomically(dir / "scene.json", [&](std::ostream& out) { out << scene.source; });
+  } catch (const std::runtime_error& e) {
+    log << "drape: " << e.what() << '\n';
     return exit_write_failed;
   }
   std::vector<PvdEntry> pvd;

@@ -28,6 +28,11 @@ struct RunOptions {
   bool progress_bar = false;                         // true on a terminal: one redrawn line
 };
 
+// The scene's world with every sheet and obstacle added; `ids` gets the sheets' ids in the
+// scene's order. Stepping it `substeps` at a time gives exactly the frames `drape run` writes.
+template <class Real>
+BasicWorld<Real> build_world(const Scene& scene, int threads, std::vector<SheetId>& ids);
+
 // Steps the scene and writes frames 0..frames (0 is the initial state). Messages (warnings,
 // progress, errors) go to `log`. Returns an ExitCode.
 int run_scene(const Scene& scene, const RunOptions& options, std::ostream& log);

@@ -388,6 +388,7 @@ Scene parse_scene(std::string_view text, const std::string& file) {
                      "gravity", "sheets", "obstacles", "output", "camera"});
   Scene scene;
   scene.file = file;
+  scene.source = std::string(text);
   if (top.has("description")) scene.description = top.child("description").string();
   if (top.has("precision")) {
     const std::string p = top.child("precision").string();

@@ -50,6 +50,7 @@ struct Scene {
   std::vector<ObstacleDef> obstacles;
   OutputSettings output;
   std::optional<Camera> camera;
+  std::string source;      // the file's text as read; `drape run` keeps a copy with the frames
 
   double frame_time() const { return substeps * world.dt; }  // s between output frames
 };

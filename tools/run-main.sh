@@ -1,0 +1,54 @@
+#!/usr/bin/env bash
+# The main job: set up a fresh Debian machine, build drape (Release), simulate every paper
+# scene (scenes/fig*.json) and draw one PNG per figure into figures/ (git-ignored).
+#
+#   tools/run-main.sh          figures/figNN.png
+#   tools/run-main.sh --docs   also the smaller copies shown in docs/figures.md (docs/img/figures/)
+#
+# Figures the paper shows as an animation get a strip of frames, left to right, all seen by
+# the scene's camera; the frames are chosen where the motion shows (30 frames per second).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+docs=0
+case "${1:-}" in
+  "") ;;
+  --docs) docs=1 ;;
+  *) echo "usage: tools/run-main.sh [--docs]" >&2; exit 2 ;;
+esac
+
+tools/setup.sh
+build=${DRAPE_BUILD_DIR:-build}
+cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake --build "$build" -j"$(nproc)" --target drape >/dev/null
+drape="$build/apps/drape"
+
+# figure  frames (empty: the last)  panel size
+figures=(
+  "fig05 -            960x420"
+  "fig06 8,14,91      640x300"
+  "fig07 0,8,16,91    400x400"
+  "fig08 0,6,12,24,91 400x400"
+  "fig09 0,8,14,91    400x380"
+  "fig10 0,8,14,91    440x380"
+  "fig11 0,8,14,91    440x380"
+  "fig12 0,9,11,13,16 400x400"
+)
+
+out=figures
+mkdir -p "$out"
+[[ $docs -eq 1 ]] && mkdir -p docs/img/figures
+start=$SECONDS
+for line in "${figures[@]}"; do
+  read -r name frames size <<<"$line"
+  args=("scenes/$name.json")
+  [[ $frames != - ]] && args+=(--frame "$frames")
+  "$drape" render "${args[@]}" --size "$size" -o "$out/$name.png"
+  if [[ $docs -eq 1 ]]; then
+    w=${size%x*} h=${size#*x}
+    "$drape" render "${args[@]}" --size "$((w / 2))x$((h / 2))" -o "docs/img/figures/$name.png"
+  fi
+done
+echo "main job: $(ls "$out"/fig*.png | wc -l) figures in $(cd "$out" && pwd)/ ($((SECONDS - start)) s)"
+[[ $docs -eq 1 ]] && echo "main job: small copies in $(pwd)/docs/img/figures/"
+exit 0
