@@ -12,46 +12,10 @@
 #include <sstream>
 #include <string>
 
+#include "cli_fixture.h"
 #include "scene.h"
 
-namespace fs = std::filesystem;
-
 namespace {
-
-struct Result {
-  int code;
-  std::string out, err;
-};
-
-class Cli : public ::testing::Test {
- public:
-  fs::path dir;
-  void SetUp() override {
-    dir = fs::temp_directory_path() /
-          ("drape_cli_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
-           std::to_string(::getpid()));
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-  }
-  void TearDown() override { fs::remove_all(dir); }
-
-  fs::path write(const std::string& name, const std::string& text) {
-    std::ofstream(dir / name) << text;
-    return dir / name;
-  }
-  static std::string slurp(const fs::path& p) {
-    std::ifstream in(p);
-    std::stringstream s;
-    s << in.rdbuf();
-    return s.str();
-  }
-  Result drape(const std::string& args) {
-    const std::string cmd = std::string(DRAPE_BIN) + " " + args + " > " + (dir / "stdout").string() + " 2> " +
-                            (dir / "stderr").string();
-    const int status = std::system(cmd.c_str());
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(dir / "stdout"), slurp(dir / "stderr")};
-  }
-};
 
 const std::string good_sheet = R"({"grid": [3, 4], "size": [0.8, 0.6], "stiffness": 40, "mass": 0.2, "damping": 0.01,
   "anchors": [{"at": "corners", "stiffness": 100}]})";
