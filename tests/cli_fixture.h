@@ -1,5 +1,5 @@
-// The fixture of the tests that run the drape program as a user runs it: a fresh folder per
-// test, files written into it, and the program run with its exit code and both outputs.
+// Runs the built drape program as a user does, in a fresh temporary folder per test.
+// Shared by the CLI tests (cli_test.cpp, resume_test.cpp, sweep_test.cpp).
 #pragma once
 
 #include <gtest/gtest.h>
@@ -36,7 +36,7 @@ class Cli : public ::testing::Test {
     return dir / name;
   }
   static std::string slurp(const fs::path& p) {
-    std::ifstream in(p);
+    std::ifstream in(p, std::ios::binary);
     std::stringstream s;
     s << in.rdbuf();
     return s.str();

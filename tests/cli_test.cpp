@@ -15,8 +15,6 @@
 #include "cli_fixture.h"
 #include "scene.h"
 
-namespace fs = std::filesystem;
-
 namespace {
 
 const std::string good_sheet = R"({"grid": [3, 4], "size": [0.8, 0.6], "stiffness": 40, "mass": 0.2, "damping": 0.01,

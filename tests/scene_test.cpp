@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <string>
 
 #include "scene.h"
@@ -122,6 +123,64 @@ TEST(SceneFile, UnreadableFileIsReported) {
   } catch (const SceneError& e) {
     EXPECT_EQ(std::string(e.what()).rfind("/nonexistent/scene.json: cannot read", 0), 0u) << e.what();
   }
+}
+
+// `drape sweep --set`: an override is the same scene as a file that says so.
+TEST(SceneFile, SetOverrideReadsAsIfTheFileSaidSo) {
+  const std::string two = R"({"frames": 2, "sheets": [{"grid": [4, 3], "size": [1, 2], "stiffness": 50},
+    {"grid": [2, 2], "size": [1, 1], "stiffness": 50}]})";
+  std::string edited = two;
+  for (auto at = edited.find("\"stiffness\": 50"); at != std::string::npos; at = edited.find("\"stiffness\": 50"))
+    edited.replace(at, 15, "\"stiffness\": 80");
+  edited.insert(1, "\"integrator\": \"forward_euler\", ");
+  const drape::app::SceneOverride set[] = {{"sheets[*].stiffness", "80"}, {"integrator", "forward_euler"},
+                                           {"sheets[1].damping", "0.5"}};
+  const Scene a = parse_scene(two, "t.json", set), b = parse_scene(edited, "t.json");
+  ASSERT_EQ(a.sheets.size(), 2u);
+  for (std::size_t k = 0; k < 2; ++k) EXPECT_EQ(a.sheets[k].stiffness, b.sheets[k].stiffness);
+  EXPECT_EQ(a.sheets[0].stiffness, 80.0);
+  EXPECT_EQ(a.world.integrator, drape::Integrator::ForwardEuler);
+  EXPECT_EQ(a.sheets[0].damping, 0.0);
+  EXPECT_EQ(a.sheets[1].damping, 0.5);
+  // the fingerprint tells scenes that give other results apart, and only those
+  EXPECT_EQ(parse_scene(two, "x.json").fingerprint, parse_scene(two, "y.json").fingerprint);
+  EXPECT_NE(a.fingerprint, parse_scene(two, "t.json").fingerprint);
+  EXPECT_NE(b.fingerprint, parse_scene(two, "t.json").fingerprint);
+}
+
+TEST(SceneFile, SetOverrideOnAMissingPathNamesIt) {
+  auto error = [](const std::string& path) {
+    const drape::app::SceneOverride set[] = {{path, "1"}};
+    try {
+      parse_scene(minimal, "m.json", set);
+    } catch (const SceneError& e) {
+      return std::string(e.what());
+    }
+    return std::string("(accepted)");
+  };
+  EXPECT_EQ(error("sheets[1].stiffness"), "m.json: --set sheets[1].stiffness: index 1 is past the end (1 elements)");
+  EXPECT_EQ(error("output.dir"), "m.json: --set output.dir: the scene has no \"output\"");
+  EXPECT_EQ(error("frames[0]"), "m.json: --set frames[0]: \"[0]\" needs an array, the scene has a number");
+  EXPECT_EQ(error("sheets[x].m"), "m.json: --set sheets[x].m: \"[x]\" is not an index or [*]");
+  EXPECT_EQ(error("sheets[*].stifness"), "m.json: sheets[0].stifness: unknown key (known here: name, grid, size, "
+                                         "center, orientation, velocity, mass, point_mass, stiffness, "
+                                         "stiffness_regions, rest_length, damping, anchors, pins)");
+}
+
+// Inputs the fuzzer (scene_fuzz) found or that are built like them: each is refused with a
+// message naming its file, or read; the sanitizer build checks memory and arithmetic.
+TEST(SceneFile, FuzzRegressionInputsAreRefusedOrReadCleanly) {
+  std::size_t count = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(DRAPE_SCENE_REGRESSIONS)) {
+    if (entry.path().extension() == ".md") continue;
+    ++count;
+    try {
+      drape::app::load_scene(entry.path());
+    } catch (const SceneError& e) {
+      EXPECT_EQ(std::string(e.what()).rfind(entry.path().string() + ":", 0), 0u) << e.what();
+    }
+  }
+  EXPECT_GT(count, 0u);
 }
 
 // --- the paper's figures ----------------------------------------------------------------

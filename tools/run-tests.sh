@@ -4,7 +4,7 @@
 #   2. the tests again, built with AddressSanitizer + UndefinedBehaviorSanitizer (build-asan);
 #   3. a short libFuzzer run of every reader (build-fuzz, clang), seeded with valid files.
 # Environment: DRAPE_BUILD_DIR (default build), DRAPE_SKIP_SANITIZE=1, DRAPE_SKIP_FUZZ=1,
-# DRAPE_FUZZ_SECONDS (default 25 per target).
+# DRAPE_FUZZ_SECONDS (default 15 per target).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 tools/setup.sh
@@ -29,7 +29,7 @@ if [[ "${DRAPE_SKIP_SANITIZE:-0}" != 1 ]]; then
 fi
 
 if [[ "${DRAPE_SKIP_FUZZ:-0}" != 1 ]]; then
-  seconds=${DRAPE_FUZZ_SECONDS:-25}
+  seconds=${DRAPE_FUZZ_SECONDS:-15}
   cmake -S . -B build-fuzz -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g" -DDRAPE_FUZZ=ON -DDRAPE_WERROR=ON \
     -DDRAPE_BUILD_TESTS=OFF -DDRAPE_BUILD_BENCH=OFF >/dev/null
@@ -37,6 +37,7 @@ if [[ "${DRAPE_SKIP_FUZZ:-0}" != 1 ]]; then
   targets=(
     "checkpoint_fuzz build-fuzz/seeds/checkpoint tests/fuzz/regressions/checkpoint"
     "frame_fuzz tests/fuzz/seeds/frame"
+    "scene_fuzz scenes tests/fuzz/regressions/scene"
   )
   cmake --build build-fuzz -j"$jobs" --target checkpoint_seeds $(for t in "${targets[@]}"; do echo "${t%% *}"; done)
   rm -rf build-fuzz/seeds && build-fuzz/tests/fuzz/checkpoint_seeds build-fuzz/seeds/checkpoint

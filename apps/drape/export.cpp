@@ -2,6 +2,7 @@
 #include "export.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <charconv>
 #include <fstream>
 #include <sstream>
@@ -50,22 +51,34 @@ const char* vtk_type() {
 void write_atomically(const std::filesystem::path& file, const std::function<void(std::ostream&)>& body) {
   std::filesystem::path tmp = file;
   tmp += ".tmp";
+  // errno of the failing call names the cause (no space left, read-only file system, ...)
+  auto reason = [] { return std::error_code(errno, std::generic_category()).message(); };
   {
+    errno = 0;
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw std::runtime_error("cannot create " + tmp.string());
+    if (!out) throw std::runtime_error("cannot create " + tmp.string() + ": " + reason());
     body(out);
     out.flush();
     if (!out) {
+      const std::string why = reason();
       std::error_code ignored;
       std::filesystem::remove(tmp, ignored);
-      throw std::runtime_error("cannot write " + tmp.string() + " (disk full?)");
+      throw std::runtime_error("cannot write " + tmp.string() + ": " + why);
+    }
+    out.close();  // the last buffered bytes reach the file system here
+    if (out.fail()) {
+      const std::string why = reason();
+      std::error_code ignored;
+      std::filesystem::remove(tmp, ignored);
+      throw std::runtime_error("cannot write " + tmp.string() + ": " + why);
     }
   }
   std::error_code ec;
   std::filesystem::rename(tmp, file, ec);
   if (ec) {
-    std::filesystem::remove(tmp, ec);
-    throw std::runtime_error("cannot rename " + tmp.string() + " to " + file.string());
+    std::error_code ignored;
+    std::filesystem::remove(tmp, ignored);
+    throw std::runtime_error("cannot rename " + tmp.string() + " to " + file.string() + ": " + ec.message());
   }
 }
 

@@ -10,6 +10,7 @@
 #include "render_command.h"
 #include "run.h"
 #include "scene.h"
+#include "sweep.h"
 
 namespace {
 
@@ -34,7 +35,7 @@ std::optional<std::vector<MeshFormat>> parse_formats(const std::vector<std::stri
 int main(int argc, char** argv) {
   CLI::App app{"drape: elastic sheets as mass-spring grids (Gudukbay, Ozguc, Tokad 1997).\n"
                "Exit codes: 0 ok, 1 simulation became unstable, 2 bad command line, 3 bad scene file, "
-               "4 output could not be written."};
+               "4 output could not be written, 5 checkpoint cannot be resumed."};
   app.require_subcommand(1);
 
   std::string scene_file;
@@ -50,6 +51,27 @@ int main(int argc, char** argv) {
   run->add_option("--threads", threads, "Worker threads (default 0: all cores)")->check(CLI::NonNegativeNumber);
   run->add_option("--format", formats, "Comma-separated mesh formats: obj, ply, vtk (default: the scene's)")
       ->delimiter(',');
+
+  int checkpoint_every = 0;
+  std::string resume_dir;
+  run->add_option("--checkpoint-every", checkpoint_every,
+                  "Write the full state to OUT/checkpoint.drape every N frames (atomically)")
+      ->check(CLI::PositiveNumber);
+  run->add_option("--resume", resume_dir,
+                  "Continue from DIR/checkpoint.drape of the same scene, writing the remaining frames into DIR")
+      ->excludes("--out");
+
+  std::vector<std::string> sweep_scenes, sweep_sets;
+  std::string sweep_csv;
+  int sweep_frames = 0, sweep_threads = 0;
+  CLI::App* sweep = app.add_subcommand("sweep", "Run scenes over a grid of parameter values in parallel; one CSV row per run");
+  sweep->add_option("SCENES", sweep_scenes, "Scene files (JSON)")->required();
+  sweep->add_option("--set", sweep_sets, "PATH=V1,V2,...: values for a scene field, e.g. sheets[*].stiffness=10,100")
+      ->take_all()
+      ->allow_extra_args(false);
+  sweep->add_option("--out", sweep_csv, "CSV file to write (atomically)")->required();
+  sweep->add_option("--frames", sweep_frames, "Frames per run (default: each scene's)")->check(CLI::PositiveNumber);
+  sweep->add_option("--threads", sweep_threads, "Runs in parallel (default 0: all cores)")->check(CLI::NonNegativeNumber);
 
   CLI::App* info = app.add_subcommand("info", "Print points, springs, memory and the stable step per integrator");
   info->add_option("SCENE", scene_file, "Scene file (JSON)")->required();
@@ -79,6 +101,24 @@ int main(int argc, char** argv) {
       }
     }
     options.progress_bar = isatty(fileno(stderr)) != 0;
+    options.checkpoint_every = checkpoint_every;
+    if (!resume_dir.empty()) options.resume_dir = resume_dir;
+  }
+
+  if (sweep->parsed()) {
+    SweepOptions sweep_options;
+    sweep_options.scenes.assign(sweep_scenes.begin(), sweep_scenes.end());
+    for (const auto& text : sweep_sets) {
+      auto p = parse_sweep_parameter(text);
+      if (!p) {
+        std::cerr << "drape sweep: --set " << text << ": expected PATH=V1,V2,... (e.g. sheets[*].stiffness=10,100)\n";
+        return exit_usage;
+      }
+      sweep_options.parameters.push_back(std::move(*p));
+    }
+    if (sweep_frames > 0) sweep_options.frames = sweep_frames;
+    sweep_options.threads = sweep_threads;
+    return run_sweep(sweep_options, sweep_csv, std::cerr);
   }
 
   Scene scene;

@@ -9,6 +9,7 @@
 #include <limits>
 #include <sstream>
 
+#include "checkpoint.h"
 #include "export.h"
 
 namespace drape::app {
@@ -48,10 +49,38 @@ template <class Real>
 int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
   const int frames = opt.frames.value_or(scene.frames);
   const auto formats = opt.formats.value_or(scene.output.formats);
-  const std::filesystem::path dir = opt.out_dir.value_or(scene.output.dir);
+  const std::filesystem::path dir = opt.resume_dir ? *opt.resume_dir : opt.out_dir.value_or(scene.output.dir);
 
   std::vector<SheetId> ids;
   BasicWorld<Real> world = build_world<Real>(scene, opt.threads, ids);
+
+  // Resume: the whole checkpoint is read and checked before anything is written; a refused
+  // one leaves the world and the folder as they were.
+  int first_frame = 1;
+  if (opt.resume_dir) {
+    const std::filesystem::path file = *opt.resume_dir / checkpoint_file_name;
+    std::error_code exists_ec;
+    if (!std::filesystem::is_regular_file(file, exists_ec)) {
+      log << "drape: --resume " << opt.resume_dir->string() << ": no checkpoint there (" << file.string()
+          << " is missing; write one with --checkpoint-every N)\n";
+      return exit_bad_checkpoint;
+    }
+    try {
+      load_checkpoint(file, world, scene.fingerprint);
+    } catch (const std::runtime_error& e) {
+      log << "drape: cannot resume from " << e.what() << "; nothing was written\n";
+      return exit_bad_checkpoint;
+    }
+    const std::uint64_t steps = world.step_count();
+    if (steps % std::uint64_t(scene.substeps) != 0 || world.def().integrator != scene.world.integrator ||
+        world.def().dt != scene.world.dt) {
+      log << "drape: cannot resume from " << file.string() << ": it was not written by drape run at a frame boundary of "
+          << scene.file << "; nothing was written\n";
+      return exit_bad_checkpoint;
+    }
+    first_frame = int(steps / std::uint64_t(scene.substeps)) + 1;
+    log << "drape: resuming " << scene.file << " from " << file.string() << " after frame " << first_frame - 1 << '\n';
+  }
 
   // Warn (do not refuse) when dt is above the explicit integrators' estimated critical step.
   const double dt = scene.world.dt;
@@ -88,6 +117,11 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
     return exit_write_failed;
   }
   std::vector<PvdEntry> pvd;
+  // frames written before a resume stay in the .pvd series; time as world.time() computes it
+  if (std::find(formats.begin(), formats.end(), MeshFormat::Vtk) != formats.end())
+    for (int f = 0; f < first_frame && opt.resume_dir; ++f)
+      pvd.push_back({static_cast<double>(std::uint64_t(f) * std::uint64_t(scene.substeps)) * scene.world.dt,
+                     frame_name(f, "vtu")});
   auto write_frame = [&](int frame) {
     std::vector<SheetView<Real>> views;
     for (SheetId id : ids) views.push_back(world.view(id));
@@ -113,8 +147,8 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
   const auto start = std::chrono::steady_clock::now();
   const int line_every = std::max(1, frames / 10);
   try {
-    write_frame(0);
-    for (int frame = 1; frame <= frames; ++frame) {
+    if (!opt.resume_dir) write_frame(0);
+    for (int frame = first_frame; frame <= frames; ++frame) {
       const std::uint64_t first = world.step_count() + 1;
       // the engine's stability guard: non-finite state, or energy growing without bound
       const drape::StabilityReport report = world.step(scene.substeps);
@@ -127,6 +161,9 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
         return exit_unstable;
       }
       write_frame(frame);
+      // after the frame's files: a checkpoint of frame K implies frames 0..K are on disk
+      if (opt.checkpoint_every > 0 && frame % opt.checkpoint_every == 0 && frame < frames)
+        save_checkpoint(world, dir / checkpoint_file_name, scene.fingerprint);
       if (opt.progress_bar) {
         const int width = 30, done = frame * width / frames;
         log << "\r[" << std::string(done, '#') << std::string(width - done, '.') << "] frame " << frame << "/" << frames
@@ -140,7 +177,7 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
     return exit_write_failed;
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  log << (opt.progress_bar ? "\n" : "") << "drape: wrote " << frames + 1 << " frames to " << dir.string() << " in "
+  log << (opt.progress_bar ? "\n" : "") << "drape: wrote " << std::max(0, frames + 1 - first_frame + (opt.resume_dir ? 0 : 1)) << " frames to " << dir.string() << " in "
       << std::setprecision(3) << seconds << " s\n";
   return exit_ok;
 }

@@ -18,7 +18,12 @@ enum ExitCode : int {
   exit_usage = 2,       // bad command line
   exit_bad_scene = 3,   // the scene file is unreadable or invalid; nothing written
   exit_write_failed = 4,  // an output file could not be written
+  exit_bad_checkpoint = 5,  // --resume: no usable checkpoint (missing, damaged, other version or scene)
 };
+
+// The checkpoint `drape run --checkpoint-every N` keeps in its output folder (replaced
+// atomically each time) and `--resume DIR` reads.
+inline constexpr const char* checkpoint_file_name = "checkpoint.drape";
 
 struct RunOptions {
   std::optional<std::filesystem::path> out_dir;      // overrides the scene's output.dir
@@ -26,6 +31,10 @@ struct RunOptions {
   std::optional<std::vector<MeshFormat>> formats;    // overrides the scene's output.formats
   int threads = 0;                                   // 0: all cores
   bool progress_bar = false;                         // true on a terminal: one redrawn line
+  int checkpoint_every = 0;                          // frames between checkpoints; 0: none
+  // Continue from DIR/checkpoint.drape, writing the remaining frames into DIR (which
+  // replaces out_dir). The checkpoint must come from the same scene (its fingerprint).
+  std::optional<std::filesystem::path> resume_dir;
 };
 
 // The scene's world with every sheet and obstacle added; `ids` gets the sheets' ids in the

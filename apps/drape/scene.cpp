@@ -12,6 +12,8 @@
 #include <numbers>
 #include <sstream>
 
+#include "checkpoint.h"
+
 namespace drape::app {
 
 using nlohmann::json;
@@ -358,9 +360,77 @@ std::pair<std::size_t, std::size_t> line_column(std::string_view text, std::size
   return {line, column};
 }
 
+// One --set: walks `path` ("integrator", "sheets[*].stiffness", "obstacles[0].center") in
+// the document and puts `value` at its end; "[*]" means every element of the array. The last
+// key may be new (e.g. damping on a sheet that had none); everything before it must exist.
+// The reader checks the result as it checks any file, so a wrong key is named there.
+void apply_override(json& root, const SceneOverride& o, const std::string& file) {
+  auto fail = [&](const std::string& problem) -> void {
+    throw SceneError(file + ": --set " + o.path + ": " + problem);
+  };
+  json value;
+  try {
+    value = json::parse(o.value);
+  } catch (const json::exception&) {
+    value = o.value;  // not JSON: a bare word such as forward_euler is a string
+  }
+  // segments: a key, or "[N]" / "[*]"
+  std::vector<std::string> segments;
+  for (std::size_t i = 0; i < o.path.size();) {
+    if (o.path[i] == '.') {
+      ++i;
+      continue;
+    }
+    if (o.path[i] == '[') {
+      const auto close = o.path.find(']', i);
+      if (close == std::string::npos) fail("unclosed [");
+      segments.push_back(o.path.substr(i, close - i + 1));
+      i = close + 1;
+    } else {
+      const auto end = o.path.find_first_of(".[", i);
+      segments.push_back(o.path.substr(i, end == std::string::npos ? std::string::npos : end - i));
+      i = end == std::string::npos ? o.path.size() : end;
+    }
+  }
+  if (segments.empty()) fail("empty path");
+  auto walk = [&](auto& self, json& node, std::size_t k) -> void {
+    const std::string& seg = segments[k];
+    const bool last = k + 1 == segments.size();
+    if (seg.front() == '[') {
+      if (!node.is_array()) fail("\"" + seg + "\" needs an array, the scene has " + type_name(node));
+      const std::string inner = seg.substr(1, seg.size() - 2);
+      std::vector<std::size_t> indices;
+      if (inner == "*") {
+        for (std::size_t i = 0; i < node.size(); ++i) indices.push_back(i);
+      } else {
+        if (inner.empty() || inner.find_first_not_of("0123456789") != std::string::npos || inner.size() > 9)
+          fail("\"" + seg + "\" is not an index or [*]");
+        const std::size_t i = std::stoul(inner);
+        if (i >= node.size()) fail("index " + inner + " is past the end (" + std::to_string(node.size()) + " elements)");
+        indices.push_back(i);
+      }
+      for (std::size_t i : indices) {
+        if (last) node[i] = value;
+        else self(self, node[i], k + 1);
+      }
+    } else {
+      if (!node.is_object()) fail("\"" + seg + "\" needs an object, the scene has " + type_name(node));
+      if (last) {
+        node[seg] = value;
+      } else {
+        if (!node.contains(seg)) fail("the scene has no \"" + seg + "\"");
+        self(self, node[seg], k + 1);
+      }
+    }
+  };
+  walk(walk, root, 0);
+}
+
 }  // namespace
 
-Scene parse_scene(std::string_view text, const std::string& file) {
+Scene parse_scene(std::string_view text, const std::string& file) { return parse_scene(text, file, {}); }
+
+Scene parse_scene(std::string_view text, const std::string& file, std::span<const SceneOverride> overrides) {
   json root;
   try {
     root = json::parse(text.begin(), text.end());
@@ -383,12 +453,19 @@ Scene parse_scene(std::string_view text, const std::string& file) {
     if (const auto colon = what.find(": "); colon != std::string::npos) what = what.substr(colon + 2);
     throw SceneError(file + ":" + std::to_string(line) + ":" + std::to_string(column) + ": syntax error: " + what);
   }
+  for (const auto& o : overrides) apply_override(root, o, file);
   const Node top(file, root, "");
   top.expect_object({"description", "dt", "substeps", "fps", "frames", "duration", "integrator", "precision",
                      "gravity", "sheets", "obstacles", "output", "camera"});
   Scene scene;
   scene.file = file;
   scene.source = std::string(text);
+  {
+    // what the results depend on: the text, then every override in order
+    std::string identity(text);
+    for (const auto& o : overrides) identity += "\n--set " + o.path + "=" + o.value;
+    scene.fingerprint = fnv1a64(std::span(reinterpret_cast<const unsigned char*>(identity.data()), identity.size()));
+  }
   if (top.has("description")) scene.description = top.child("description").string();
   if (top.has("precision")) {
     const std::string p = top.child("precision").string();
@@ -476,7 +553,7 @@ Scene parse_scene(std::string_view text, const std::string& file) {
   return scene;
 }
 
-Scene load_scene(const std::filesystem::path& file) {
+Scene load_scene(const std::filesystem::path& file, std::span<const SceneOverride> overrides) {
   std::ifstream in(file, std::ios::binary);
   std::error_code ec;
   if (!in || std::filesystem::is_directory(file, ec))
@@ -484,7 +561,7 @@ Scene load_scene(const std::filesystem::path& file) {
   std::ostringstream text;
   text << in.rdbuf();
   if (in.bad()) throw SceneError(file.string() + ": cannot read the file");
-  return parse_scene(text.str(), file.string());
+  return parse_scene(text.str(), file.string(), overrides);
 }
 
 }  // namespace drape::app

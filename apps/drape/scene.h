@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <optional>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -51,6 +52,9 @@ struct Scene {
   OutputSettings output;
   std::optional<Camera> camera;
   std::string source;      // the file's text as read; `drape run` keeps a copy with the frames
+  // FNV-1a 64 of the file's bytes and any overrides: equal fingerprints, equal results
+  // (a checkpoint records it so a resume refuses another scene's state).
+  std::uint64_t fingerprint = 0;
 
   double frame_time() const { return substeps * world.dt; }  // s between output frames
 };
@@ -61,10 +65,19 @@ class SceneError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-// Reads and checks a scene file. Throws SceneError.
-Scene load_scene(const std::filesystem::path& file);
+// One `drape sweep --set PATH=VALUE`: VALUE (JSON, or a bare word taken as a string) put
+// at PATH ("dt", "integrator", "sheets[*].stiffness", "sheets[0].damping") of the document
+// before it is read, exactly as if the file said so.
+struct SceneOverride {
+  std::string path;
+  std::string value;
+};
+
+// Reads and checks a scene file, with overrides applied in order. Throws SceneError.
+Scene load_scene(const std::filesystem::path& file, std::span<const SceneOverride> overrides = {});
 // The same from text; `file` only names the source in messages.
 Scene parse_scene(std::string_view text, const std::string& file);
+Scene parse_scene(std::string_view text, const std::string& file, std::span<const SceneOverride> overrides);
 
 // Bytes the world will hold for the scene at its precision (points, springs, scratch).
 std::uint64_t estimated_bytes(const Scene& scene);

@@ -1,0 +1,202 @@
+// `drape sweep`: plan the grid of runs up front (every scene checked before any runs), run
+// them in parallel with one thread each, write one CSV row per run in plan order.
+#include "sweep.h"
+
+#include <oneapi/tbb/parallel_for.h>
+#include <oneapi/tbb/task_arena.h>
+
+#include <algorithm>
+#include <chrono>
+#include <charconv>
+#include <cmath>
+#include <limits>
+#include <numeric>
+
+#include "export.h"
+#include "run.h"
+
+namespace drape::app {
+
+namespace {
+
+template <class Real>
+SweepOutcome simulate_in(const Scene& scene, int frames) {
+  const auto start = std::chrono::steady_clock::now();
+  WorldDef def = scene.world;
+  def.threads = 1;  // the sweep is parallel over runs; a run's result never depends on threads
+  BasicWorld<Real> world(def);
+  std::vector<SheetId> ids;
+  for (const auto& s : scene.sheets) ids.push_back(world.add_sheet(s));
+  for (const auto& o : scene.obstacles) world.add_obstacle(o);
+  std::vector<std::vector<Real>> initial_z;
+  for (SheetId id : ids) {
+    const auto z = world.view(id).z;
+    initial_z.emplace_back(z.begin(), z.end());
+  }
+
+  // Stable: finite, and no energy from nowhere. Damping only removes energy and anchors,
+  // springs, gravity and obstacles are conservative, so E(t) ≤ E(0) up to the integrator's
+  // bounded error. Allow a gain of one "energy scale" of the scene (|each term of E(0)| plus
+  // each sheet's weight times a drop of its diagonal + 1 m): a run that blows up passes it by
+  // orders of magnitude while staying finite for many frames, a sound one never nears it.
+  const Energies e0 = world.energies();
+  double scale = std::abs(e0.kinetic) + std::abs(e0.spring) + std::abs(e0.gravity) + std::abs(e0.anchor) +
+                 std::abs(e0.obstacle) + 1e-9;
+  const double g = std::hypot(def.gravity.x, def.gravity.y, def.gravity.z);
+  for (const auto& s : scene.sheets) {
+    const double mass = s.point_masses.empty() ? s.mass : std::accumulate(s.point_masses.begin(), s.point_masses.end(), 0.0);
+    scale += mass * g * (std::hypot(s.width, s.height) + 1.0);
+  }
+  const double energy_bound = e0.total() + scale;
+  auto sound = [&] { return world.all_finite() && world.energies().total() <= energy_bound; };
+
+  SweepOutcome outcome;
+  outcome.frames_run = world.run_frames(frames, scene.substeps, [&](int) { return sound(); });
+  outcome.stable = sound();
+  if (!outcome.stable) {
+    --outcome.frames_run;  // the last frame run is the one that went non-finite
+  } else {
+    outcome.max_sag = -std::numeric_limits<double>::infinity();
+    for (std::size_t k = 0; k < ids.size(); ++k) {
+      const auto z = world.view(ids[k]).z;
+      for (std::size_t p = 0; p < z.size(); ++p)
+        outcome.max_sag = std::max(outcome.max_sag, double(initial_z[k][p]) - double(z[p]));
+      outcome.max_strain = std::max(outcome.max_strain, world.diagnostics(ids[k]).max_strain);
+    }
+    outcome.total_energy = world.energies().total();
+  }
+  outcome.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return outcome;
+}
+
+std::string number(double v) {
+  char buf[64];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, r.ptr);
+}
+
+// RFC 4180: quote a field holding a comma, quote or line break; double inner quotes.
+std::string csv_field(const std::string& s) {
+  if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
+  std::string q = "\"";
+  for (char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return q + "\"";
+}
+
+}  // namespace
+
+std::optional<SweepParameter> parse_sweep_parameter(std::string_view text) {
+  const auto eq = text.find('=');
+  if (eq == std::string_view::npos || eq == 0 || eq + 1 == text.size()) return std::nullopt;
+  SweepParameter p;
+  p.path = std::string(text.substr(0, eq));
+  std::string current;
+  int depth = 0;
+  bool quoted = false;
+  for (char c : text.substr(eq + 1)) {
+    if (c == '"') quoted = !quoted;
+    if (!quoted && (c == '[' || c == '{')) ++depth;
+    if (!quoted && (c == ']' || c == '}')) --depth;
+    if (c == ',' && depth == 0 && !quoted) {
+      p.values.push_back(current);
+      current.clear();
+    } else {
+      current += c;
+    }
+  }
+  p.values.push_back(current);
+  if (depth != 0 || quoted) return std::nullopt;
+  for (const auto& v : p.values)
+    if (v.empty()) return std::nullopt;
+  return p;
+}
+
+std::vector<SweepCase> plan_sweep(const SweepOptions& options) {
+  std::vector<SweepCase> cases;
+  const std::size_t axes = options.parameters.size();
+  for (std::size_t s = 0; s < options.scenes.size(); ++s) {
+    std::vector<std::size_t> index(axes, 0);  // an odometer over the grid, last axis fastest
+    while (true) {
+      SweepCase c;
+      c.scene_index = s;
+      std::vector<SceneOverride> overrides;
+      for (std::size_t a = 0; a < axes; ++a) {
+        c.values.push_back(options.parameters[a].values[index[a]]);
+        overrides.push_back({options.parameters[a].path, c.values.back()});
+      }
+      c.scene = load_scene(options.scenes[s], overrides);
+      cases.push_back(std::move(c));
+      std::size_t a = axes;
+      while (a > 0 && ++index[a - 1] == options.parameters[a - 1].values.size()) index[--a] = 0;
+      if (a == 0) break;
+    }
+  }
+  return cases;
+}
+
+SweepOutcome simulate(const Scene& scene, std::optional<int> frames) {
+  const int n = frames.value_or(scene.frames);
+  return scene.precision == Precision::Float32 ? simulate_in<float>(scene, n) : simulate_in<double>(scene, n);
+}
+
+std::vector<SweepOutcome> run_sweep_cases(std::span<const SweepCase> cases, std::optional<int> frames, int threads) {
+  std::vector<SweepOutcome> outcomes(cases.size());
+  tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
+  arena.execute([&] {
+    // grain 1: runs differ a lot in cost (grid size, step count)
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, cases.size(), 1), [&](const tbb::blocked_range<std::size_t>& r) {
+      for (std::size_t k = r.begin(); k != r.end(); ++k) outcomes[k] = simulate(cases[k].scene, frames);
+    });
+  });
+  return outcomes;
+}
+
+void write_sweep_csv(std::ostream& out, const SweepOptions& options, std::span<const SweepCase> cases,
+                     std::span<const SweepOutcome> outcomes) {
+  out << "scene";
+  for (const auto& p : options.parameters) out << ',' << csv_field(p.path);
+  out << ",stable,frames,max_sag_m,max_strain,total_energy_J,wall_time_s\n";
+  for (std::size_t k = 0; k < cases.size(); ++k) {
+    const SweepCase& c = cases[k];
+    const SweepOutcome& o = outcomes[k];
+    out << csv_field(options.scenes[c.scene_index].string());
+    for (const auto& v : c.values) out << ',' << csv_field(v);
+    out << ',' << (o.stable ? "true" : "false") << ',' << o.frames_run;
+    if (o.stable)
+      out << ',' << number(o.max_sag) << ',' << number(o.max_strain) << ',' << number(o.total_energy);
+    else
+      out << ",,,";
+    out << ',' << number(o.wall_seconds) << '\n';
+  }
+}
+
+int run_sweep(const SweepOptions& options, const std::filesystem::path& csv, std::ostream& log) {
+  std::vector<SweepCase> cases;
+  try {
+    cases = plan_sweep(options);
+  } catch (const SceneError& e) {
+    log << "drape: " << e.what() << '\n';
+    return exit_bad_scene;
+  }
+  log << "drape: sweep of " << cases.size() << " run(s)\n";
+  const auto start = std::chrono::steady_clock::now();
+  const std::vector<SweepOutcome> outcomes = run_sweep_cases(cases, options.frames, options.threads);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  try {
+    if (csv.has_parent_path()) {
+      std::error_code ec;
+      std::filesystem::create_directories(csv.parent_path(), ec);
+      if (ec) throw std::runtime_error("cannot create the folder " + csv.parent_path().string() + ": " + ec.message());
+    }
+    write_atomically(csv, [&](std::ostream& out) { write_sweep_csv(out, options, cases, outcomes); });
+  } catch (const std::runtime_error& e) {
+    log << "drape: " << e.what() << '\n';
+    return exit_write_failed;
+  }
+  const auto unstable = std::count_if(outcomes.begin(), outcomes.end(), [](const SweepOutcome& o) { return !o.stable; });
+  log << "drape: " << cases.size() << " run(s) in " << seconds << " s (" << double(cases.size()) / seconds
+      << " scenes/s), " << unstable << " unstable; wrote " << csv.string() << '\n';
+  return exit_ok;
+}
+
+}  // namespace drape::app

@@ -1,0 +1,71 @@
+// `drape sweep`: many independent runs (several scenes, and/or one scene over a grid of
+// parameter values), run in parallel, one outcome row each in a CSV. Each run is a whole
+// `drape run` without files: the same scene text, overrides and step count give the same
+// final state bit for bit, so a row can be checked against a single run.
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <ostream>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "scene.h"
+
+namespace drape::app {
+
+// `--set PATH=V1,V2,...`: one axis of the grid.
+struct SweepParameter {
+  std::string path;                 // as in SceneOverride
+  std::vector<std::string> values;  // as written, each a SceneOverride value
+};
+// Splits "PATH=V1,V2" at the first '=' and at commas outside [], {} and quotes, so a value
+// may be a JSON array ("gravity=[0,0,-9.81],[0,0,-1.62]"). Empty optional: malformed.
+std::optional<SweepParameter> parse_sweep_parameter(std::string_view text);
+
+struct SweepOptions {
+  std::vector<std::filesystem::path> scenes;
+  std::vector<SweepParameter> parameters;  // the grid is their Cartesian product
+  std::optional<int> frames;               // overrides each scene's frame count
+  int threads = 0;                         // runs in parallel; 0: all cores
+};
+
+// One run of the grid. Row order: scenes in the order given; within a scene the first
+// parameter varies slowest and the last fastest (like nested loops in the order given).
+struct SweepCase {
+  std::size_t scene_index = 0;
+  std::vector<std::string> values;  // one per parameter
+  Scene scene;                      // the file with the values applied, already checked
+};
+// Loads every scene with every combination; throws SceneError for the first bad one, so
+// nothing runs unless every run can.
+std::vector<SweepCase> plan_sweep(const SweepOptions& options);
+
+struct SweepOutcome {
+  // Every position and velocity stayed finite and the total energy never rose above its
+  // start by more than the scene's energy scale (sweep.cpp): a passive system cannot gain it.
+  bool stable = true;
+  int frames_run = 0;       // frames completed before the state went unstable
+  // Of the final state (empty in the CSV when unstable):
+  double max_sag = 0;       // m: max over all points of (initial z − final z)
+  double max_strain = 0;    // max over sheets of SheetDiagnostics::max_strain
+  double total_energy = 0;  // J: Energies::total() summed over sheets
+  double wall_seconds = 0;
+};
+// Steps one scene single-threaded for `frames` (default: its own) frames, checking the state
+// is finite after every frame.
+SweepOutcome simulate(const Scene& scene, std::optional<int> frames = std::nullopt);
+// All cases in parallel (TBB over runs, `threads` workers, 0: all cores); result k is case k.
+std::vector<SweepOutcome> run_sweep_cases(std::span<const SweepCase> cases, std::optional<int> frames, int threads);
+
+// Header: scene, one column per parameter path, stable, frames, max_sag_m, max_strain,
+// total_energy_J, wall_time_s. Numbers in shortest round-trip form.
+void write_sweep_csv(std::ostream& out, const SweepOptions& options, std::span<const SweepCase> cases,
+                     std::span<const SweepOutcome> outcomes);
+
+// The whole subcommand: plan, run, write `csv` atomically. Returns an ExitCode (run.h);
+// unstable runs are outcomes (a row with stable = false), not errors.
+int run_sweep(const SweepOptions& options, const std::filesystem::path& csv, std::ostream& log);
+
+}  // namespace drape::app

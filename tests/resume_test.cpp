@@ -1,0 +1,190 @@
+// `drape run --checkpoint-every / --resume`, and output that cannot be written: a run killed
+// part-way and resumed writes exactly the frames an uninterrupted run writes; a checkpoint
+// that is damaged, of another version or of another scene is refused before anything is
+// written; a write that fails stops the run and keeps the frames written before it.
+#include <signal.h>
+
+#include <algorithm>
+#include <chrono>
+#include <map>
+#include <thread>
+#include <vector>
+
+#include "checkpoint.h"
+#include "cli_fixture.h"
+
+namespace {
+
+// Heavy enough per frame (49×49 points, 40 substeps, OBJ + VTU) that a kill after the first
+// checkpoint lands well before the last frame, even in an optimised build.
+std::string scene_text(double stiffness = 120) {
+  return R"({"frames": )" +
+#ifdef DRAPE_SANITIZED
+         std::string("30") +
+#else
+         std::string("60") +
+#endif
+         R"(, "dt": 0.0005, "substeps": 40, "sheets": [{"grid": [48, 48], "size": [1, 1], "stiffness": )" +
+         std::to_string(stiffness) + R"(, "mass": 0.4, "damping": 0.02,
+    "anchors": [{"at": "corners", "stiffness": 400}]}], "output": {"formats": ["obj", "vtk"]}})";
+}
+
+// Name → bytes of every frame file and the .pvd series (not temporaries, not the checkpoint).
+std::map<std::string, std::string> frame_files(const fs::path& dir) {
+  std::map<std::string, std::string> files;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    const std::string name = e.path().filename().string();
+    if ((name.rfind("frame_", 0) == 0 || name == "frames.pvd") && e.path().extension() != ".tmp")
+      files[name] = Cli::slurp(e.path());
+  }
+  return files;
+}
+
+// Every file in `dir` with its bytes, to show a refused resume changed nothing.
+std::map<std::string, std::string> snapshot(const fs::path& dir) {
+  std::map<std::string, std::string> files;
+  for (const auto& e : fs::directory_iterator(dir)) files[e.path().filename().string()] = Cli::slurp(e.path());
+  return files;
+}
+
+pid_t spawn(const std::vector<std::string>& args) {
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    std::vector<char*> argv;
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    std::freopen("/dev/null", "w", stdout);
+    std::freopen("/dev/null", "w", stderr);
+    ::execv(argv[0], argv.data());
+    std::_Exit(127);
+  }
+  return pid;
+}
+
+TEST_F(Cli, KilledRunResumedFromItsCheckpointWritesBitIdenticalFrames) {
+  const fs::path scene = write("s.json", scene_text());
+  const fs::path full = dir / "full", part = dir / "part";
+  const Result whole = drape("run " + scene.string() + " --out " + full.string() + " --threads 2");
+  ASSERT_EQ(whole.code, 0) << whole.err;
+
+  // the real thing: start a run, SIGKILL it once its first checkpoint is on disk
+  const pid_t pid = spawn({DRAPE_BIN, "run", scene.string(), "--out", part.string(), "--threads", "1",
+                           "--checkpoint-every", "5"});
+  ASSERT_GT(pid, 0);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (!fs::exists(part / "checkpoint.drape") && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  ASSERT_EQ(::kill(pid, SIGKILL), 0);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFSIGNALED(status)) << "the run ended before it could be killed";
+  const auto last = full / "frame_00030.obj";
+  ASSERT_TRUE(fs::exists(last));
+  ASSERT_FALSE(fs::exists(part / last.filename())) << "killed too late to test a resume";
+  const std::size_t before = frame_files(part).size();
+
+  const Result resumed = drape("run " + scene.string() + " --resume " + part.string() + " --threads 2");
+  ASSERT_EQ(resumed.code, 0) << resumed.err;
+  EXPECT_NE(resumed.err.find("resuming"), std::string::npos) << resumed.err;
+
+  const auto expected = frame_files(full), got = frame_files(part);
+  EXPECT_GT(got.size(), before);
+  ASSERT_EQ(got.size(), expected.size());
+  for (const auto& [name, bytes] : expected) {
+    const auto it = got.find(name);
+    ASSERT_NE(it, got.end()) << name << " missing after the resume";
+    EXPECT_TRUE(it->second == bytes) << name << " differs from the uninterrupted run";
+  }
+}
+
+TEST_F(Cli, DamagedForeignOrMissingCheckpointIsRefusedWithExitFiveAndNothingWritten) {
+  const fs::path scene = write("s.json", scene_text());
+  const fs::path out = dir / "out";
+  ASSERT_EQ(drape("run " + scene.string() + " --out " + out.string() + " --frames 10 --checkpoint-every 5").code, 0);
+  for (int f = 6; f <= 10; ++f)
+    for (const char* ext : {".obj", ".vtu"}) {
+      char name[32];
+      std::snprintf(name, sizeof name, "frame_%05d%s", f, ext);
+      fs::remove(out / name);
+    }
+  const fs::path ckp = out / "checkpoint.drape";
+  const std::string good = slurp(ckp);
+  ASSERT_GT(good.size(), 100u);
+
+  auto put = [&](const std::string& bytes) { std::ofstream(ckp, std::ios::binary | std::ios::trunc) << bytes; };
+  std::string flipped = good;
+  flipped[good.size() / 2] = char(flipped[good.size() / 2] ^ 0x10);
+  std::string other_version = good;
+  other_version[8] = 2;  // u32 little-endian format version after the 8-byte magic
+  const std::pair<std::string, std::string> cases[] = {
+      {good.substr(0, good.size() / 2), "checksum mismatch"},  // truncated: the checksum read is other bytes
+      {good.substr(0, 20), "truncated"},
+      {flipped, "checksum mismatch"},
+      {other_version, "format version 2"},
+      {"not a checkpoint at all, just text", "not a drape checkpoint"},
+  };
+  for (const auto& [bytes, message] : cases) {
+    put(bytes);
+    const auto before = snapshot(out);
+    const Result r = drape("run " + scene.string() + " --resume " + out.string());
+    EXPECT_EQ(r.code, 5) << message;
+    EXPECT_NE(r.err.find(message), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find(ckp.string()), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_TRUE(snapshot(out) == before) << "a refused resume changed " << out << " (" << message << ")";
+  }
+
+  // the intact checkpoint, resumed with another scene (stiffer springs, same grid): refused
+  put(good);
+  const fs::path other = write("other.json", scene_text(121));
+  const auto before = snapshot(out);
+  const Result r = drape("run " + other.string() + " --resume " + out.string());
+  EXPECT_EQ(r.code, 5);
+  EXPECT_NE(r.err.find("another scene"), std::string::npos) << r.err;
+  EXPECT_TRUE(snapshot(out) == before);
+
+  fs::remove(ckp);
+  const Result missing = drape("run " + scene.string() + " --resume " + out.string());
+  EXPECT_EQ(missing.code, 5);
+  EXPECT_NE(missing.err.find("no checkpoint"), std::string::npos) << missing.err;
+
+  // and the intact one with its own scene resumes
+  put(good);
+  EXPECT_EQ(drape("run " + scene.string() + " --resume " + out.string() + " --frames 10").code, 0);
+  EXPECT_TRUE(fs::exists(out / "frame_00010.obj"));
+}
+
+TEST_F(Cli, OutputPathThatIsAFileOrUnderAFileExitsFourAndKeepsTheFile) {
+  const fs::path scene = write("s.json", scene_text());
+  const fs::path file = write("taken", "precious");
+  for (const fs::path& out : {file, file / "sub"}) {
+    const Result r = drape("run " + scene.string() + " --frames 2 --out " + out.string());
+    EXPECT_EQ(r.code, 4) << out;
+    EXPECT_NE(r.err.find("cannot create the output folder " + out.string()), std::string::npos) << r.err;
+    EXPECT_EQ(slurp(file), "precious");
+  }
+  const Result sweep = drape("sweep " + scene.string() + " --frames 1 --out " + (file / "r.csv").string());
+  EXPECT_EQ(sweep.code, 4) << sweep.err;
+  EXPECT_EQ(slurp(file), "precious");
+}
+
+// Disk full, simulated without privileges: the temporary name of frame 3 is a symbolic
+// link to /dev/full, where every write fails with ENOSPC. (A full tmpfs behaves the same
+// but needs mount rights; permission denied cannot be provoked as root, which CI runs as.)
+TEST_F(Cli, DiskFullStopsTheRunWithExitFourAndKeepsEarlierFramesIntact) {
+  if (!fs::exists("/dev/full")) GTEST_SKIP() << "no /dev/full on this system";
+  const fs::path scene = write("s.json", scene_text());
+  const fs::path full = dir / "full", out = dir / "out";
+  ASSERT_EQ(drape("run " + scene.string() + " --frames 6 --out " + full.string()).code, 0);
+  fs::create_directories(out);
+  fs::create_symlink("/dev/full", out / "frame_00003.obj.tmp");
+  const Result r = drape("run " + scene.string() + " --frames 6 --out " + out.string());
+  EXPECT_EQ(r.code, 4) << r.err;
+  EXPECT_NE(r.err.find("frame_00003.obj.tmp: No space left on device"), std::string::npos) << r.err;
+  for (const char* name : {"frame_00000.obj", "frame_00001.obj", "frame_00002.obj", "frame_00002.vtu"})
+    EXPECT_TRUE(slurp(out / name) == slurp(full / name)) << name << " was not kept intact";
+  for (const char* name : {"frame_00003.obj", "frame_00003.obj.tmp", "frame_00003.vtu", "frame_00004.obj"})
+    EXPECT_FALSE(fs::exists(fs::symlink_status(out / name))) << name;
+}
+
+}  // namespace

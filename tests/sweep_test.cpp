@@ -1,0 +1,155 @@
+// `drape sweep`: one CSV row per run in grid order, each row the outcome of exactly the run
+// `drape run` makes with that value, unstable runs reported as such and never as NaN.
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "cli_fixture.h"
+#include "sweep.h"
+
+namespace {
+
+std::vector<std::vector<std::string>> read_csv(const fs::path& p) {
+  std::vector<std::vector<std::string>> rows;
+  std::istringstream in(Cli::slurp(p));
+  std::string line;
+  while (std::getline(in, line)) {
+    std::vector<std::string> cells;
+    std::string cell;
+    std::istringstream s(line);
+    while (std::getline(s, cell, ',')) cells.push_back(cell);
+    if (!line.empty() && line.back() == ',') cells.push_back("");
+    rows.push_back(cells);
+  }
+  return rows;
+}
+
+std::string sheet_scene(const std::string& extra = "") {
+  return R"({"frames": 8, "dt": 0.001, "substeps": 25, )" + extra +
+         R"("sheets": [{"grid": [8, 8], "size": [1, 1], "stiffness": 50, "mass": 0.2, "damping": 0.02,
+           "anchors": [{"at": "corners", "stiffness": 300}]}]})";
+}
+
+// z of every vertex ("v x y z" lines) of an OBJ frame
+std::vector<double> obj_z(const fs::path& p) {
+  std::vector<double> z;
+  std::istringstream in(Cli::slurp(p));
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("v ", 0) == 0) {
+      std::istringstream s(line.substr(2));
+      std::string a, b, c;
+      s >> a >> b >> c;
+      z.push_back(std::strtod(c.c_str(), nullptr));
+    }
+  return z;
+}
+
+TEST(Sweep, SetValuesSplitAtTopLevelCommasOnly) {
+  const auto p = drape::app::parse_sweep_parameter("gravity=[0,0,-9.81],[0,0,-1.62]");
+  ASSERT_TRUE(p);
+  EXPECT_EQ(p->path, "gravity");
+  EXPECT_EQ(p->values, (std::vector<std::string>{"[0,0,-9.81]", "[0,0,-1.62]"}));
+  const auto q = drape::app::parse_sweep_parameter("sheets[*].stiffness=10,100,1000");
+  ASSERT_TRUE(q);
+  EXPECT_EQ(q->values.size(), 3u);
+  for (const char* bad : {"stiffness", "=1,2", "dt=", "dt=1,,2", "gravity=[0,0"})
+    EXPECT_FALSE(drape::app::parse_sweep_parameter(bad)) << bad;
+}
+
+TEST_F(Cli, SweepWritesOneRowPerRunScenesThenFirstParameterSlowest) {
+  const fs::path a = write("a.json", sheet_scene()), b = write("b.json", sheet_scene(R"("precision": "float32", )"));
+  const fs::path csv = dir / "sub" / "r.csv";
+  const Result r = drape("sweep " + a.string() + " " + b.string() +
+                         " --set sheets[*].stiffness=20,40,80 --set integrator=semi_implicit_euler,forward_euler"
+                         " --threads 2 --out " + csv.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto rows = read_csv(csv);
+  ASSERT_EQ(rows.size(), 1u + 2 * 3 * 2);
+  EXPECT_EQ(rows[0], (std::vector<std::string>{"scene", "sheets[*].stiffness", "integrator", "stable", "frames",
+                                               "max_sag_m", "max_strain", "total_energy_J", "wall_time_s"}));
+  std::size_t k = 1;
+  for (const fs::path& scene : {a, b})
+    for (const char* stiffness : {"20", "40", "80"})
+      for (const char* integrator : {"semi_implicit_euler", "forward_euler"}) {
+        ASSERT_EQ(rows[k].size(), 9u) << k;
+        EXPECT_EQ(rows[k][0], scene.string());
+        EXPECT_EQ(rows[k][1], stiffness);
+        EXPECT_EQ(rows[k][2], integrator);
+        ++k;
+      }
+  for (const fs::path& e : fs::directory_iterator(csv.parent_path())) EXPECT_NE(e.extension(), ".tmp");
+}
+
+// The row of stiffness 80 is the run of a scene file that says 80: the sag in the CSV equals
+// the one recomputed from that run's first and last exported frames, bit for bit.
+TEST_F(Cli, SweepRowEqualsTheSingleRunWithThatValue) {
+  const fs::path scene = write("s.json", sheet_scene());
+  const fs::path csv = dir / "r.csv";
+  ASSERT_EQ(drape("sweep " + scene.string() + " --set sheets[*].stiffness=30,80 --out " + csv.string()).code, 0);
+  const auto rows = read_csv(csv);
+  ASSERT_EQ(rows.size(), 3u);
+  ASSERT_EQ(rows[2][1], "80");
+  ASSERT_EQ(rows[2][2], "true");
+
+  std::string text = sheet_scene();
+  text.replace(text.find("\"stiffness\": 50"), 15, "\"stiffness\": 80");
+  const fs::path single = write("k80.json", text);
+  const Result r = drape("run " + single.string() + " --format obj --threads 2 --out " + (dir / "out").string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto z0 = obj_z(dir / "out" / "frame_00000.obj"), z = obj_z(dir / "out" / "frame_00008.obj");
+  ASSERT_EQ(z0.size(), 81u);
+  ASSERT_EQ(z.size(), 81u);
+  double sag = -1e300;
+  for (std::size_t p = 0; p < z.size(); ++p) sag = std::max(sag, z0[p] - z[p]);
+  EXPECT_GT(sag, 0.0);
+  EXPECT_EQ(std::strtod(rows[2][4].c_str(), nullptr), sag);  // scene, stiffness, stable, frames, max_sag_m
+  EXPECT_NE(rows[1][4], rows[2][4]) << "stiffness 30 and 80 gave the same sag: the override did nothing";
+}
+
+// Forward Euler without enough damping grows every oscillation (its amplification factor is
+// above 1 for an undamped spring); a dt far above 2/ω_max blows up semi-implicit Euler too.
+// Both are rows with stable = false and empty metrics; the sound run keeps its numbers.
+TEST_F(Cli, UnstableCombinationIsReportedUnstableNotNaN) {
+  const fs::path scene = write("s.json", sheet_scene());
+  const fs::path csv = dir / "r.csv";
+  const Result r = drape("sweep " + scene.string() +
+                         " --set dt=0.001,0.05 --set integrator=semi_implicit_euler,forward_euler --frames 40 --out " +
+                         csv.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto rows = read_csv(csv);
+  ASSERT_EQ(rows.size(), 5u);
+  EXPECT_EQ(rows[1][3], "true");   // dt 0.001, semi-implicit: below its stable step
+  EXPECT_EQ(rows[2][3], "false");  // dt 0.001, forward Euler, damping 0.02 N·s/m: too little
+  EXPECT_EQ(rows[3][3], "false");  // dt 0.05: far above 2/ω_max
+  EXPECT_EQ(rows[4][3], "false");
+  for (std::size_t k = 2; k <= 4; ++k) {
+    EXPECT_LT(std::stoi(rows[k][4]), 40) << "frames completed before going unstable";
+    for (std::size_t c = 5; c <= 7; ++c) EXPECT_EQ(rows[k][c], "") << k;
+  }
+  EXPECT_EQ(std::stoi(rows[1][4]), 40);
+  // every number cell is empty or a finite number, written in full
+  for (std::size_t k = 1; k < rows.size(); ++k)
+    for (std::size_t c = 5; c < rows[k].size(); ++c) {
+      if (rows[k][c].empty()) continue;
+      char* end = nullptr;
+      const double v = std::strtod(rows[k][c].c_str(), &end);
+      EXPECT_TRUE(std::isfinite(v) && *end == '\0') << "row " << k << " column " << c << ": " << rows[k][c];
+    }
+}
+
+TEST_F(Cli, SweepWithABadValueRunsNothingAndWritesNoCsv) {
+  const fs::path scene = write("s.json", sheet_scene());
+  const fs::path csv = dir / "r.csv";
+  const Result bad_value = drape("sweep " + scene.string() + " --set sheets[*].stiffness=10,-5 --out " + csv.string());
+  EXPECT_EQ(bad_value.code, 3);
+  EXPECT_NE(bad_value.err.find("sheets[0].stiffness: must be positive"), std::string::npos) << bad_value.err;
+  const Result bad_path = drape("sweep " + scene.string() + " --set sheets[2].damping=1 --out " + csv.string());
+  EXPECT_EQ(bad_path.code, 3);
+  EXPECT_NE(bad_path.err.find("--set sheets[2].damping: index 2 is past the end"), std::string::npos) << bad_path.err;
+  const Result bad_syntax = drape("sweep " + scene.string() + " --set stiffness --out " + csv.string());
+  EXPECT_EQ(bad_syntax.code, 2);
+  EXPECT_FALSE(fs::exists(csv));
+}
+
+}  // namespace
