@@ -55,8 +55,9 @@ std::map<int, Frame> simulate(const Scene& scene, const std::vector<int>& wanted
   std::map<int, Frame> frames;
   for (int k = 0; k <= last; ++k) {
     if (k > 0) {
-      world.step(scene.substeps);
-      if (!world.all_finite())
+      // the engine's stability guard, as in `drape run`: non-finite, or energy without bound
+      const drape::StabilityReport report = world.step(scene.substeps);
+      if (!report.ok() || !world.all_finite())
         throw Failure{exit_unstable, scene.file + ": the simulation became unstable during frame " + std::to_string(k) +
                                          ", before frame " + std::to_string(last) + "; `drape run` says what to change"};
     }
