@@ -11,6 +11,17 @@
 
 namespace drape::bench {
 
+// The WorldDef every benchmark starts from. The benchmarks step one substep per
+// iteration, but a program runs the stability guard once per step() call (a frame): with it
+// on here every substep would pay a frame's guard. It is off, and priced on its own by
+// BM_Feature_guard_per_frame.
+inline WorldDef world_def(int threads = 0) {
+  WorldDef wd;
+  wd.threads = threads;
+  wd.guard = false;
+  return wd;
+}
+
 // The terms a benchmarked sheet carries, to price each one separately.
 struct Features {
   bool pins = false;     // four corners hard-pinned (the paper's Figs 5, 7 set-up)

@@ -21,7 +21,7 @@ void add_sheets(W& world, Features f) {
 }
 
 drape::WorldDef one_thread() {
-  drape::WorldDef wd;
+  drape::WorldDef wd = drape::bench::world_def();
   wd.threads = 1;
   return wd;
 }
@@ -87,8 +87,18 @@ BENCHMARK(BM_Feature_damping);
 BENCHMARK(BM_Feature_finite_check_per_frame);
 BENCHMARK(BM_Feature_finite_check_per_substep);
 BENCHMARK(BM_Feature_obstacle);
+
+// The stability guard as a program runs it: once per step() call of a 33-substep frame.
+void BM_Feature_guard_per_frame(benchmark::State& state) {
+  drape::WorldDef wd = one_thread();
+  wd.guard = true;
+  drape::World world(wd);
+  add_sheets(world, {false, false, false});
+  for (auto _ : state) world.step(demo_frame);
+  drape::bench::set_point_rate(state, double(sheet_count) * side * side * demo_frame);
+}
+BENCHMARK(BM_Feature_guard_per_frame);
 BENCHMARK(BM_Feature_all);
-// TODO(contacts merge): BM_Feature_contacts — the bare scene with sheets stacked so the
-// host stage finds pairs, to price the contact term.
+// The price of contacts: bench_world.cpp (48 sheets apart and in contact, 1 and 2 threads).
 
 }  // namespace

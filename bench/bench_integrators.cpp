@@ -1,11 +1,13 @@
 // The price of each integrator per substep, and of the stability guard per frame.
 #include <benchmark/benchmark.h>
+
+#include "bench_common.h"
 #include <drape/drape.h>
 
 namespace {
 
 drape::World make_world(drape::Integrator integrator, std::uint32_t side) {
-  drape::WorldDef wd;
+  drape::WorldDef wd = drape::bench::world_def();
   wd.dt = 1e-4;
   wd.threads = 1;
   wd.integrator = integrator;

@@ -1,6 +1,8 @@
 // The price of the obstacle term (eq 9): a sheet lying on an obstacle, per shape, against
 // the same sheet with the obstacle out of reach (which pays only the host stage's bounds).
 #include <benchmark/benchmark.h>
+
+#include "bench_common.h"
 #include <drape/drape.h>
 
 namespace {
@@ -9,7 +11,7 @@ namespace {
 void BM_SheetOnObstacle(benchmark::State& state) {
   const auto shape = static_cast<drape::ObstacleShape>(state.range(0));
   const bool near = state.range(1) != 0;
-  drape::WorldDef wd;
+  drape::WorldDef wd = drape::bench::world_def();
   wd.dt = 1e-4;
   wd.threads = 1;
   drape::World world(wd);

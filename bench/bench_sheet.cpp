@@ -9,7 +9,7 @@ using drape::bench::set_point_rate;
 template <class W>
 void sheet_step(benchmark::State& state, drape::Integrator integrator) {
   const auto side = static_cast<std::uint32_t>(state.range(0));
-  drape::WorldDef wd;
+  drape::WorldDef wd = drape::bench::world_def();
   wd.threads = 1;
   wd.integrator = integrator;
   W world(wd);

@@ -1,6 +1,8 @@
 // Many sheets in one World: step throughput against threads, the price of contacts, and
 // the broad-phase alone against the number of boxes.
 #include <benchmark/benchmark.h>
+
+#include "bench_common.h"
 #include <drape/drape.h>
 
 #include <random>
@@ -14,7 +16,7 @@ namespace {
 // layers. `layer_gap` 0.5 m keeps them apart (no pair within contact range); 0.01 m puts
 // each layer in contact with the next (the contact range is 0.017 m by default).
 drape::World stack_world(int threads, double layer_gap) {
-  drape::WorldDef wd;
+  drape::WorldDef wd = drape::bench::world_def();
   wd.dt = 1e-3;
   wd.threads = threads;
   drape::World world(wd);
@@ -62,7 +64,7 @@ BENCHMARK(BM_World48SheetsInContact)->Arg(1)->Arg(2)->UseRealTime();
 // Args: threads, block_points. One 256×256 sheet among eight 32×32 ones: without
 // splitting (block_points huge) one core does the large sheet alone.
 void BM_WorldOneLargeSheet(benchmark::State& state) {
-  drape::WorldDef wd;
+  drape::WorldDef wd = drape::bench::world_def();
   wd.dt = 1e-4;
   wd.threads = int(state.range(0));
   wd.block_points = std::uint32_t(state.range(1));
@@ -111,5 +113,33 @@ void BM_BroadPhase(benchmark::State& state) {
   state.SetComplexityN(state.range(0));
 }
 BENCHMARK(BM_BroadPhase)->RangeMultiplier(10)->Range(10, 10000)->Complexity(benchmark::oNLogN);
+
+// The world step the broad-phase is a part of, at 10,000 sheets: small sheets (8×8 points,
+// 0.3 m) scattered like BM_BroadPhase's boxes, a few in contact range of each other. The
+// report prints BM_BroadPhase/10000 as a share of this.
+void BM_WorldStep10kSheets(benchmark::State& state) {
+  drape::WorldDef wd = drape::bench::world_def();
+  wd.dt = 1e-3;
+  wd.threads = int(state.range(0));
+  drape::World world(wd);
+  std::mt19937 rng(42);
+  const std::size_t count = 10000;
+  const double side = 2.0 * std::cbrt(double(count));
+  std::uniform_real_distribution<double> pos(0.0, side);
+  drape::SheetDef sd;
+  sd.m = sd.n = 7;
+  sd.width = sd.height = 0.3;
+  sd.mass = 0.05;
+  sd.stiffness = 50.0;
+  for (std::size_t k = 0; k < count; ++k) {
+    sd.center = {pos(rng), pos(rng), pos(rng)};
+    world.add_sheet(sd);
+  }
+  world.step(1);
+  for (auto _ : state) world.step(1);
+  state.counters["pairs"] = double(world.contact_pair_count());
+  report(state, double(count) * 64);
+}
+BENCHMARK(BM_WorldStep10kSheets)->Arg(1)->Arg(2)->UseRealTime()->Unit(benchmark::kMillisecond);
 
 }  // namespace

@@ -451,6 +451,25 @@ class Report:
             self.used.add(n)
             self.out(f"| {n} | {us(found[n].step_seconds)}{cv_text(found[n])} |")
         self.out("")
+        bp = next((r for n, r in found.items() if n.endswith("/10000")), None)
+        world = {n: r for n, r in self.runs.items() if n.startswith("BM_WorldStep10kSheets")}
+        if bp is None or not world:
+            self.target("Broad-phase for 10,000 sheets, share of the world step", "–",
+                        f"< {pct(TARGET_BROADPHASE_SHARE)}", None, "needs BM_BroadPhase/10000 and BM_WorldStep10kSheets")
+            return
+        self.out("World step with the same number of sheets (8×8 points each, scattered as the boxes above):", "",
+                 "| benchmark | µs per step | broad-phase share |", "|---|---|---|")
+        shares = []
+        for n in sorted(world):
+            self.used.add(n)
+            share = bp.step_seconds / world[n].step_seconds
+            shares.append(share)
+            self.out(f"| {n} | {us(world[n].step_seconds)}{cv_text(world[n])} | {pct(share)} |")
+        self.out("")
+        worst = max(shares)
+        self.target("Broad-phase for 10,000 sheets, share of the world step", pct(worst),
+                    f"< {pct(TARGET_BROADPHASE_SHARE)}", worst < TARGET_BROADPHASE_SHARE,
+                    "" if worst < TARGET_BROADPHASE_SHARE else f"over by {pct(worst - TARGET_BROADPHASE_SHARE)}")
 
     def notes(self):
         """Why a missed target was missed, from this run's own numbers."""
