@@ -227,20 +227,20 @@ void points_against_cells(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb
     // a cell whose box is no nearer than the nearest triangle so far cannot win.
     const std::uint32_t first = grid.start[g], last = grid.start[g + 1];
     if (grid.gap2.size() < last - first) grid.gap2.resize(last - first);
-    Real* gap2 = grid.gap2.data() - first;  // box gaps of this grid cell's candidates
+    Real* gap2 = grid.gap2.data();  // box gaps of this grid cell's candidates, gap2[it − first]
     std::uint32_t nearest = last;
     Real nearest_gap2 = best.dist2;
     for (std::uint32_t it = first; it < last; ++it) {
-      gap2[it] = box_gap2(grid.cells[grid.items[it]]);
-      if (gap2[it] < nearest_gap2) {
-        nearest_gap2 = gap2[it];
+      gap2[it - first] = box_gap2(grid.cells[grid.items[it]]);
+      if (gap2[it - first] < nearest_gap2) {
+        nearest_gap2 = gap2[it - first];
         nearest = it;
       }
     }
     if (nearest == last) continue;
     test(grid.cells[grid.items[nearest]], best);
     for (std::uint32_t it = first; it < last; ++it)
-      if (it != nearest && gap2[it] < best.dist2) test(grid.cells[grid.items[it]], best);
+      if (it != nearest && gap2[it - first] < best.dist2) test(grid.cells[grid.items[it]], best);
     if (best.dist2 < prm.range * prm.range) repel(p, x, best, prm, on_q, on_s);
   }
 }
