@@ -91,7 +91,8 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
     const double limit = scene.world.integrator == Integrator::ForwardEuler
                              ? st.forward_euler
                              : integrator_critical_step(scene.world.integrator, 2.0 / st.semi_implicit_euler);
-    if (dt > limit) {
+    // adaptive: an explicit integrator picks its own stable substep, whatever dt says
+    if (dt > limit && !scene.world.adaptive) {
       log << "drape: warning: " << scene.file << ": sheets[" << k << "] (" << scene.sheet_names[k] << "): dt = " << dt
           << " s is above the estimated stable step " << limit << " s of " << integrator_name(scene.world.integrator);
       if (limit > 0)
