@@ -78,16 +78,16 @@ def rain_torus():
         **CONTACTS,
         "sheets": sheets,
         "obstacles": [
-            {"type": "plane", "center": [0, 0, 0], "normal": [0, 0, 1], "c": 0.01, "xi": 0.005, "full_gradient": True},
+            {"type": "plane", "center": [0, 0, 0], "normal": [0, 0, 1], "c": 0.02, "xi": 0.01, "full_gradient": True},
             {"type": "torus", "center": [0, 0, 0.2], "major_radius": 0.6, "minor_radius": 0.2, "c": 0.01, "xi": 0.005,
              "full_gradient": True},
         ],
         "output": {"dir": "out/rain_torus", "formats": ["obj"]},
-        "camera": {"eye": [3.2, -4.2, 3.4], "target": [0.0, 0.0, 0.5]},
+        "camera": {"eye": [3.6, -4.8, 3.4], "target": [0.0, 0.0, 0.8]},
     }
 
 
-DT_STACK, DURATION_STACK = 4e-4, 2.0
+DT_STACK, DURATION_STACK = 4e-4, 1.4
 DT_RAIN, DURATION_RAIN = 3e-4, 2.5
 CONTACTS = {"contact_thickness": 0.005, "contact_xi": 0.002, "contact_strength": 2e-3}
 
