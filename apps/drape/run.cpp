@@ -51,6 +51,14 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
   const auto formats = opt.formats.value_or(scene.output.formats);
   const std::filesystem::path dir = opt.resume_dir ? *opt.resume_dir : opt.out_dir.value_or(scene.output.dir);
 
+  // A checkpoint holds the step count, not the simulated time; adaptive substeps vary in
+  // length, so neither the time nor the frame a checkpoint was written at follows from it.
+  if (scene.world.adaptive && (opt.resume_dir || opt.checkpoint_every > 0)) {
+    log << "drape: " << scene.file << ": --checkpoint-every and --resume need fixed substeps; the scene sets "
+        << "\"adaptive\": true. Nothing was written\n";
+    return exit_usage;
+  }
+
   std::vector<SheetId> ids;
   BasicWorld<Real> world = build_world<Real>(scene, opt.threads, ids);
 
