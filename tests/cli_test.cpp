@@ -79,6 +79,30 @@ TEST_F(Cli, InfoCountsPointsAndSpringsByHand) {
   EXPECT_NE(r.out.find("semi_implicit_euler"), std::string::npos) << r.out;
 }
 
+TEST_F(Cli, InfoShowsContactSettingsAndSelfCollisionFromTheScene) {
+  const fs::path scene = write("s.json", R"({"frames": 1, "contact_thickness": 0.007, "contact_strength": 0.004,
+    "sheets": [)" + good_sheet + R"(, {"grid": [2, 2], "size": [1, 1], "stiffness": 5, "self_collision": true}]})");
+  const Result r = drape("info " + scene.string());
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("contacts between sheets: thickness 0.007 m, xi 0.002 m, strength 0.004 J"), std::string::npos) << r.out;
+  ASSERT_NE(r.out.find("sheets[1]"), std::string::npos) << r.out;
+  ASSERT_NE(r.out.find("collides with itself"), std::string::npos) << r.out;
+  EXPECT_GT(r.out.find("collides with itself"), r.out.find("sheets[1]")) << "only the second sheet collides with itself: " << r.out;
+}
+
+// A checkpoint stores the step count; adaptive substeps vary in length, so a resume could
+// not know the time or the frame: refused before anything is written.
+TEST_F(Cli, CheckpointsAreRefusedForAdaptiveScenes) {
+  const fs::path scene = write("a.json", R"({"frames": 2, "adaptive": true, "sheets": [)" + good_sheet + "]}");
+  const Result r = drape("run " + scene.string() + " --checkpoint-every 1 --out " + (dir / "out").string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("\"adaptive\": true"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "out"));
+  const Result plain = drape("run " + scene.string() + " --out " + (dir / "out").string());
+  EXPECT_EQ(plain.code, 0) << plain.err;
+  EXPECT_TRUE(fs::exists(dir / "out" / "frame_00002.obj"));
+}
+
 // Parses "v x y z" lines and "f a b c d" lines.
 void read_obj(const fs::path& p, std::vector<double>& xyz, std::vector<std::vector<long>>& faces) {
   std::ifstream in(p);

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <filesystem>
 #include <string>
+#include <utility>
 
 #include "scene.h"
 
@@ -116,6 +117,70 @@ TEST(SceneFile, EveryBadInputNamesFilePathAndProblem) {
   }
 }
 
+// The engine's knobs: each field reaches WorldDef / SheetDef with the value the file gives,
+// and a file without them gets the engine's own defaults.
+TEST(SceneFile, EngineKnobsReachTheWorldAndSheetDefinitions) {
+  const Scene d = parse_scene(minimal, "m.json");
+  const drape::WorldDef engine;
+  EXPECT_EQ(d.world.cg_tolerance, engine.cg_tolerance);
+  EXPECT_EQ(d.world.cg_max_iterations, engine.cg_max_iterations);
+  EXPECT_EQ(d.world.adaptive, engine.adaptive);
+  EXPECT_EQ(d.world.adaptive_safety, engine.adaptive_safety);
+  EXPECT_EQ(d.world.guard, engine.guard);
+  EXPECT_EQ(d.world.guard_energy_growth, engine.guard_energy_growth);
+  EXPECT_EQ(d.world.contact_thickness, engine.contact_thickness);
+  EXPECT_EQ(d.world.contact_xi, engine.contact_xi);
+  EXPECT_EQ(d.world.contact_strength, engine.contact_strength);
+  EXPECT_EQ(d.world.contact_range, engine.contact_range);
+  EXPECT_EQ(d.world.block_points, engine.block_points);
+  EXPECT_FALSE(d.sheets[0].self_collision);
+
+  const Scene s = parse_scene(R"({"frames": 1, "cg_tolerance": 1e-9, "cg_max_iterations": 17, "adaptive": true,
+    "adaptive_safety": 0.5, "guard": false, "guard_energy_growth": 3.5, "contact_thickness": 0.01,
+    "contact_xi": 0.004, "contact_strength": 0, "contact_range": 4, "block_points": 1000,
+    "sheets": [{"grid": [2, 2], "size": [1, 1], "stiffness": 5, "self_collision": true},
+               {"grid": [2, 2], "size": [1, 1], "stiffness": 5, "self_collision": false}]})", "k.json");
+  EXPECT_EQ(s.world.cg_tolerance, 1e-9);
+  EXPECT_EQ(s.world.cg_max_iterations, 17);
+  EXPECT_TRUE(s.world.adaptive);
+  EXPECT_EQ(s.world.adaptive_safety, 0.5);
+  EXPECT_FALSE(s.world.guard);
+  EXPECT_EQ(s.world.guard_energy_growth, 3.5);
+  EXPECT_EQ(s.world.contact_thickness, 0.01);
+  EXPECT_EQ(s.world.contact_xi, 0.004);
+  EXPECT_EQ(s.world.contact_strength, 0.0);
+  EXPECT_EQ(s.world.contact_range, 4.0);
+  EXPECT_EQ(s.world.block_points, 1000u);
+  EXPECT_TRUE(s.sheets[0].self_collision);
+  EXPECT_FALSE(s.sheets[1].self_collision);
+}
+
+TEST(SceneFile, BadEngineKnobsNameTheirPath) {
+  const std::string sheets = R"("sheets": [{"grid": [2, 2], "size": [1, 1], "stiffness": 5}])";
+  const std::pair<std::string, std::string> cases[] = {
+      {R"("cg_tolerance": 0)", "test.json: cg_tolerance: must be positive (got 0)"},
+      {R"("cg_max_iterations": 0)", "test.json: cg_max_iterations: must be between 1 and 2147483647 (got 0)"},
+      {R"("cg_max_iterations": 2.5)", "test.json: cg_max_iterations: must be a whole number (got 2.5)"},
+      {R"("adaptive": 1)", "test.json: adaptive: must be true or false, got a number"},
+      {R"("adaptive_safety": 1.5)", "test.json: adaptive_safety: must be in (0, 1] (got 1.5)"},
+      {R"("adaptive_safety": 0)", "test.json: adaptive_safety: must be positive (got 0)"},
+      {R"("guard": "yes")", "test.json: guard: must be true or false, got a string"},
+      {R"("guard_energy_growth": 1)", "test.json: guard_energy_growth: must be greater than 1 (got 1)"},
+      {R"("contact_thickness": -0.001)", "test.json: contact_thickness: must not be negative (got -0.001)"},
+      {R"("contact_xi": 0)", "test.json: contact_xi: must be positive (got 0)"},
+      {R"("contact_strength": -1)", "test.json: contact_strength: must not be negative (got -1)"},
+      {R"("contact_range": -6)", "test.json: contact_range: must be positive (got -6)"},
+      {R"("block_points": 0)", "test.json: block_points: must be between 1 and 4294967295 (got 0)"},
+      {R"("contact_thicknes": 0.01)", "test.json: contact_thicknes: unknown key"},
+  };
+  for (const auto& [field, expected] : cases) {
+    const std::string message = error_of(R"({"frames": 1, )" + field + ", " + sheets + "}");
+    EXPECT_EQ(message.rfind(expected, 0), 0u) << "field: " << field << "\nmessage: " << message;
+  }
+  EXPECT_EQ(error_of(R"({"frames": 1, "sheets": [{"grid": [2, 2], "size": [1, 1], "stiffness": 5, "self_collision": 0}]})"),
+            "test.json: sheets[0].self_collision: must be true or false, got a number");
+}
+
 TEST(SceneFile, UnreadableFileIsReported) {
   try {
     drape::app::load_scene("/nonexistent/scene.json");
@@ -164,7 +229,7 @@ TEST(SceneFile, SetOverrideOnAMissingPathNamesIt) {
   EXPECT_EQ(error("sheets[x].m"), "m.json: --set sheets[x].m: \"[x]\" is not an index or [*]");
   EXPECT_EQ(error("sheets[*].stifness"), "m.json: sheets[0].stifness: unknown key (known here: name, grid, size, "
                                          "center, orientation, velocity, mass, point_mass, stiffness, "
-                                         "stiffness_regions, rest_length, damping, anchors, pins)");
+                                         "stiffness_regions, rest_length, damping, anchors, pins, self_collision)");
 }
 
 // Inputs the fuzzer (scene_fuzz) found or that are built like them: each is refused with a

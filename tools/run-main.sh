@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The main job: set up a fresh Debian machine, build drape (Release), simulate every paper
-# scene (scenes/fig*.json) and draw one PNG per figure into figures/ (git-ignored).
+# scene (scenes/fig*.json) and the many-sheet scenes (scenes/stack_sphere.json,
+# scenes/rain_torus.json) and draw one PNG per scene into figures/ (git-ignored).
 #
-#   tools/run-main.sh          figures/figNN.png
+#   tools/run-main.sh          figures/figNN.png, figures/stack_sphere.png, figures/rain_torus.png
 #   tools/run-main.sh --docs   also the smaller copies shown in docs/figures.md (docs/img/figures/)
 #
 # Figures the paper shows as an animation get a strip of frames, left to right, all seen by
@@ -35,6 +36,14 @@ figures=(
   "fig12 0,9,11,13,16 400x400"
 )
 
+# Beyond the paper (issue 4): many sheets with contacts. These take tens of seconds each, so
+# each is simulated once (drape run) and both pictures are drawn from its frames.
+# scene  frames  panel size
+many=(
+  "stack_sphere 0,10,20,43 400x400"
+  "rain_torus   0,15,30,75 400x400"
+)
+
 out=figures
 mkdir -p "$out"
 [[ $docs -eq 1 ]] && mkdir -p docs/img/figures
@@ -49,6 +58,21 @@ for line in "${figures[@]}"; do
     "$drape" render "${args[@]}" --size "$((w / 2))x$((h / 2))" -o "docs/img/figures/$name.png"
   fi
 done
-echo "main job: $(ls "$out"/fig*.png | wc -l) figures in $(cd "$out" && pwd)/ ($((SECONDS - start)) s)"
+for line in "${many[@]}"; do
+  read -r name frames size <<<"$line"
+  frames_dir="$build/many/$name"
+  t0=$SECONDS
+  if ! log=$("$drape" run "scenes/$name.json" --out "$frames_dir" --threads "$(nproc)" 2>&1); then
+    echo "$log" >&2
+    exit 1
+  fi
+  echo "main job: $name simulated in $((SECONDS - t0)) s"
+  "$drape" render "$frames_dir" --frame "$frames" --size "$size" -o "$out/$name.png"
+  if [[ $docs -eq 1 ]]; then
+    w=${size%x*} h=${size#*x}
+    "$drape" render "$frames_dir" --frame "$frames" --size "$((w / 2))x$((h / 2))" -o "docs/img/figures/$name.png"
+  fi
+done
+echo "main job: $(ls "$out"/*.png | wc -l) pictures in $(cd "$out" && pwd)/ ($((SECONDS - start)) s)"
 [[ $docs -eq 1 ]] && echo "main job: small copies in $(pwd)/docs/img/figures/"
 exit 0

@@ -51,6 +51,14 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
   const auto formats = opt.formats.value_or(scene.output.formats);
   const std::filesystem::path dir = opt.resume_dir ? *opt.resume_dir : opt.out_dir.value_or(scene.output.dir);
 
+  // A checkpoint holds the step count, not the simulated time; adaptive substeps vary in
+  // length, so neither the time nor the frame a checkpoint was written at follows from it.
+  if (scene.world.adaptive && (opt.resume_dir || opt.checkpoint_every > 0)) {
+    log << "drape: " << scene.file << ": --checkpoint-every and --resume need fixed substeps; the scene sets "
+        << "\"adaptive\": true. Nothing was written\n";
+    return exit_usage;
+  }
+
   std::vector<SheetId> ids;
   BasicWorld<Real> world = build_world<Real>(scene, opt.threads, ids);
 
@@ -91,7 +99,8 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
     const double limit = scene.world.integrator == Integrator::ForwardEuler
                              ? st.forward_euler
                              : integrator_critical_step(scene.world.integrator, 2.0 / st.semi_implicit_euler);
-    if (dt > limit) {
+    // adaptive: an explicit integrator picks its own stable substep, whatever dt says
+    if (dt > limit && !scene.world.adaptive) {
       log << "drape: warning: " << scene.file << ": sheets[" << k << "] (" << scene.sheet_names[k] << "): dt = " << dt
           << " s is above the estimated stable step " << limit << " s of " << integrator_name(scene.world.integrator);
       if (limit > 0)
@@ -189,7 +198,13 @@ void describe_world(const Scene& scene, std::ostream& out) {
   out << scene.file << ": " << scene.sheets.size() << " sheet(s), " << scene.obstacles.size() << " obstacle(s)\n"
       << "precision " << precision_name(scene.precision) << ", integrator " << integrator_name(scene.world.integrator)
       << ", dt " << scene.world.dt << " s, " << scene.substeps << " substeps per frame, " << scene.frames
-      << " frames (" << scene.frames * scene.frame_time() << " s simulated)\n";
+      << " frames (" << scene.frames * scene.frame_time() << " s simulated)"
+      << (scene.world.adaptive ? ", adaptive substeps" : "") << '\n';
+  const WorldDef& w = scene.world;
+  if (w.contact_strength > 0 && (scene.sheets.size() > 1 || std::any_of(scene.sheets.begin(), scene.sheets.end(),
+                                                                         [](const SheetDef& s) { return s.self_collision; })))
+    out << "contacts between sheets: thickness " << w.contact_thickness << " m, xi " << w.contact_xi << " m, strength "
+        << w.contact_strength << " J, range " << w.contact_range << " xi\n";
   std::uint64_t points = 0, springs = 0;
   for (std::size_t k = 0; k < ids.size(); ++k) {
     const auto& s = scene.sheets[k];
@@ -200,7 +215,8 @@ void describe_world(const Scene& scene, std::ostream& out) {
         << point_count(s.m, s.n) << " points, " << spring_count(s.m, s.n) << " springs, about "
         << estimated_bytes(s, scene.precision) / 1024.0 << " KiB; stable step: semi_implicit_euler "
         << st.semi_implicit_euler << " s, forward_euler " << st.forward_euler << " s"
-        << (st.forward_euler == 0 ? " (undamped: unstable at any step)" : "") << '\n';
+        << (st.forward_euler == 0 ? " (undamped: unstable at any step)" : "")
+        << (s.self_collision ? "; collides with itself" : "") << '\n';
   }
   out << "total: " << points << " points, " << springs << " springs, about " << estimated_bytes(scene) / 1024.0
       << " KiB\n";

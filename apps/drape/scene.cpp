@@ -230,7 +230,7 @@ std::vector<std::uint32_t> read_points(const Node& node, std::uint32_t m, std::u
 
 SheetDef read_sheet(const Node& node, Precision precision, std::string& name, std::size_t index) {
   node.expect_object({"name", "grid", "size", "center", "orientation", "velocity", "mass", "point_mass", "stiffness",
-                      "stiffness_regions", "rest_length", "damping", "anchors", "pins"});
+                      "stiffness_regions", "rest_length", "damping", "anchors", "pins", "self_collision"});
   SheetDef s;
   name = node.has("name") ? node.child("name").string() : "sheet" + std::to_string(index);
   const Node grid = node.required("grid");
@@ -301,6 +301,7 @@ SheetDef read_sheet(const Node& node, Precision precision, std::string& name, st
     }
   }
   if (node.has("pins")) s.pins = read_points(node.child("pins"), s.m, s.n);
+  if (node.has("self_collision")) s.self_collision = node.child("self_collision").boolean();
   if (const std::string problem = validate(s); !problem.empty()) node.fail(problem);
   return s;
 }
@@ -426,6 +427,30 @@ void apply_override(json& root, const SceneOverride& o, const std::string& file)
   walk(walk, root, 0);
 }
 
+// The engine's knobs beyond dt, gravity and integrator (WorldDef): the same ranges as
+// drape::validate(WorldDef), checked here so the message names the JSON path.
+void read_world_knobs(const Node& top, WorldDef& w) {
+  if (top.has("cg_tolerance")) w.cg_tolerance = top.child("cg_tolerance").positive();
+  if (top.has("cg_max_iterations")) w.cg_max_iterations = int(top.child("cg_max_iterations").whole(1, 2147483647));
+  if (top.has("adaptive")) w.adaptive = top.child("adaptive").boolean();
+  if (top.has("adaptive_safety")) {
+    const Node n = top.child("adaptive_safety");
+    w.adaptive_safety = n.positive();
+    if (w.adaptive_safety > 1) n.fail("must be in (0, 1] (got " + number_text(w.adaptive_safety) + ")");
+  }
+  if (top.has("guard")) w.guard = top.child("guard").boolean();
+  if (top.has("guard_energy_growth")) {
+    const Node n = top.child("guard_energy_growth");
+    w.guard_energy_growth = n.number();
+    if (!(w.guard_energy_growth > 1)) n.fail("must be greater than 1 (got " + number_text(w.guard_energy_growth) + ")");
+  }
+  if (top.has("contact_thickness")) w.contact_thickness = top.child("contact_thickness").non_negative();
+  if (top.has("contact_xi")) w.contact_xi = top.child("contact_xi").positive();
+  if (top.has("contact_strength")) w.contact_strength = top.child("contact_strength").non_negative();
+  if (top.has("contact_range")) w.contact_range = top.child("contact_range").positive();
+  if (top.has("block_points")) w.block_points = std::uint32_t(top.child("block_points").whole(1, 4294967295u));
+}
+
 }  // namespace
 
 Scene parse_scene(std::string_view text, const std::string& file) { return parse_scene(text, file, {}); }
@@ -456,7 +481,9 @@ Scene parse_scene(std::string_view text, const std::string& file, std::span<cons
   for (const auto& o : overrides) apply_override(root, o, file);
   const Node top(file, root, "");
   top.expect_object({"description", "dt", "substeps", "fps", "frames", "duration", "integrator", "precision",
-                     "gravity", "sheets", "obstacles", "output", "camera"});
+                     "gravity", "cg_tolerance", "cg_max_iterations", "adaptive", "adaptive_safety", "guard",
+                     "guard_energy_growth", "contact_thickness", "contact_xi", "contact_strength", "contact_range",
+                     "block_points", "sheets", "obstacles", "output", "camera"});
   Scene scene;
   scene.file = file;
   scene.source = std::string(text);
@@ -481,6 +508,9 @@ Scene parse_scene(std::string_view text, const std::string& file, std::span<cons
     if (!integrator) top.child("integrator").fail("unknown integrator \"" + name + "\"");
     scene.world.integrator = *integrator;
   }
+  read_world_knobs(top, scene.world);
+  // the engine's own check last: a range this reader does not know yet is still named
+  if (const std::string problem = validate(scene.world); !problem.empty()) top.fail(problem);
   if (top.has("fps")) scene.fps = top.child("fps").positive();
   if (top.has("substeps")) {
     scene.substeps = int(top.child("substeps").whole(1, 100000000));

@@ -1,0 +1,97 @@
+#!/usr/bin/env python3
+"""Writes the two many-sheet scenes of issue 4: scenes/stack_sphere.json (sheets dropped
+onto a sphere settle into layers) and scenes/rain_torus.json (sheets rain over a torus and
+a plane). The JSON files are committed; rerun this after changing a parameter here.
+
+    tools/make_many_scenes.py
+"""
+import json
+import math
+import pathlib
+
+SCENES = pathlib.Path(__file__).resolve().parent.parent / "scenes"
+
+
+def rounded(v, digits=6):
+    return [round(x, digits) for x in v] if isinstance(v, (list, tuple)) else round(v, digits)
+
+
+def stack_sphere():
+    sheets = []
+    for k in range(24):
+        big = k % 2 == 0
+        cells = 10 if big else 8
+        side = 1.2 if big else 0.9
+        sheets.append({
+            "name": f"layer{k:02d}",
+            "grid": [cells, cells],
+            "size": [side, side],
+            "center": rounded([0.02 * ((7 * k) % 5 - 2), 0.02 * ((3 * k) % 5 - 2), 0.58 + 0.03 * k]),
+            # turned about z so the layers' grids and corners do not line up
+            "orientation": {"axis": [0, 0, 1], "degrees": rounded(math.degrees(0.12 * k), 4)},
+            "mass": 0.2,
+            "stiffness": [200.0, 500.0, 1000.0][k % 3],
+            "damping": 0.01,
+        })
+    return {
+        "description": "Beyond the paper (issue 4): 24 sheets of two sizes (1.2 m 12x12 cells, 0.9 m 10x10 cells) "
+                       "and three stiffnesses (200, 500, 1000 N/m), 0.5 kg each, dropped onto a sphere of radius "
+                       "0.5 m; sheet-sheet contacts keep them apart and they settle into layers.",
+        "dt": DT_STACK,
+        "fps": 30,
+        "duration": DURATION_STACK,
+        **CONTACTS,
+        "sheets": sheets,
+        "obstacles": [{"type": "sphere", "center": [0, 0, 0], "radius": 0.5, "c": 0.01, "xi": 0.01}],
+        "output": {"dir": "out/stack_sphere", "formats": ["obj"]},
+        "camera": {"eye": [2.3, -2.9, 1.7], "target": [0.0, 0.0, 0.25]},
+    }
+
+
+def rain_torus():
+    sheets = []
+    for k in range(36):
+        i, j = k % 6, k // 6
+        tilt = 0.5 * (k % 7) / 6
+        sheet = {
+            "name": f"drop{k:02d}",
+            "grid": [8 + k % 6, 8 + k % 6],
+            "size": rounded([0.3 + 0.06 * (k % 6)] * 2),
+            "center": rounded([-0.75 + 0.3 * i, -0.75 + 0.3 * j, 1.0 + 0.15 * ((7 * k) % 12)]),
+            "velocity": [0, 0, -0.5],
+            "mass": rounded(0.05 + 0.03 * (k % 5)),
+            "stiffness": [100.0, 200.0, 400.0, 800.0][k % 4],
+            "damping": 0.005,
+        }
+        if tilt > 0:
+            sheet["orientation"] = {"axis": rounded([math.cos(k), math.sin(k), 0]), "degrees": rounded(math.degrees(tilt), 4)}
+        if k % 9 == 0:
+            sheet["self_collision"] = True
+        sheets.append(sheet)
+    return {
+        "description": "Beyond the paper (issue 4): 36 sheets of six sizes (0.3-0.6 m, 8x8-13x13 cells), five masses "
+                       "and four stiffnesses (100-800 N/m) rain onto a torus (R = 0.6 m, r = 0.2 m) lying on a plane; "
+                       "every ninth sheet also collides with itself.",
+        "dt": DT_RAIN,
+        "fps": 30,
+        "duration": DURATION_RAIN,
+        **CONTACTS,
+        "sheets": sheets,
+        "obstacles": [
+            {"type": "plane", "center": [0, 0, 0], "normal": [0, 0, 1], "c": 0.02, "xi": 0.01, "full_gradient": True},
+            {"type": "torus", "center": [0, 0, 0.2], "major_radius": 0.6, "minor_radius": 0.2, "c": 0.01, "xi": 0.005,
+             "full_gradient": True},
+        ],
+        "output": {"dir": "out/rain_torus", "formats": ["obj"]},
+        "camera": {"eye": [3.6, -4.8, 3.4], "target": [0.0, 0.0, 0.8]},
+    }
+
+
+DT_STACK, DURATION_STACK = 4e-4, 1.4
+DT_RAIN, DURATION_RAIN = 3e-4, 2.5
+CONTACTS = {"contact_thickness": 0.005, "contact_xi": 0.002, "contact_strength": 2e-3}
+
+if __name__ == "__main__":
+    for name, scene in (("stack_sphere", stack_sphere()), ("rain_torus", rain_torus())):
+        (SCENES / f"{name}.json").write_text(json.dumps(scene, indent=2) + "\n")
+        print(f"wrote scenes/{name}.json ({len(scene['sheets'])} sheets)")
