@@ -24,7 +24,7 @@ python=${PYTHON:-/usr/bin/python3}
 json=docs/benchmarks.json
 
 cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release -DDRAPE_NATIVE=ON -DDRAPE_WERROR=ON \
-  -DDRAPE_BUILD_TESTS=OFF -DDRAPE_BUILD_APPS=OFF >/dev/null
+  -DDRAPE_BUILD_TESTS=OFF -DDRAPE_BUILD_APPS=ON >/dev/null
 cmake --build "$build" --target drape_bench -j"$(nproc)"
 
 mkdir -p docs/img
