@@ -202,7 +202,7 @@ struct BasicWorld<Real>::Impl {
   }
 
   template <class Body>
-  void parallel(std::size_t count, Body body) {
+  void parallel(std::size_t count, Body body) const {
     arena->execute([&] {
       tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 1), [&](const tbb::blocked_range<std::size_t>& r) {
         for (std::size_t k = r.begin(); k != r.end(); ++k) body(k);
@@ -432,12 +432,21 @@ struct BasicWorld<Real>::Impl {
     report.dt = steps > 0 ? current_h : max_substep();
     double largest_growth = 1;
     bool any = false;
-    for (std::uint32_t index : active) {
+    // Each sheet's energy in parallel (independent passes); the verdict below walks the
+    // sheets in order, so the report does not depend on scheduling.
+    std::vector<Energies> energies(active.size());
+    std::vector<char> finite(active.size());
+    parallel(active.size(), [&](std::size_t k) {
+      energies[k] = guard_energy(slots[active[k]]);
+      finite[k] = detail::sheet_finite(*slots[active[k]].sheet);
+    });
+    for (std::size_t k = 0; k < active.size(); ++k) {
+      const std::uint32_t index = active[k];
       const Slot& slot = slots[index];
-      const Energies energy = guard_energy(slot);
+      const Energies& energy = energies[k];
       StabilityStatus status = StabilityStatus::Stable;
       double growth = 1;
-      if (!detail::sheet_finite(*slot.sheet) || !std::isfinite(energy.total())) {
+      if (!finite[k] || !std::isfinite(energy.total())) {
         status = StabilityStatus::NonFinite;
         growth = std::numeric_limits<double>::infinity();
       } else if (slot.guard.has_reference) {
