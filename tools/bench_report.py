@@ -15,6 +15,9 @@ import re
 import shlex
 import subprocess
 import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from machine import cpu_model  # noqa: E402
 from collections import defaultdict
 
 # Issue 6's targets, in one place.
@@ -79,17 +82,6 @@ def load_runs(path):
     if not runs:
         fail(f"{path} holds no benchmark results")
     return data["context"], runs
-
-
-def cpu_model():
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return "unknown"
 
 
 def compiler_and_flags(build_dir):
