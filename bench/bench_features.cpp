@@ -20,9 +20,13 @@ void add_sheets(W& world, Features f) {
   drape::bench::set_stable_dt(world);
 }
 
+// Contacts off (contact_strength = 0): "bare" is a scene with no contacts, as issue 6
+// defines it. BM_Feature_contacts_apart prices the contact machinery for sheets that never
+// touch (the host stage's bounds and broad-phase).
 drape::WorldDef one_thread() {
   drape::WorldDef wd = drape::bench::world_def();
   wd.threads = 1;
+  wd.contact_strength = 0;
   return wd;
 }
 
@@ -87,6 +91,18 @@ BENCHMARK(BM_Feature_damping);
 BENCHMARK(BM_Feature_finite_check_per_frame);
 BENCHMARK(BM_Feature_finite_check_per_substep);
 BENCHMARK(BM_Feature_obstacle);
+
+// The default contact settings with the same sheets 1.5 m apart: no pair is ever found,
+// so this is the price of looking (each sheet's box every substep, the broad-phase).
+void BM_Feature_contacts_apart(benchmark::State& state) {
+  drape::WorldDef wd = one_thread();
+  wd.contact_strength = drape::WorldDef{}.contact_strength;
+  drape::World world(wd);
+  add_sheets(world, {false, false, false});
+  for (auto _ : state) world.step(1);
+  drape::bench::set_point_rate(state, double(sheet_count) * side * side);
+}
+BENCHMARK(BM_Feature_contacts_apart);
 
 // The stability guard as a program runs it: once per step() call of a 33-substep frame.
 void BM_Feature_guard_per_frame(benchmark::State& state) {
