@@ -175,13 +175,19 @@ struct BasicWorld<Real>::Impl {
 
   // Host stage: each sheet's list of obstacles whose reach its bounding box overlaps, so a
   // sheet far from every obstacle runs no obstacle term at all.
+  // A sheet's box now: the one its last integration took while the positions were in
+  // cache, unless something moved the points since.
+  detail::Aabb current_bounds(const Slot& slot) const {
+    return slot.bounds_fresh ? slot.bounds : detail::sheet_bounds(*slot.sheet);
+  }
+
   void assign_obstacles(double h) {
     if (active_obstacles.empty()) return;
     for (std::uint32_t index : active) {
       Sheet<Real>& s = *slots[index].sheet;
       const double lightest = slots[index].lightest_point;
       s.near_obstacles.clear();
-      const detail::Aabb box = detail::sheet_bounds(s);
+      const detail::Aabb box = current_bounds(slots[index]);
       for (std::uint32_t o : active_obstacles) {
         const detail::Obstacle& obstacle = *obstacle_slots[o].obstacle;
         if (detail::may_touch(obstacle, box))
@@ -231,8 +237,7 @@ struct BasicWorld<Real>::Impl {
     bounds.resize(count);
     grown.resize(count);
     parallel(count, [&](std::size_t k) {
-      const Slot& slot = slots[active[k]];
-      bounds[k] = slot.bounds_fresh ? slot.bounds : detail::sheet_bounds(at(k));
+      bounds[k] = current_bounds(slots[active[k]]);
       grown[k] = bounds[k].inflated(0.5 * double(params.range));
     });
     broad_phase.find_pairs(grown, pairs);
@@ -313,7 +318,7 @@ struct BasicWorld<Real>::Impl {
   void integrate_sheets(const detail::StepParams<Real>& params) {
     plan_blocks();
     bool any_split = false;
-    const bool keep_bounds = contacts_possible();
+    const bool keep_bounds = contacts_possible() || !active_obstacles.empty();  // someone reads the box next substep
     parallel(blocks.size(), [&](std::size_t q) {
       const Block& b = blocks[q];
       Slot& slot = slots[active[b.sheet]];
