@@ -48,10 +48,25 @@ void set_stable_dt(W& world) {
   world.set_dt(0.5 * world.stable_step_estimate());
 }
 
-inline void set_point_rate(benchmark::State& state, double points_per_step) {
+// `substeps` per iteration: the report divides an iteration's time by it.
+inline void set_point_rate(benchmark::State& state, double points_per_step, int substeps = 1) {
   state.counters["points"] = points_per_step;
+  state.counters["substeps"] = substeps;
   state.counters["point_steps_per_s"] =
-      benchmark::Counter(points_per_step * double(state.iterations()), benchmark::Counter::kIsRate);
+      benchmark::Counter(points_per_step * substeps * double(state.iterations()), benchmark::Counter::kIsRate);
+}
+
+// Substeps per step() call in the benchmarks that step as a program does: a frame of
+// several substeps, so sheets with nothing between their substeps (no contacts, no
+// obstacles) run them as waves (docs/architecture.md). About a 30 frame/s frame at the
+// default dt of 1 ms.
+inline constexpr int frame_substeps = 32;
+
+// Steps `world` a frame per iteration and reports the rate per substep.
+template <class W>
+void step_frames(benchmark::State& state, W& world, double points) {
+  for (auto _ : state) world.step(frame_substeps);
+  set_point_rate(state, points, frame_substeps);
 }
 
 // Every integrator the engine has: the enum is walked until integrator_name stops knowing

@@ -12,8 +12,7 @@ void sheets48(benchmark::State& state) {
   W world(wd);
   for (int s = 0; s < 48; ++s) world.add_sheet(drape::bench::square_sheet(64, {}, {1.5 * (s % 8), 1.5 * (s / 8), 0.0}));
   drape::bench::set_stable_dt(world);
-  for (auto _ : state) world.step(1);
-  drape::bench::set_point_rate(state, 48.0 * 64 * 64);
+  drape::bench::step_frames(state, world, 48.0 * 64 * 64);
 }
 void BM_Sheets48_f64(benchmark::State& state) { sheets48<drape::World>(state); }
 void BM_Sheets48_f32(benchmark::State& state) { sheets48<drape::WorldF>(state); }
@@ -28,8 +27,7 @@ void BM_HugeSheet(benchmark::State& state) {
   drape::World world(wd);
   world.add_sheet(drape::bench::square_sheet(1024));
   drape::bench::set_stable_dt(world);
-  for (auto _ : state) world.step(1);
-  drape::bench::set_point_rate(state, 1024.0 * 1024);
+  drape::bench::step_frames(state, world, 1024.0 * 1024);
 }
 BENCHMARK(BM_HugeSheet)->ArgName("threads")->Arg(1)->Arg(2)->UseRealTime();
 

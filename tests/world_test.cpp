@@ -258,6 +258,78 @@ TEST(Worlds, OneSheetMatchesDirectIntegrationBitForBit) {
     }
 }
 
+// A frame of substeps on sheets with nothing between them (no contacts, no obstacles)
+// runs in one task per sheet, or per block of rows of a large sheet plus copies of the
+// rows beyond its edges, through many substeps at once; sheets beyond the cache budget
+// as waves. The reference is the same
+// world stepped one substep per call, which never runs a wave.
+std::vector<unsigned char> run_frames(Integrator integrator, int threads, std::uint32_t block_points,
+                                      int frames, int substeps) {
+  WorldDef wd;
+  wd.dt = 1e-4;
+  wd.integrator = integrator;
+  wd.threads = threads;
+  wd.block_points = block_points;
+  wd.contact_strength = 0;  // several sheets, but no contacts
+  wd.guard = false;         // forward Euler gains energy: the comparison must not halt
+  World w(wd);
+  SheetDef tall;  // 121 rows of 21 points: split into blocks with their halos
+  tall.m = 120;
+  tall.n = 20;
+  tall.width = 0.4;
+  tall.height = 2.0;
+  tall.stiffness = 120;
+  tall.damping = 0.002;
+  tall.stiffness_regions = {{10, 40, 3, 12, 300.0}};  // per-spring parameters
+  tall.pins = {0, 20, center_point(tall.m, tall.n)};
+  tall.anchors = anchors_at(std::vector<std::uint32_t>{2500, 7, 1300}, 400.0);  // not in point order: no wave
+  tall.orientation = quat_from_axis_angle({1, 0, 0}, 0.3);
+  tall.initial_velocity = {0.3, -0.1, 0.2};
+  w.add_sheet(tall);
+  tall.anchors = anchors_at(std::vector<std::uint32_t>{7, 1300, 2500}, 400.0);  // in point order
+  tall.center = {2, 0, 0};
+  w.add_sheet(tall);
+  tall.m = 199;  // 14,000 points: beyond the cache budget, a wave even when whole
+  tall.n = 69;
+  tall.stiffness_regions.clear();
+  tall.pins = {0, 69, center_point(tall.m, tall.n)};
+  tall.anchors = anchors_at(std::vector<std::uint32_t>{100, 7000, 13999}, 400.0);
+  tall.center = {3, 0, 0};
+  w.add_sheet(tall);
+  SheetDef row;  // one row of points, and one column
+  row.m = 0;
+  row.n = 9;
+  row.center = {5, 0, 0};
+  row.pins = {0};
+  w.add_sheet(row);
+  row.m = 9;
+  row.n = 0;
+  row.center = {7, 0, 0};
+  w.add_sheet(row);
+  // every spring stretched or compressed from the start, so a wrong neighbour shows at once
+  for (SheetId id : w.sheets()) {
+    auto st = w.state(id);
+    for (std::size_t p = 0; p < st.x.size(); ++p) {
+      st.x[p] += 0.004 * std::sin(1.7 * double(p));
+      st.z[p] += 0.004 * std::cos(2.3 * double(p));
+    }
+  }
+  for (int k = 0; k < frames; ++k) w.step(substeps);
+  EXPECT_NEAR(w.time(), frames * substeps * wd.dt, 1e-12);
+  return state_bytes(w);
+}
+
+TEST(Worlds, FramesOfSubstepsChangeNoBit) {
+  for (Integrator integrator : {Integrator::SemiImplicitEuler, Integrator::ForwardEuler, Integrator::RK4})
+    for (auto [threads, block_points] : {std::pair{1, 1u << 30}, std::pair{2, 300u}, std::pair{2, 1u << 30}}) {
+      const auto one_by_one = run_frames(integrator, threads, block_points, 21, 1);
+      EXPECT_TRUE(run_frames(integrator, threads, block_points, 3, 7) == one_by_one)
+          << integrator_name(integrator) << ", " << threads << " threads, block_points " << block_points;
+      EXPECT_TRUE(run_frames(integrator, threads, block_points, 1, 21) == one_by_one)
+          << integrator_name(integrator) << ", " << threads << " threads, block_points " << block_points;
+    }
+}
+
 TEST(Worlds, SheetsFarApartStepExactlyAsIfAlone) {
   WorldDef wd;
   wd.dt = 2e-4;

@@ -2,7 +2,9 @@
 #include "forces.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <utility>
 
 #include "obstacles.h"
 
@@ -129,21 +131,27 @@ void spring_rows(const Topology<Real>& t, Springs horizontal_springs, Springs ve
   done(end - 1);
 }
 
-// Picks the spring parameters once per call: constants when the topology is uniform.
-template <class Real, class RowDone>
-void springs_by_rows(const Topology<Real>& t, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row,
-                     std::uint32_t row_begin, std::uint32_t row_end, RowDone done) {
+// Calls body(horizontal springs, vertical springs) with the spring parameters picked once
+// per call: constants when the topology is uniform, per-spring arrays otherwise.
+template <class Real, class Body>
+void with_springs(const Topology<Real>& t, Body body) {
   if (t.uniform) {
     const auto& u = *t.uniform;
-    spring_rows(t, SameSpring<Real>{u.rest_h, u.stiffness}, SameSpring<Real>{u.rest_v, u.stiffness}, x, f, row,
-                row_begin, row_end, done);
+    body(SameSpring<Real>{u.rest_h, u.stiffness}, SameSpring<Real>{u.rest_v, u.stiffness});
   } else {
     const Real* rest = t.rest_length.data();
     const Real* k = t.stiffness.data();
     const std::size_t vertical = t.horizontal_count();
-    spring_rows(t, PerSpring<Real>{rest, k}, PerSpring<Real>{rest + vertical, k + vertical}, x, f, row, row_begin,
-                row_end, done);
+    body(PerSpring<Real>{rest, k}, PerSpring<Real>{rest + vertical, k + vertical});
   }
+}
+
+template <class Real, class RowDone>
+void springs_by_rows(const Topology<Real>& t, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row,
+                     std::uint32_t row_begin, std::uint32_t row_end, RowDone done) {
+  with_springs(t, [&](auto horizontal, auto vertical) {
+    spring_rows(t, horizontal, vertical, x, f, row, row_begin, row_end, done);
+  });
 }
 
 // Contact forces the host stage gathered for this substep (contacts.h), on `count` points.
@@ -252,6 +260,161 @@ void sheet_forces(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Ve
   sheet_forces_by_rows(s, x, v, f, RowSink{});
 }
 
+template <class Real>
+bool wave_ready(const Sheet<Real>& s) {
+  return !s.has_contacts && s.near_obstacles.empty() && std::is_sorted(s.anchors.point.begin(), s.anchors.point.end()) &&
+         std::is_sorted(s.pins.point.begin(), s.pins.point.end());
+}
+
+namespace {
+constexpr std::size_t wave_budget = std::size_t(1) << 20;  // bytes
+constexpr std::size_t values_per_point = 11;               // x, v, f, 1/m, damping
+}  // namespace
+
+std::uint32_t wave_levels(std::uint32_t cols, std::size_t bytes_per_value) {
+  // rows in flight: one per substep, and about four more at the wave's front and back
+  const std::size_t rows = wave_budget / (std::max<std::size_t>(cols, 1) * values_per_point * bytes_per_value);
+  return rows > 5 ? static_cast<std::uint32_t>(std::min<std::size_t>(64, rows - 4)) : 1;
+}
+
+template <class Real>
+bool fits_wave_budget(const Sheet<Real>& s) {
+  return s.size() * values_per_point * sizeof(Real) <= wave_budget;
+}
+
+namespace {
+
+// The rows a block's wave steps: the block and up to `levels` rows beyond each edge. A
+// halo row's first neighbour outside the range is missing, so its state goes wrong one
+// row further in at every substep: after `levels` substeps exactly the halo is wrong.
+struct WaveRange {
+  std::uint32_t lo, hi;
+};
+WaveRange wave_range(std::uint32_t rows, std::uint32_t levels, std::uint32_t row_begin, std::uint32_t row_end) {
+  return {row_begin > levels ? row_begin - levels : 0, std::min(rows, row_end + levels)};
+}
+
+// Where halo row i lives in the block's copies: the rows above the block, then below.
+std::size_t halo_slot(WaveRange r, std::uint32_t row_begin, std::uint32_t row_end, std::uint32_t i) {
+  return i < row_begin ? i - r.lo : (row_begin - r.lo) + (i - row_end);
+}
+
+template <class Real>
+Vec3Ptr<Real> at(Vec3Array<Real>& a, std::size_t offset) {
+  return {a.x.data() + offset, a.y.data() + offset, a.z.data() + offset};
+}
+
+template <class Real, class Springs>
+void wave_rows(Sheet<Real>& s, Springs horizontal_springs, Springs vertical_springs, std::uint32_t levels,
+               std::uint32_t row_begin, std::uint32_t row_end, WaveScratch<Real>& w, WaveSink<Real> sink) {
+  const Topology<Real>& t = *s.topology;
+  const std::uint32_t n = t.n, cols = t.cols();
+  const WaveRange range = wave_range(t.rows(), levels, row_begin, row_end);
+  const std::uint32_t lo = range.lo, hi = range.hi;
+  // A row's force is in use from its horizontal springs at substep 0 to its update at the
+  // last substep: levels + 1 waves, so a ring of levels + 2 rows or more never collides
+  // (a power of two: the slot is a mask, not a division, on every row of every substep).
+  const std::uint32_t ring = std::bit_ceil(levels + 2), mask = ring - 1;
+  if (w.forces.x.size() < std::size_t(ring) * cols) w.forces.resize(std::size_t(ring) * cols);
+  if (w.row.x.size() < cols) w.row.resize(cols);
+  auto state = [&](Vec3Array<Real>& own, Vec3Array<Real>& halo, std::uint32_t i) {
+    if (i >= row_begin && i < row_end) return at(own, std::size_t(i) * cols);
+    return at(halo, halo_slot(range, row_begin, row_end, i) * cols);
+  };
+  auto X = [&](std::uint32_t i) { return state(s.position, w.halo_x, i); };
+  auto V = [&](std::uint32_t i) { return state(s.velocity, w.halo_v, i); };
+  auto F = [&](std::uint32_t i) { return at(w.forces, std::size_t((i - lo) & mask) * cols); };
+  const Vec3Ptr<Real> row = ptr(w.row);
+  auto horizontal = [&](std::uint32_t i) {
+    const Vec3Ptr<Real> x = X(i), f = F(i);
+    row_springs(n, x.x, x.y, x.z, horizontal_springs.offset(std::size_t(i) * n), row.x, row.y, row.z, f.x, f.y, f.z);
+  };
+  auto vertical = [&](std::uint32_t i) {
+    const Vec3Ptr<Real> xa = X(i), xb = X(i + 1), fa = F(i), fb = F(i + 1);
+    column_springs<true, true>(cols, xa.x, xa.y, xa.z, xb.x, xb.y, xb.z, vertical_springs.offset(std::size_t(i) * cols),
+                               fa.x, fa.y, fa.z, fb.x, fb.y, fb.z);
+  };
+  const auto& an = s.anchors;
+  const auto& pins = s.pins;
+  const std::size_t first = std::size_t(lo) * cols;
+  w.next_anchor.assign(levels, std::size_t(std::lower_bound(an.point.begin(), an.point.end(), first) - an.point.begin()));
+  w.next_pin.assign(levels, std::size_t(std::lower_bound(pins.point.begin(), pins.point.end(), first) - pins.point.begin()));
+  // Row i's force is final: the per-point terms in sheet_forces_by_rows' order (damping,
+  // anchors), the integrator's update, then its pins, as integrate() sets them after a sweep.
+  auto finish = [&](std::uint32_t level, std::uint32_t i) {
+    const std::size_t p = std::size_t(i) * cols, end = p + cols;
+    const Vec3Ptr<Real> x = X(i), v = V(i), f = F(i);
+    if (!s.damping.empty()) damp<Real>(cols, s.damping.data() + p, v.x, v.y, v.z, f.x, f.y, f.z);
+    for (std::size_t& a = w.next_anchor[level]; a < an.point.size() && an.point[a] < end; ++a) {
+      const std::size_t q = an.point[a] - p;  // eq (8): k (p0 − x)
+      f.x[q] += an.stiffness[a] * (an.tx[a] - x.x[q]);
+      f.y[q] += an.stiffness[a] * (an.ty[a] - x.y[q]);
+      f.z[q] += an.stiffness[a] * (an.tz[a] - x.z[q]);
+    }
+    if (sink.done) sink.done(sink.context, RowState<Real>{x, v, f, p, cols});
+    for (std::size_t& k = w.next_pin[level]; k < pins.point.size() && pins.point[k] < end; ++k) {
+      const std::size_t q = pins.point[k] - p;
+      x.x[q] = pins.tx[k];
+      x.y[q] = pins.ty[k];
+      x.z[q] = pins.tz[k];
+      v.x[q] = v.y[q] = v.z[q] = Real(0);
+    }
+  };
+  // Step q of one substep's sweep, as in spring_rows: q = 0 starts row lo; q ≥ 1 adds the
+  // springs of row lo + q (its own and the ones to the row above) and finishes the row above.
+  auto step = [&](std::uint32_t level, std::uint32_t q) {
+    if (q == 0) {
+      horizontal(lo);
+      return;
+    }
+    const std::uint32_t i = lo + q - 1;
+    if (i + 1 < hi) {
+      horizontal(i + 1);
+      vertical(i);
+    }
+    finish(level, i);
+  };
+  // Substep `level` runs one step behind substep level − 1, which has just moved the row
+  // below the one it needs: every read sees the state of its own substep.
+  const std::uint32_t steps = hi - lo + 1;
+  for (std::uint32_t wave = 0; wave + 1 < steps + levels; ++wave)
+    for (std::uint32_t level = 0; level < levels && level <= wave; ++level)
+      if (wave - level < steps) step(level, wave - level);
+}
+
+}  // namespace
+
+template <class Real>
+void wave_take_halo(const Sheet<Real>& s, std::uint32_t levels, std::uint32_t row_begin, std::uint32_t row_end,
+                    WaveScratch<Real>& w) {
+  const std::uint32_t cols = s.topology->cols();
+  const WaveRange range = wave_range(s.topology->rows(), levels, row_begin, row_end);
+  const std::size_t rows = (row_begin - range.lo) + (range.hi - row_end);
+  if (w.halo_x.x.size() < rows * cols) {
+    w.halo_x.resize(rows * cols);
+    w.halo_v.resize(rows * cols);
+  }
+  auto copy = [&](std::uint32_t i) {
+    const std::size_t from = std::size_t(i) * cols, to = halo_slot(range, row_begin, row_end, i) * cols;
+    for (auto [source, copy] : {std::pair{&s.position, &w.halo_x}, std::pair{&s.velocity, &w.halo_v}}) {
+      std::copy_n(source->x.data() + from, cols, copy->x.data() + to);
+      std::copy_n(source->y.data() + from, cols, copy->y.data() + to);
+      std::copy_n(source->z.data() + from, cols, copy->z.data() + to);
+    }
+  };
+  for (std::uint32_t i = range.lo; i < row_begin; ++i) copy(i);
+  for (std::uint32_t i = row_end; i < range.hi; ++i) copy(i);
+}
+
+template <class Real>
+void sheet_wave(Sheet<Real>& s, std::uint32_t levels, std::uint32_t row_begin, std::uint32_t row_end,
+                WaveScratch<Real>& w, WaveSink<Real> sink) {
+  if (levels == 0 || row_begin >= row_end) return;
+  with_springs(*s.topology, [&](auto horizontal, auto vertical) {
+    wave_rows(s, horizontal, vertical, levels, row_begin, row_end, w, sink);
+  });
+}
+
 template void spring_forces<double>(const Topology<double>&, ConstVec3Ptr<double>, Vec3Ptr<double>, Vec3Ptr<double>);
 template void spring_forces<float>(const Topology<float>&, ConstVec3Ptr<float>, Vec3Ptr<float>, Vec3Ptr<float>);
 template void spring_forces<double>(const Topology<double>&, ConstVec3Ptr<double>, Vec3Ptr<double>, Vec3Ptr<double>,
@@ -264,6 +427,18 @@ template void sheet_forces_rows<float>(Sheet<float>&, ConstVec3Ptr<float>, Const
                                        Vec3Ptr<float>, std::uint32_t, std::uint32_t);
 template void sheet_forces<double>(Sheet<double>&, ConstVec3Ptr<double>, ConstVec3Ptr<double>, Vec3Ptr<double>);
 template void sheet_forces<float>(Sheet<float>&, ConstVec3Ptr<float>, ConstVec3Ptr<float>, Vec3Ptr<float>);
+template bool wave_ready<double>(const Sheet<double>&);
+template bool fits_wave_budget<double>(const Sheet<double>&);
+template bool fits_wave_budget<float>(const Sheet<float>&);
+template bool wave_ready<float>(const Sheet<float>&);
+template void wave_take_halo<double>(const Sheet<double>&, std::uint32_t, std::uint32_t, std::uint32_t,
+                                     WaveScratch<double>&);
+template void wave_take_halo<float>(const Sheet<float>&, std::uint32_t, std::uint32_t, std::uint32_t,
+                                    WaveScratch<float>&);
+template void sheet_wave<double>(Sheet<double>&, std::uint32_t, std::uint32_t, std::uint32_t, WaveScratch<double>&,
+                                 WaveSink<double>);
+template void sheet_wave<float>(Sheet<float>&, std::uint32_t, std::uint32_t, std::uint32_t, WaveScratch<float>&,
+                                WaveSink<float>);
 template void sheet_forces_by_rows<double>(Sheet<double>&, ConstVec3Ptr<double>, ConstVec3Ptr<double>, Vec3Ptr<double>,
                                            RowSink);
 template void sheet_forces_by_rows<float>(Sheet<float>&, ConstVec3Ptr<float>, ConstVec3Ptr<float>, Vec3Ptr<float>,

@@ -73,4 +73,69 @@ template <class Real>
 void sheet_forces_by_rows(Sheet<Real>& sheet, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f,
                           RowSink sink);
 
+// ---- Several substeps in one sweep (temporal blocking) ------------------------------
+//
+// A first-order explicit step moves a row using only the forces on it, which read the row
+// and its two neighbours. So substep ℓ+1 of row r can run as soon as substep ℓ has moved
+// rows r−1, r and r+1: a sweep of `levels` substeps walks the rows as a wave, substep ℓ
+// one row behind substep ℓ−1, and a sheet beyond the caches is streamed from memory once
+// per `levels` substeps instead of once per substep, while its arithmetic, row by row and
+// term by term, is that of `levels` separate sweeps: the state is bit-identical.
+
+// One row of a wave, handed to the integrator once its force is final: it moves x and v.
+template <class Real>
+struct RowState {
+  Vec3Ptr<Real> x, v;
+  ConstVec3Ptr<Real> f;
+  std::size_t first;   // the sheet's index of the row's first point (for per-point arrays)
+  std::uint32_t count; // points in the row
+};
+
+template <class Real>
+struct WaveSink {
+  void* context = nullptr;
+  void (*done)(void* context, const RowState<Real>& row) = nullptr;
+
+  template <class F>
+  static WaveSink of(F& f) {
+    return {&f, [](void* c, const RowState<Real>& row) { (*static_cast<F*>(c))(row); }};
+  }
+};
+
+// Scratch of one wave: the force rows in flight (a ring), the spring row, the anchor and
+// pin cursors of each substep, and, for a block of a split sheet, private copies of the
+// rows beyond its edges (its halo).
+template <class Real>
+struct WaveScratch {
+  Vec3Array<Real> forces, row, halo_x, halo_v;
+  std::vector<std::size_t> next_anchor, next_pin;
+};
+
+// Whether a sheet's terms allow the wave: no contacts and no obstacles this frame (they
+// change between substeps, or read rows across the sheet), anchors and pins in point order.
+template <class Real>
+bool wave_ready(const Sheet<Real>& sheet);
+
+// Substeps a wave sweeps at once for sheets of `cols` points per row: as many as keep
+// the rows in flight within about 1 MiB (an L2 cache), between 1 and 64.
+std::uint32_t wave_levels(std::uint32_t cols, std::size_t bytes_per_value);
+
+// Whether the whole sheet fits that budget: it then stays in cache from one substep to the
+// next without a wave, and whole-sheet sweeps are cheaper than a wave's rows (measured:
+// about 25 % at 16×16 points).
+template <class Real>
+bool fits_wave_budget(const Sheet<Real>& sheet);
+
+// Moves rows [row_begin, row_end) of a wave_ready sheet `levels` substeps ahead, calling
+// `sink` for every row and substep in order, then setting the row's pins. Rows outside
+// the range are not written. A block that is not the whole sheet also steps the `levels`
+// rows beyond each of its edges, in copies: call wave_take_halo for every block of the
+// sheet before any block's wave, since the waves of other blocks move those rows.
+template <class Real>
+void wave_take_halo(const Sheet<Real>& sheet, std::uint32_t levels, std::uint32_t row_begin, std::uint32_t row_end,
+                    WaveScratch<Real>& scratch);
+template <class Real>
+void sheet_wave(Sheet<Real>& sheet, std::uint32_t levels, std::uint32_t row_begin, std::uint32_t row_end,
+                WaveScratch<Real>& scratch, WaveSink<Real> sink);
+
 }  // namespace drape::detail

@@ -3,6 +3,7 @@
 // evaluation goes through sheet_forces(), so a term added there works with every integrator.
 #pragma once
 
+#include "forces.h"
 #include "sheet_data.h"
 
 namespace drape::detail {
@@ -38,5 +39,11 @@ bool updates_per_point(Integrator integrator);
 template <class Real>
 void update_points(Integrator integrator, Sheet<Real>& sheet, const StepParams<Real>& params, std::size_t begin,
                    std::size_t end);
+
+// `levels` substeps of such an integrator on rows [row_begin, row_end) of a wave_ready
+// sheet in one sweep (forces.h, sheet_wave): bit-identical to `levels` integrate() calls.
+template <class Real>
+void integrate_wave(Integrator integrator, Sheet<Real>& sheet, const StepParams<Real>& params, std::uint32_t levels,
+                    std::uint32_t row_begin, std::uint32_t row_end, WaveScratch<Real>& scratch);
 
 }  // namespace drape::detail

@@ -280,10 +280,11 @@ struct BasicWorld<Real>::Impl {
   }
 
   // A sheet of at least 2·block_points points is cut into row blocks of about
-  // block_points points, so one large sheet among small ones keeps every core busy.
+  // block_points points, so one large sheet among small ones keeps every core busy
+  // (with one thread there is no core to keep busy: sheets stay whole).
   void plan_blocks() {
     blocks.clear();
-    const bool can_split = detail::updates_per_point(def.integrator);
+    const bool can_split = detail::updates_per_point(def.integrator) && arena->max_concurrency() > 1;
     for (std::uint32_t k = 0; k < active.size(); ++k) {
       Sheet<Real>& s = at(k);
       const std::uint32_t rows = s.topology->rows(), cols = s.topology->cols();
@@ -352,18 +353,106 @@ struct BasicWorld<Real>::Impl {
 
   // One substep, stage by stage.
   void substep(double h) {
-    const detail::StepParams<Real> params{static_cast<Real>(h), static_cast<Real>(def.gravity.x),
-                                          static_cast<Real>(def.gravity.y), static_cast<Real>(def.gravity.z),
-                                          def.cg_tolerance, def.cg_max_iterations};
-    host_stage();              // 1. bounds, broad-phase, contact forces per pair; obstacles near each sheet
+    host_stage();                   // 1. bounds, broad-phase, contact forces per pair; obstacles near each sheet
     assign_obstacles(h);
-    integrate_sheets(params);  // 2. per sheet (or block): gather contacts, forces, integrate
+    integrate_sheets(step_params(h));  // 2. per sheet (or block): gather contacts, forces, integrate
+    count_substeps(h, 1);
+  }
+
+  // Several substeps with nothing between them: no contacts (their forces come from every
+  // sheet's positions at each substep) and no obstacles (each substep picks the ones near
+  // a sheet). Then sheets are independent for the whole run of substeps, and each task
+  // takes its sheet through many substeps while it is in cache.
+  bool sheets_independent() const { return !contacts_possible() && active_obstacles.empty(); }
+
+  // Blocks of a run of `levels` substeps: whole sheets, and row blocks of the large sheets
+  // a wave can split (forces.h, sheet_wave): one block per thread, since each block also
+  // steps `levels` rows beyond each edge (the same arithmetic, done twice), and no block
+  // shorter than 4·levels rows.
+  void plan_wave_blocks(std::uint32_t levels) {
+    blocks.clear();
+    const std::uint64_t threads = std::uint64_t(arena->max_concurrency());
+    for (std::uint32_t k = 0; k < active.size(); ++k) {
+      Sheet<Real>& s = at(k);
+      slots[active[k]].bounds_fresh = false;
+      const std::uint32_t rows = s.topology->rows();
+      const std::uint64_t points = s.size();
+      std::uint64_t count = 1;
+      if (threads > 1 && detail::updates_per_point(def.integrator) && detail::wave_ready(s) &&
+          points >= 2 * std::uint64_t(def.block_points))
+        count = std::min({threads, points / def.block_points, std::uint64_t(rows / (4 * levels))});
+      if (count <= 1) {
+        blocks.push_back({k, 0, rows, 0, false});
+        continue;
+      }
+      for (std::uint64_t b = 0; b < count; ++b)
+        blocks.push_back({k, std::uint32_t(rows * b / count), std::uint32_t(rows * (b + 1) / count), std::uint32_t(b),
+                          true});
+    }
+  }
+
+  // `count` substeps of h on independent sheets, in runs of wave_levels substeps: a run
+  // takes every block (a whole sheet, or the rows of a split one) through all its
+  // substeps in one task, a sheet that fits the cache budget one whole substep after
+  // another, a larger one as a wave. Bit-identical to `count` calls of substep(h).
+  tbb::enumerable_thread_specific<detail::WaveScratch<Real>> wave_scratch;  // whole sheets
+  std::vector<detail::WaveScratch<Real>> block_scratch;                     // per split block, with its halo
+
+  void integrate_runs(double h, std::uint64_t count) {
+    const detail::StepParams<Real> params = step_params(h);
+    std::uint32_t widest = 1;
+    for (std::size_t k = 0; k < active.size(); ++k) {
+      at(k).has_contacts = false;  // contact forces of an earlier substep no longer apply
+      widest = std::max(widest, at(k).topology->cols());
+    }
+    const std::uint32_t max_levels = detail::wave_levels(widest, sizeof(Real));
+    for (std::uint64_t done = 0; done < count;) {
+      const auto levels = static_cast<std::uint32_t>(std::min<std::uint64_t>(max_levels, count - done));
+      plan_wave_blocks(levels);
+      if (block_scratch.size() < blocks.size()) block_scratch.resize(blocks.size());
+      // every split block copies its halo before any block moves a row
+      if (std::any_of(blocks.begin(), blocks.end(), [](const Block& b) { return b.split; }))
+        parallel(blocks.size(), [&](std::size_t q) {
+          const Block& b = blocks[q];
+          if (b.split) detail::wave_take_halo(at(b.sheet), levels, b.row_begin, b.row_end, block_scratch[q]);
+        });
+      parallel(blocks.size(), [&](std::size_t q) {
+        const Block& b = blocks[q];
+        Sheet<Real>& s = at(b.sheet);
+        if (b.split) {
+          detail::integrate_wave(def.integrator, s, params, levels, b.row_begin, b.row_end, block_scratch[q]);
+        } else if (detail::updates_per_point(def.integrator) && detail::wave_ready(s) && !detail::fits_wave_budget(s)) {
+          detail::integrate_wave(def.integrator, s, params, levels, 0, s.topology->rows(), wave_scratch.local());
+        } else {
+          for (std::uint32_t k = 0; k < levels; ++k) detail::integrate(def.integrator, s, params);
+        }
+      });
+      done += levels;
+    }
+    count_substeps(h, count);
+  }
+
+  detail::StepParams<Real> step_params(double h) const {
+    return {static_cast<Real>(h), static_cast<Real>(def.gravity.x), static_cast<Real>(def.gravity.y),
+            static_cast<Real>(def.gravity.z), def.cg_tolerance, def.cg_max_iterations};
+  }
+
+  void count_substeps(double h, std::uint64_t count) {
     if (h != current_h) {
       time_base = time();
       steps_base = steps;
       current_h = h;
     }
-    ++steps;
+    steps += count;
+  }
+
+  // `count` substeps of h: in runs when the sheets are independent, else one by one.
+  void substeps(double h, std::uint64_t count) {
+    if (count > 1 && sheets_independent()) {
+      integrate_runs(h, count);
+      return;
+    }
+    for (std::uint64_t k = 0; k < count; ++k) substep(h);
   }
 
   double time() const { return time_base + static_cast<double>(steps - steps_base) * current_h; }
@@ -386,8 +475,7 @@ struct BasicWorld<Real>::Impl {
   void advance(double seconds) {
     const double h_max = max_substep();
     const double count = std::isfinite(h_max) ? std::max(1.0, std::ceil(seconds / h_max * (1 - 1e-12))) : 1.0;
-    const double h = seconds / count;
-    for (double k = 0; k < count; ++k) substep(h);
+    substeps(seconds / count, static_cast<std::uint64_t>(count));
   }
 
   // Motion energy: what an unstable step inflates.
@@ -628,7 +716,7 @@ StabilityReport BasicWorld<Real>::step(int substeps) {
     if (impl_->def.adaptive && integrator_is_explicit(impl_->def.integrator)) {
       impl_->advance(substeps * impl_->def.dt);
     } else {
-      for (int k = 0; k < substeps; ++k) impl_->substep(impl_->def.dt);
+      impl_->substeps(impl_->def.dt, static_cast<std::uint64_t>(substeps));
     }
   }
   return impl_->finish_step();
