@@ -219,6 +219,16 @@ void sheet_forces_rows(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> 
   }
 }
 
+namespace {
+constexpr std::size_t cache_budget = std::size_t(1) << 20;  // bytes: about an L2 cache
+constexpr std::size_t values_per_point = 11;                // x, v, f, 1/m, damping
+}  // namespace
+
+template <class Real>
+bool fits_cache_budget(const Sheet<Real>& s) {
+  return s.size() * values_per_point * sizeof(Real) <= cache_budget;
+}
+
 template <class Real>
 void sheet_forces_by_rows(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f, RowSink sink) {
   const Topology<Real>& t = *s.topology;
@@ -231,7 +241,10 @@ void sheet_forces_by_rows(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Rea
   };
   // Obstacle forces (eq 9) follow the sheet's surface normal, which reads the rows on both
   // sides of a point, so they cannot be added row by row once earlier rows have moved.
-  if (!s.near_obstacles.empty() || !std::is_sorted(an.point.begin(), an.point.end())) {
+  // A sheet within the cache budget is in cache for the second pass anyway, and one sink
+  // call over all its points runs whole vectors where rows of a small sheet would run
+  // mostly in their scalar remainders (BM_Fig13 at small sizes, BM_WorldStep10kSheets).
+  if (!s.near_obstacles.empty() || !std::is_sorted(an.point.begin(), an.point.end()) || fits_cache_budget(s)) {
     // finish every force first, then hand over the whole sheet
     springs_by_rows(t, x, f, ptr(s.row_scratch), 0, t.rows(),
                     [&](std::uint32_t i) { row_terms(s, std::size_t(i) * t.cols(), t.cols(), v, f); });
@@ -266,21 +279,12 @@ bool wave_ready(const Sheet<Real>& s) {
          std::is_sorted(s.pins.point.begin(), s.pins.point.end());
 }
 
-namespace {
-constexpr std::size_t wave_budget = std::size_t(1) << 20;  // bytes
-constexpr std::size_t values_per_point = 11;               // x, v, f, 1/m, damping
-}  // namespace
-
 std::uint32_t wave_levels(std::uint32_t cols, std::size_t bytes_per_value) {
   // rows in flight: one per substep, and about four more at the wave's front and back
-  const std::size_t rows = wave_budget / (std::max<std::size_t>(cols, 1) * values_per_point * bytes_per_value);
+  const std::size_t rows = cache_budget / (std::max<std::size_t>(cols, 1) * values_per_point * bytes_per_value);
   return rows > 5 ? static_cast<std::uint32_t>(std::min<std::size_t>(64, rows - 4)) : 1;
 }
 
-template <class Real>
-bool fits_wave_budget(const Sheet<Real>& s) {
-  return s.size() * values_per_point * sizeof(Real) <= wave_budget;
-}
 
 namespace {
 
@@ -428,8 +432,8 @@ template void sheet_forces_rows<float>(Sheet<float>&, ConstVec3Ptr<float>, Const
 template void sheet_forces<double>(Sheet<double>&, ConstVec3Ptr<double>, ConstVec3Ptr<double>, Vec3Ptr<double>);
 template void sheet_forces<float>(Sheet<float>&, ConstVec3Ptr<float>, ConstVec3Ptr<float>, Vec3Ptr<float>);
 template bool wave_ready<double>(const Sheet<double>&);
-template bool fits_wave_budget<double>(const Sheet<double>&);
-template bool fits_wave_budget<float>(const Sheet<float>&);
+template bool fits_cache_budget<double>(const Sheet<double>&);
+template bool fits_cache_budget<float>(const Sheet<float>&);
 template bool wave_ready<float>(const Sheet<float>&);
 template void wave_take_halo<double>(const Sheet<double>&, std::uint32_t, std::uint32_t, std::uint32_t,
                                      WaveScratch<double>&);

@@ -68,7 +68,8 @@ struct RowSink {
 // sheet_forces, handing each row to `sink` as soon as its force is final, while it is
 // still in cache. An explicit integrator may move the row's points (x, v) in the sink: no
 // later force of this sweep reads them. This saves the integrator a pass over the whole
-// sheet's forces (a sheet beyond the caches streams half the bytes per step).
+// sheet's forces (a sheet beyond the caches streams half the bytes per step). A sheet
+// within the cache budget (fits_cache_budget) gets one call for all its points instead.
 template <class Real>
 void sheet_forces_by_rows(Sheet<Real>& sheet, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f,
                           RowSink sink);
@@ -121,10 +122,9 @@ bool wave_ready(const Sheet<Real>& sheet);
 std::uint32_t wave_levels(std::uint32_t cols, std::size_t bytes_per_value);
 
 // Whether the whole sheet fits that budget: it then stays in cache from one substep to the
-// next without a wave, and whole-sheet sweeps are cheaper than a wave's rows (measured:
-// about 25 % at 16×16 points).
+// next without a wave, and whole-sheet passes are cheaper than rows (sheet_forces_by_rows).
 template <class Real>
-bool fits_wave_budget(const Sheet<Real>& sheet);
+bool fits_cache_budget(const Sheet<Real>& sheet);
 
 // Moves rows [row_begin, row_end) of a wave_ready sheet `levels` substeps ahead, calling
 // `sink` for every row and substep in order, then setting the row's pins. Rows outside

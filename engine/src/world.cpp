@@ -421,7 +421,7 @@ struct BasicWorld<Real>::Impl {
         Sheet<Real>& s = at(b.sheet);
         if (b.split) {
           detail::integrate_wave(def.integrator, s, params, levels, b.row_begin, b.row_end, block_scratch[q]);
-        } else if (detail::updates_per_point(def.integrator) && detail::wave_ready(s) && !detail::fits_wave_budget(s)) {
+        } else if (detail::updates_per_point(def.integrator) && detail::wave_ready(s) && !detail::fits_cache_budget(s)) {
           detail::integrate_wave(def.integrator, s, params, levels, 0, s.topology->rows(), wave_scratch.local());
         } else {
           for (std::uint32_t k = 0; k < levels; ++k) detail::integrate(def.integrator, s, params);
