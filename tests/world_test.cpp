@@ -330,6 +330,64 @@ TEST(Worlds, FramesOfSubstepsChangeNoBit) {
     }
 }
 
+// With contacts on and an obstacle, a frame runs as if nothing coupled the substeps and
+// is kept only when no two sheets' boxes over the frame came within contact range and no
+// box within an obstacle's reach; otherwise it is undone and stepped substep by substep.
+// Two scenes: a large sheet falls onto a floor (a far sheet keeps contacts possible), and
+// two sheets slide into each other. The first frames are kept, the later ones undone, and
+// every state must match one substep per call.
+enum class Approach { Floor, Sheets };
+
+std::vector<unsigned char> run_approach(Approach scene, int threads, std::uint32_t block_points, int frames,
+                                        int substeps) {
+  WorldDef wd;
+  wd.dt = 1e-3;
+  wd.threads = threads;
+  wd.block_points = block_points;
+  wd.guard = false;
+  World w(wd);
+  SheetDef d;
+  if (scene == Approach::Floor) {
+    ObstacleDef floor;
+    floor.shape = ObstacleShape::Plane;
+    floor.center = {0, 0, -0.3};
+    floor.c = 0.01;
+    w.add_obstacle(floor);
+    d.m = 120;  // 121 × 41 points: split into blocks at block_points 500
+    d.n = 40;
+    d.width = 0.5;
+    d.height = 1.4;
+    d.stiffness = 200;
+    d.damping = 0.001;
+    d.center = {0, 0, 0.2};
+    d.initial_velocity = {0, 0, -1.5};  // within the floor's reach after about 0.2 s
+    w.add_sheet(d);
+    d.m = d.n = 4;
+    d.center = {0, 0, 50};
+    d.initial_velocity = {};
+    w.add_sheet(d);
+  } else {
+    d.m = d.n = 12;
+    d.width = d.height = 0.3;
+    for (int k = 0; k < 2; ++k) {  // 0.2 m apart, closing at 2 m/s: they meet at 0.1 s
+      d.center = {0.5 * k, 0, 0};
+      d.initial_velocity = {k == 0 ? 1.0 : -1.0, 0, 0};
+      w.add_sheet(d);
+    }
+  }
+  for (int k = 0; k < frames; ++k) w.step(substeps);
+  return state_bytes(w);
+}
+
+TEST(Worlds, ContactFreeFramesChangeNoBit) {
+  for (Approach scene : {Approach::Floor, Approach::Sheets})
+    for (auto [threads, block_points] : {std::pair{1, 1u << 30}, std::pair{2, 500u}}) {
+      const auto one_by_one = run_approach(scene, threads, block_points, 300, 1);
+      EXPECT_TRUE(run_approach(scene, threads, block_points, 30, 10) == one_by_one) << threads << " threads";
+      EXPECT_TRUE(run_approach(scene, threads, block_points, 10, 30) == one_by_one) << threads << " threads";
+    }
+}
+
 TEST(Worlds, SheetsFarApartStepExactlyAsIfAlone) {
   WorldDef wd;
   wd.dt = 2e-4;

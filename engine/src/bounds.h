@@ -3,7 +3,9 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <cstddef>
+#include <limits>
 
 #include "sheet_data.h"
 
@@ -23,17 +25,16 @@ struct Aabb {
   }
 };
 
-// Eight independent running minima/maxima per axis: no iterator bookkeeping and no
-// single dependency chain, so the compiler turns the loop into packed min/max (the host
-// stage reads every point of every sheet each substep; this keeps it cheap).
+// Grows `box` to contain points [0, count) of the three coordinate arrays. Eight
+// independent running minima/maxima per axis: no single dependency chain, so the compiler
+// turns the loop into packed min/max (the host stage reads every point of every sheet each
+// substep; this keeps it cheap).
 template <class Real>
-Aabb sheet_bounds(const Sheet<Real>& s) {
-  Aabb box;
-  const AlignedArray<Real>* axes[3] = {&s.position.x, &s.position.y, &s.position.z};
+void include_points(Aabb& box, const Real* x, const Real* y, const Real* z, std::size_t count) {
+  if (count == 0) return;
+  const Real* axes[3] = {x, y, z};
   for (int k = 0; k < 3; ++k) {
-    const Real* a = axes[k]->data();
-    const std::size_t count = axes[k]->size();
-    if (count == 0) continue;
+    const Real* a = axes[k];
     constexpr std::size_t lanes = 8;
     Real lo[lanes], hi[lanes];
     for (std::size_t l = 0; l < lanes; ++l) lo[l] = hi[l] = a[0];
@@ -47,9 +48,33 @@ Aabb sheet_bounds(const Sheet<Real>& s) {
       lo[0] = a[i] < lo[0] ? a[i] : lo[0];
       hi[0] = a[i] > hi[0] ? a[i] : hi[0];
     }
-    box.lo[k] = *std::min_element(lo, lo + lanes);
-    box.hi[k] = *std::max_element(hi, hi + lanes);
+    // (comparisons with NaN are false: a NaN after the first point is skipped, a NaN first
+    // point, or a NaN box, gives a NaN box, which overlaps nothing)
+    const double low = *std::min_element(lo, lo + lanes), high = *std::max_element(hi, hi + lanes);
+    box.lo[k] = std::isnan(low) || std::isnan(box.lo[k]) ? low + box.lo[k] : std::min(box.lo[k], low);
+    box.hi[k] = std::isnan(high) || std::isnan(box.hi[k]) ? high + box.hi[k] : std::max(box.hi[k], high);
   }
+}
+
+// Grows `box` to contain `other` (a NaN bound stays NaN).
+inline void include_box(Aabb& box, const Aabb& other) {
+  for (int k = 0; k < 3; ++k) {
+    box.lo[k] = std::isnan(other.lo[k]) ? other.lo[k] : std::min(box.lo[k], other.lo[k]);
+    box.hi[k] = std::isnan(other.hi[k]) ? other.hi[k] : std::max(box.hi[k], other.hi[k]);
+  }
+}
+
+// A box that include_points grows into the first points' box.
+inline Aabb empty_box() {
+  constexpr double inf = std::numeric_limits<double>::infinity();
+  return {{inf, inf, inf}, {-inf, -inf, -inf}};
+}
+
+template <class Real>
+Aabb sheet_bounds(const Sheet<Real>& s) {
+  if (s.size() == 0) return {};
+  Aabb box = empty_box();
+  include_points(box, s.position.x.data(), s.position.y.data(), s.position.z.data(), s.size());
   return box;
 }
 

@@ -310,7 +310,8 @@ Vec3Ptr<Real> at(Vec3Array<Real>& a, std::size_t offset) {
 
 template <class Real, class Springs>
 void wave_rows(Sheet<Real>& s, Springs horizontal_springs, Springs vertical_springs, std::uint32_t levels,
-               std::uint32_t row_begin, std::uint32_t row_end, WaveScratch<Real>& w, WaveSink<Real> sink) {
+               std::uint32_t row_begin, std::uint32_t row_end, WaveScratch<Real>& w, WaveSink<Real> sink,
+               Aabb* swept) {
   const Topology<Real>& t = *s.topology;
   const std::uint32_t n = t.n, cols = t.cols();
   const WaveRange range = wave_range(t.rows(), levels, row_begin, row_end);
@@ -363,6 +364,7 @@ void wave_rows(Sheet<Real>& s, Springs horizontal_springs, Springs vertical_spri
       x.z[q] = pins.tz[k];
       v.x[q] = v.y[q] = v.z[q] = Real(0);
     }
+    if (swept && i >= row_begin && i < row_end) include_points(*swept, x.x, x.y, x.z, cols);
   };
   // Step q of one substep's sweep, as in spring_rows: q = 0 starts row lo; q ≥ 1 adds the
   // springs of row lo + q (its own and the ones to the row above) and finishes the row above.
@@ -412,10 +414,10 @@ void wave_take_halo(const Sheet<Real>& s, std::uint32_t levels, std::uint32_t ro
 
 template <class Real>
 void sheet_wave(Sheet<Real>& s, std::uint32_t levels, std::uint32_t row_begin, std::uint32_t row_end,
-                WaveScratch<Real>& w, WaveSink<Real> sink) {
+                WaveScratch<Real>& w, WaveSink<Real> sink, Aabb* swept) {
   if (levels == 0 || row_begin >= row_end) return;
   with_springs(*s.topology, [&](auto horizontal, auto vertical) {
-    wave_rows(s, horizontal, vertical, levels, row_begin, row_end, w, sink);
+    wave_rows(s, horizontal, vertical, levels, row_begin, row_end, w, sink, swept);
   });
 }
 
@@ -440,9 +442,9 @@ template void wave_take_halo<double>(const Sheet<double>&, std::uint32_t, std::u
 template void wave_take_halo<float>(const Sheet<float>&, std::uint32_t, std::uint32_t, std::uint32_t,
                                     WaveScratch<float>&);
 template void sheet_wave<double>(Sheet<double>&, std::uint32_t, std::uint32_t, std::uint32_t, WaveScratch<double>&,
-                                 WaveSink<double>);
+                                 WaveSink<double>, Aabb*);
 template void sheet_wave<float>(Sheet<float>&, std::uint32_t, std::uint32_t, std::uint32_t, WaveScratch<float>&,
-                                WaveSink<float>);
+                                WaveSink<float>, Aabb*);
 template void sheet_forces_by_rows<double>(Sheet<double>&, ConstVec3Ptr<double>, ConstVec3Ptr<double>, Vec3Ptr<double>,
                                            RowSink);
 template void sheet_forces_by_rows<float>(Sheet<float>&, ConstVec3Ptr<float>, ConstVec3Ptr<float>, Vec3Ptr<float>,

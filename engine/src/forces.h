@@ -2,6 +2,7 @@
 // runs only the kernels of the terms it has (chosen per sheet, never per point).
 #pragma once
 
+#include "bounds.h"
 #include "sheet_data.h"
 
 namespace drape::detail {
@@ -127,8 +128,9 @@ template <class Real>
 bool fits_cache_budget(const Sheet<Real>& sheet);
 
 // Moves rows [row_begin, row_end) of a wave_ready sheet `levels` substeps ahead, calling
-// `sink` for every row and substep in order, then setting the row's pins. Rows outside
-// the range are not written. A block that is not the whole sheet also steps the `levels`
+// `sink` for every row and substep in order, then setting the row's pins; `swept`, when
+// given, grows to contain those rows at every substep. Rows outside the range are not
+// written. A block that is not the whole sheet also steps the `levels`
 // rows beyond each of its edges, in copies: call wave_take_halo for every block of the
 // sheet before any block's wave, since the waves of other blocks move those rows.
 template <class Real>
@@ -136,6 +138,6 @@ void wave_take_halo(const Sheet<Real>& sheet, std::uint32_t levels, std::uint32_
                     WaveScratch<Real>& scratch);
 template <class Real>
 void sheet_wave(Sheet<Real>& sheet, std::uint32_t levels, std::uint32_t row_begin, std::uint32_t row_end,
-                WaveScratch<Real>& scratch, WaveSink<Real> sink);
+                WaveScratch<Real>& scratch, WaveSink<Real> sink, Aabb* swept = nullptr);
 
 }  // namespace drape::detail

@@ -240,7 +240,7 @@ void update_points(Integrator integrator, Sheet<Real>& s, const StepParams<Real>
 
 template <class Real>
 void integrate_wave(Integrator integrator, Sheet<Real>& s, const StepParams<Real>& p, std::uint32_t levels,
-                    std::uint32_t row_begin, std::uint32_t row_end, WaveScratch<Real>& scratch) {
+                    std::uint32_t row_begin, std::uint32_t row_end, WaveScratch<Real>& scratch, Aabb* swept) {
   // the update is a template argument, not a function pointer, so it inlines into the sink
   auto run = [&]<bool SemiImplicit>() {
     auto row_done = [&](const RowState<Real>& r) {
@@ -248,7 +248,7 @@ void integrate_wave(Integrator integrator, Sheet<Real>& s, const StepParams<Real
                                              FirstOrderArrays<Real>{r.x.x, r.x.y, r.x.z, r.v.x, r.v.y, r.v.z, r.f.x,
                                                                     r.f.y, r.f.z, s.inv_mass.data() + r.first});
     };
-    sheet_wave(s, levels, row_begin, row_end, scratch, WaveSink<Real>::of(row_done));
+    sheet_wave(s, levels, row_begin, row_end, scratch, WaveSink<Real>::of(row_done), swept);
   };
   switch (integrator) {
     case Integrator::ForwardEuler: run.template operator()<false>(); break;
@@ -258,9 +258,9 @@ void integrate_wave(Integrator integrator, Sheet<Real>& s, const StepParams<Real
 }
 
 template void integrate_wave<double>(Integrator, Sheet<double>&, const StepParams<double>&, std::uint32_t,
-                                     std::uint32_t, std::uint32_t, WaveScratch<double>&);
+                                     std::uint32_t, std::uint32_t, WaveScratch<double>&, Aabb*);
 template void integrate_wave<float>(Integrator, Sheet<float>&, const StepParams<float>&, std::uint32_t, std::uint32_t,
-                                    std::uint32_t, WaveScratch<float>&);
+                                    std::uint32_t, WaveScratch<float>&, Aabb*);
 template void update_points<double>(Integrator, Sheet<double>&, const StepParams<double>&, std::size_t, std::size_t);
 template void update_points<float>(Integrator, Sheet<float>&, const StepParams<float>&, std::size_t, std::size_t);
 template void integrate<double>(Integrator, Sheet<double>&, const StepParams<double>&);

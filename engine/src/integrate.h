@@ -42,8 +42,10 @@ void update_points(Integrator integrator, Sheet<Real>& sheet, const StepParams<R
 
 // `levels` substeps of such an integrator on rows [row_begin, row_end) of a wave_ready
 // sheet in one sweep (forces.h, sheet_wave): bit-identical to `levels` integrate() calls.
+// `swept`, when given, grows to contain those rows at every substep.
 template <class Real>
 void integrate_wave(Integrator integrator, Sheet<Real>& sheet, const StepParams<Real>& params, std::uint32_t levels,
-                    std::uint32_t row_begin, std::uint32_t row_end, WaveScratch<Real>& scratch);
+                    std::uint32_t row_begin, std::uint32_t row_end, WaveScratch<Real>& scratch,
+                    Aabb* swept = nullptr);
 
 }  // namespace drape::detail

@@ -398,11 +398,14 @@ struct BasicWorld<Real>::Impl {
   tbb::enumerable_thread_specific<detail::WaveScratch<Real>> wave_scratch;  // whole sheets
   std::vector<detail::WaveScratch<Real>> block_scratch;                     // per split block, with its halo
 
-  void integrate_runs(double h, std::uint64_t count) {
+  // `swept`, when given, gets each sheet's box over all the substeps' states (in `active`
+  // order), for try_frame's check.
+  void integrate_runs(double h, std::uint64_t count, std::vector<detail::Aabb>* swept = nullptr) {
     const detail::StepParams<Real> params = step_params(h);
     std::uint32_t widest = 1;
     for (std::size_t k = 0; k < active.size(); ++k) {
       at(k).has_contacts = false;  // contact forces of an earlier substep no longer apply
+      at(k).near_obstacles.clear();
       widest = std::max(widest, at(k).topology->cols());
     }
     const std::uint32_t max_levels = detail::wave_levels(widest, sizeof(Real));
@@ -410,6 +413,7 @@ struct BasicWorld<Real>::Impl {
       const auto levels = static_cast<std::uint32_t>(std::min<std::uint64_t>(max_levels, count - done));
       plan_wave_blocks(levels);
       if (block_scratch.size() < blocks.size()) block_scratch.resize(blocks.size());
+      if (swept) block_swept.assign(blocks.size(), detail::empty_box());
       // every split block copies its halo before any block moves a row
       if (std::any_of(blocks.begin(), blocks.end(), [](const Block& b) { return b.split; }))
         parallel(blocks.size(), [&](std::size_t q) {
@@ -419,17 +423,77 @@ struct BasicWorld<Real>::Impl {
       parallel(blocks.size(), [&](std::size_t q) {
         const Block& b = blocks[q];
         Sheet<Real>& s = at(b.sheet);
+        detail::Aabb* box = swept ? &block_swept[q] : nullptr;
         if (b.split) {
-          detail::integrate_wave(def.integrator, s, params, levels, b.row_begin, b.row_end, block_scratch[q]);
+          detail::integrate_wave(def.integrator, s, params, levels, b.row_begin, b.row_end, block_scratch[q], box);
         } else if (detail::updates_per_point(def.integrator) && detail::wave_ready(s) && !detail::fits_cache_budget(s)) {
-          detail::integrate_wave(def.integrator, s, params, levels, 0, s.topology->rows(), wave_scratch.local());
+          detail::integrate_wave(def.integrator, s, params, levels, 0, s.topology->rows(), wave_scratch.local(), box);
         } else {
-          for (std::uint32_t k = 0; k < levels; ++k) detail::integrate(def.integrator, s, params);
+          for (std::uint32_t k = 0; k < levels; ++k) {
+            detail::integrate(def.integrator, s, params);
+            if (box) detail::include_box(*box, detail::sheet_bounds(s));
+          }
         }
       });
+      if (swept)
+        for (std::size_t q = 0; q < blocks.size(); ++q) detail::include_box((*swept)[blocks[q].sheet], block_swept[q]);
       done += levels;
     }
-    count_substeps(h, count);
+  }
+
+  // A frame of substeps on sheets that contacts or obstacles could couple, run as if
+  // nothing did, and kept only if nothing did: no two sheets' boxes over the whole frame
+  // came within contact range, and no box came within an obstacle's reach. Then the host
+  // stage of every substep would have found no pair and no obstacle, and the frame is
+  // bit-identical to substep-by-substep; otherwise the state before it is restored and
+  // the caller steps substep by substep. For integrators with no memory between substeps
+  // beyond x and v (forward and semi-implicit Euler), and no sheet with self-contact
+  // (always its own pair). A frame whose sheets are in contact at its start is not tried:
+  // only a frame in which a contact begins is computed twice.
+  std::vector<detail::Aabb> swept, swept_grown, block_swept;
+  std::vector<detail::Vec3Array<Real>> saved;  // positions, then velocities, per sheet
+
+  bool frame_may_be_contact_free() const {
+    return detail::updates_per_point(def.integrator) &&
+           std::none_of(active.begin(), active.end(), [&](auto i) { return slots[i].sheet->self_collision; });
+  }
+
+  // Whether sheets with these boxes are out of each other's contact range and out of
+  // every obstacle's reach (what the host stage would find for them).
+  bool apart(const std::vector<detail::Aabb>& boxes) {
+    if (contacts_possible()) {
+      const auto params = detail::ContactParams<Real>::make(def.contact_thickness, def.contact_xi,
+                                                            def.contact_strength, def.contact_range);
+      swept_grown.resize(boxes.size());
+      for (std::size_t k = 0; k < boxes.size(); ++k) swept_grown[k] = boxes[k].inflated(0.5 * double(params.range));
+      broad_phase.find_pairs(swept_grown, pairs);
+      if (!pairs.empty()) return false;
+    }
+    for (const detail::Aabb& box : boxes)
+      for (std::uint32_t o : active_obstacles)
+        if (detail::may_touch(*obstacle_slots[o].obstacle, box)) return false;
+    return true;
+  }
+
+  bool try_frame(double h, std::uint64_t count) {
+    const std::size_t n = active.size();
+    swept.resize(n);
+    parallel(n, [&](std::size_t k) { swept[k] = current_bounds(slots[active[k]]); });
+    // Sheets already in contact, or at an obstacle, would only be undone: no try.
+    if (!apart(swept)) return false;
+    saved.resize(2 * n);
+    parallel(n, [&](std::size_t k) {
+      saved[2 * k] = at(k).position;
+      saved[2 * k + 1] = at(k).velocity;
+    });
+    integrate_runs(h, count, &swept);
+    if (apart(swept)) return true;
+    parallel(n, [&](std::size_t k) {
+      Sheet<Real>& s = at(k);
+      s.position = saved[2 * k];
+      s.velocity = saved[2 * k + 1];
+    });
+    return false;
   }
 
   detail::StepParams<Real> step_params(double h) const {
@@ -446,11 +510,22 @@ struct BasicWorld<Real>::Impl {
     steps += count;
   }
 
-  // `count` substeps of h: in runs when the sheets are independent, else one by one.
+  // `count` substeps of h: in runs when the sheets are independent, or when a try shows
+  // they stayed apart; else one by one.
   void substeps(double h, std::uint64_t count) {
-    if (count > 1 && sheets_independent()) {
-      integrate_runs(h, count);
-      return;
+    if (count > 1) {
+      bool ran = false;
+      if (sheets_independent()) {
+        integrate_runs(h, count);
+        ran = true;
+      } else if (frame_may_be_contact_free()) {
+        ran = try_frame(h, count);
+      }
+      if (ran) {
+        pairs.clear();  // no substep of the run had a pair
+        count_substeps(h, count);
+        return;
+      }
     }
     for (std::uint64_t k = 0; k < count; ++k) substep(h);
   }
