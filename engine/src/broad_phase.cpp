@@ -45,17 +45,16 @@ void BoxTree::build(std::span<const Aabb> boxes) {
   order_.clear();
   nodes_.clear();
   slot_.assign(boxes.size(), kNone);
-  centre_.resize(3 * boxes.size());
+  centre_.clear();
   for (std::uint32_t i = 0; i < boxes.size(); ++i) {
-    if (!box_in_tree(boxes[i])) continue;
-    order_.push_back(i);
-    for (int k = 0; k < 3; ++k) centre_[3 * i + k] = boxes[i].lo[k] + boxes[i].hi[k];
+    const Aabb& b = boxes[i];
+    if (box_in_tree(b)) centre_.push_back({{b.lo[0] + b.hi[0], b.lo[1] + b.hi[1], b.lo[2] + b.hi[2]}, i});
   }
-  leaf_box_.resize(order_.size());
-  leaf_.resize(order_.size());
-  if (order_.empty()) return;
-  build(boxes, 0, static_cast<std::uint32_t>(order_.size()), 0);
-  for (std::uint32_t s = 0; s < order_.size(); ++s) slot_[order_[s]] = s;
+  order_.resize(centre_.size());
+  leaf_box_.resize(centre_.size());
+  leaf_.resize(centre_.size());
+  if (centre_.empty()) return;
+  build(boxes, 0, static_cast<std::uint32_t>(centre_.size()), 0);
 }
 
 std::uint32_t BoxTree::build(std::span<const Aabb> boxes, std::uint32_t begin, std::uint32_t end,
@@ -63,10 +62,13 @@ std::uint32_t BoxTree::build(std::span<const Aabb> boxes, std::uint32_t begin, s
   const auto id = static_cast<std::uint32_t>(nodes_.size());
   nodes_.push_back({{}, begin, end, 0, parent});
   if (end - begin <= kLeafSize) {
-    Aabb box = boxes[order_[begin]];
+    Aabb box = boxes[centre_[begin].index];
     for (std::uint32_t s = begin; s < end; ++s) {
-      const Aabb& b = leaf_box_[s] = boxes[order_[s]];
+      const std::uint32_t i = centre_[s].index;
+      order_[s] = i;
+      slot_[i] = s;
       leaf_[s] = id;
+      const Aabb& b = leaf_box_[s] = boxes[i];
       for (int k = 0; k < 3; ++k) {
         box.lo[k] = std::min(box.lo[k], b.lo[k]);
         box.hi[k] = std::max(box.hi[k], b.hi[k]);
@@ -78,21 +80,19 @@ std::uint32_t BoxTree::build(std::span<const Aabb> boxes, std::uint32_t begin, s
   // Split at the median of the centres along their longest spread; ties broken by index,
   // so the halves are the same sets whatever nth_element does inside.
   double c_lo[3], c_hi[3];
-  for (int k = 0; k < 3; ++k) c_lo[k] = c_hi[k] = centre_[3 * order_[begin] + k];
+  for (int k = 0; k < 3; ++k) c_lo[k] = c_hi[k] = centre_[begin].c[k];
   for (std::uint32_t s = begin + 1; s < end; ++s)
     for (int k = 0; k < 3; ++k) {
-      c_lo[k] = std::min(c_lo[k], centre_[3 * order_[s] + k]);
-      c_hi[k] = std::max(c_hi[k], centre_[3 * order_[s] + k]);
+      c_lo[k] = std::min(c_lo[k], centre_[s].c[k]);
+      c_hi[k] = std::max(c_hi[k], centre_[s].c[k]);
     }
   int axis = 0;
   for (int k = 1; k < 3; ++k)
     if (c_hi[k] - c_lo[k] > c_hi[axis] - c_lo[axis]) axis = k;
   const std::uint32_t mid = begin + (end - begin) / 2;
-  const double* centre = centre_.data() + axis;
-  std::nth_element(order_.begin() + begin, order_.begin() + mid, order_.begin() + end,
-                   [centre](std::uint32_t a, std::uint32_t b) {
-                     const double ca = centre[3 * a], cb = centre[3 * b];
-                     return ca < cb || (ca == cb && a < b);
+  std::nth_element(centre_.begin() + begin, centre_.begin() + mid, centre_.begin() + end,
+                   [axis](const Centre& a, const Centre& b) {
+                     return a.c[axis] < b.c[axis] || (a.c[axis] == b.c[axis] && a.index < b.index);
                    });
   build(boxes, begin, mid, id);  // the left child is node id + 1
   const std::uint32_t right = build(boxes, mid, end, id);

@@ -69,7 +69,13 @@ class BoxTree {
   std::vector<std::uint32_t> leaf_;   // leaf_[s]: the leaf node holding position s
   std::vector<Node> nodes_;
   mutable std::vector<std::uint32_t> stack_;
-  std::vector<double> centre_;  // build scratch: lo + hi per axis, per box
+  // Build scratch: the boxes' centres (lo + hi) with their indices, partitioned in place,
+  // so the splits read memory in order rather than a box's centre by its index.
+  struct Centre {
+    double c[3];
+    std::uint32_t index;
+  };
+  std::vector<Centre> centre_;
 };
 
 // Keeps its scratch between calls so the per-substep host stage does not allocate once
