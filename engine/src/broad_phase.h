@@ -93,9 +93,11 @@ class BroadPhase {
 
 class TrackingBroadPhase {
  public:
-  // Same contract as BroadPhase::find_pairs, for boxes that are the same objects, in the
-  // same order, as in the previous call. A different count starts over by itself; call
-  // reset() when the list was reordered or its objects replaced at the same count.
+  // Same contract as BroadPhase::find_pairs, whatever the boxes of earlier calls were: box
+  // i is only ever compared with fat box i, so a wrong history costs time, never pairs.
+  // The history pays when box i is the same object, moving, from call to call: a
+  // different count starts over by itself; call reset() when the list was reordered or
+  // its objects replaced at the same count, so no box inherits another's fat box.
   void find_pairs(std::span<const Aabb> boxes, std::vector<BoxPair>& pairs);
   void reset() { fat_.clear(); }
 
