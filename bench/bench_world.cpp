@@ -5,6 +5,8 @@
 #include "bench_common.h"
 #include <drape/drape.h>
 
+#include <array>
+#include <cmath>
 #include <random>
 #include <vector>
 
@@ -89,12 +91,9 @@ BENCHMARK(BM_WorldOneLargeSheet)
     ->Args({2, 8192})
     ->UseRealTime();
 
-// Arg: number of boxes. Sheet-sized boxes (1 m) scattered in a cube whose volume grows
-// with the count, so each box overlaps a few others at every size.
-void BM_BroadPhase(benchmark::State& state) {
-  const auto count = std::size_t(state.range(0));
-  std::mt19937 rng(42);
-  const double side = 2.0 * std::cbrt(double(count));
+// Sheet-sized boxes (1 m at most) scattered in a cube whose volume grows with the count,
+// so each box overlaps a few others at every size.
+std::vector<drape::detail::Aabb> scattered_boxes(std::size_t count, double side, std::mt19937& rng) {
   std::uniform_real_distribution<double> pos(0.0, side), ext(0.2, 1.0);
   std::vector<drape::detail::Aabb> boxes(count);
   for (auto& b : boxes)
@@ -102,21 +101,70 @@ void BM_BroadPhase(benchmark::State& state) {
       b.lo[k] = pos(rng);
       b.hi[k] = b.lo[k] + ext(rng);
     }
+  return boxes;
+}
+
+void report_boxes(benchmark::State& state, std::size_t pairs) {
+  state.counters["pairs"] = double(pairs);
+  state.counters["boxes_per_s"] =
+      benchmark::Counter(double(state.range(0)) * double(state.iterations()), benchmark::Counter::kIsRate);
+  state.SetComplexityN(state.range(0));
+}
+
+// Arg: number of boxes. The tree built from scratch on every call.
+void BM_BroadPhase(benchmark::State& state) {
+  const auto count = std::size_t(state.range(0));
+  std::mt19937 rng(42);
+  const auto boxes = scattered_boxes(count, 2.0 * std::cbrt(double(count)), rng);
   drape::detail::BroadPhase bp;
   std::vector<drape::detail::BoxPair> pairs;
   for (auto _ : state) {
     bp.find_pairs(boxes, pairs);
     benchmark::DoNotOptimize(pairs.data());
   }
-  state.counters["pairs"] = double(pairs.size());
-  state.counters["boxes_per_s"] = benchmark::Counter(double(count) * double(state.iterations()), benchmark::Counter::kIsRate);
-  state.SetComplexityN(state.range(0));
+  report_boxes(state, pairs.size());
 }
 BENCHMARK(BM_BroadPhase)->RangeMultiplier(10)->Range(10, 10000)->Complexity(benchmark::oNLogN);
 
+// Arg: number of boxes. The broad-phase as the world pays it per substep: the same boxes,
+// each moving every call by its own velocity × dt (dt = 1 ms, speeds 0–3 m/s in random
+// directions, like falling sheets; bouncing off the cube's walls so the density stays),
+// into the tracking broad-phase.
+void BM_BroadPhaseTracking(benchmark::State& state) {
+  const auto count = std::size_t(state.range(0));
+  std::mt19937 rng(42);
+  const double side = 2.0 * std::cbrt(double(count)), dt = 1e-3;
+  auto boxes = scattered_boxes(count, side, rng);
+  std::normal_distribution<double> normal;
+  std::uniform_real_distribution<double> speed(0.0, 3.0);
+  std::vector<std::array<double, 3>> velocity(count);
+  for (auto& v : velocity) {
+    double d[3] = {normal(rng), normal(rng), normal(rng)};
+    const double norm = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    const double s = speed(rng) / (norm > 0 ? norm : 1.0);
+    v = {s * d[0], s * d[1], s * d[2]};
+  }
+  drape::detail::TrackingBroadPhase bp;
+  std::vector<drape::detail::BoxPair> pairs;
+  for (auto _ : state) {
+    for (std::size_t i = 0; i < count; ++i)
+      for (int k = 0; k < 3; ++k) {
+        auto& b = boxes[i];
+        if ((b.lo[k] < 0 && velocity[i][k] < 0) || (b.hi[k] > side && velocity[i][k] > 0))
+          velocity[i][k] = -velocity[i][k];
+        b.lo[k] += velocity[i][k] * dt;
+        b.hi[k] += velocity[i][k] * dt;
+      }
+    bp.find_pairs(boxes, pairs);
+    benchmark::DoNotOptimize(pairs.data());
+  }
+  report_boxes(state, pairs.size());
+}
+BENCHMARK(BM_BroadPhaseTracking)->RangeMultiplier(10)->Range(10, 10000)->Complexity(benchmark::oN);
+
 // The world step the broad-phase is a part of, at 10,000 sheets: small sheets (8×8 points,
 // 0.3 m) scattered like BM_BroadPhase's boxes, a few in contact range of each other. The
-// report prints BM_BroadPhase/10000 as a share of this.
+// report prints BM_BroadPhaseTracking/10000 as a share of this.
 void BM_WorldStep10kSheets(benchmark::State& state) {
   drape::WorldDef wd = drape::bench::world_def();
   wd.dt = 1e-3;

@@ -1,6 +1,10 @@
-// The broad-phase against brute force: exactly the overlapping pairs, in sorted order.
+// The broad-phase against brute force: exactly the overlapping pairs, in sorted order,
+// from scratch and tracked over many calls with moving boxes.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -103,6 +107,127 @@ TEST(BroadPhase, EmptyAndSingleBoxGiveNoPairs) {
   EXPECT_TRUE(pairs.empty());
   const std::vector<Aabb> one = {{{0, 0, 0}, {1, 1, 1}}};
   bp.find_pairs(one, pairs);
+  EXPECT_TRUE(pairs.empty());
+}
+
+// Boxes moving over many calls, on a lattice of 1/64 m so that boxes often touch exactly:
+// most drift slowly, some fast, a few teleport now and then, some change size, some turn
+// NaN (or infinite) for a while and come back. The tracker must give exactly the brute-
+// force pairs after every move, and so must the from-scratch broad-phase.
+struct Mover {
+  long lo[3], size[3], vel[3];
+};
+
+Aabb to_box(const Mover& m) {
+  Aabb b;
+  for (int k = 0; k < 3; ++k) {
+    b.lo[k] = double(m.lo[k]) / 64;
+    b.hi[k] = double(m.lo[k] + m.size[k]) / 64;
+  }
+  return b;
+}
+
+void check_tracking(std::size_t count, unsigned seed, int calls) {
+  std::mt19937 rng(seed);
+  const long side = long(64 * std::cbrt(double(count)));
+  std::uniform_int_distribution<long> pos(0, side), size(0, 64), slow(-1, 1), fast(-40, 40);
+  std::uniform_int_distribution<int> percent(0, 99);
+  const auto make = [&] {
+    Mover m;
+    const bool is_fast = percent(rng) < 20;
+    for (int k = 0; k < 3; ++k) {
+      m.lo[k] = pos(rng);
+      m.size[k] = percent(rng) < 10 ? 0 : size(rng);
+      m.vel[k] = is_fast ? fast(rng) : slow(rng);
+    }
+    return m;
+  };
+  std::vector<Mover> movers(count);
+  for (auto& m : movers) m = make();
+  const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
+  std::vector<int> odd(count, 0);  // > 0: calls left as a NaN or infinite box
+  TrackingBroadPhase tracker;
+  BroadPhase scratch;
+  std::vector<BoxPair> tracked, from_scratch;
+  std::size_t total_pairs = 0;
+  for (int call = 0; call < calls; ++call) {
+    // Now and then the list itself changes: boxes appended or dropped.
+    if (call == calls / 3) {
+      for (std::size_t k = 0; k < count / 10; ++k) movers.push_back(make());
+      odd.resize(movers.size(), 0);
+    }
+    if (call == 2 * calls / 3) {
+      movers.resize(movers.size() - count / 5);
+      odd.resize(movers.size());
+    }
+    std::vector<Aabb> boxes(movers.size());
+    for (std::size_t i = 0; i < movers.size(); ++i) {
+      Mover& m = movers[i];
+      const int roll = percent(rng);
+      if (roll == 0) {
+        m.lo[0] = pos(rng), m.lo[1] = pos(rng), m.lo[2] = pos(rng);  // teleport
+      } else if (roll == 1) {
+        m.size[percent(rng) % 3] = size(rng);  // grows or shrinks
+      } else if (roll == 2 && odd[i] == 0 && i % 7 == 0) {
+        odd[i] = 1 + percent(rng) % 5;
+      }
+      for (int k = 0; k < 3; ++k) {
+        m.lo[k] += m.vel[k];
+        if (m.lo[k] < 0 || m.lo[k] > side) m.vel[k] = -m.vel[k];  // stay in the cube
+      }
+      boxes[i] = to_box(m);
+      if (odd[i] > 0) {
+        --odd[i];
+        if (i % 2) boxes[i].lo[i % 3] = nan;
+        else boxes[i].lo[i % 3] = -inf, boxes[i].hi[i % 3] = inf;  // centre is NaN: left out
+      }
+    }
+    tracker.find_pairs(boxes, tracked);
+    scratch.find_pairs(boxes, from_scratch);
+    auto expected = brute_force(boxes);
+    // brute_force counts -inf..+inf boxes as overlapping; the broad-phase leaves them out.
+    std::erase_if(expected, [&](const BoxPair& p) { return !box_in_tree(boxes[p.first]) || !box_in_tree(boxes[p.second]); });
+    ASSERT_EQ(tracked, expected) << "seed " << seed << ", call " << call;
+    ASSERT_EQ(from_scratch, expected) << "seed " << seed << ", call " << call;
+    total_pairs += expected.size();
+  }
+  EXPECT_GT(total_pairs, std::size_t(calls) * count / 4);  // the check means something
+}
+
+TEST(TrackingBroadPhase, MatchesBruteForceEveryCallWithMovingBoxes) {
+  check_tracking(400, 1, 300);
+  check_tracking(2000, 2, 60);
+  check_tracking(30, 3, 300);
+}
+
+TEST(TrackingBroadPhase, ExactAfterReorderingWithOrWithoutReset) {
+  // Reset only spares the boxes each other's fat boxes; the pairs are exact either way.
+  for (const bool reset : {true, false}) {
+    auto boxes = random_boxes(500, 11, 20, 3);
+    TrackingBroadPhase tracker;
+    std::vector<BoxPair> pairs;
+    tracker.find_pairs(boxes, pairs);
+    std::reverse(boxes.begin(), boxes.end());
+    if (reset) tracker.reset();
+    tracker.find_pairs(boxes, pairs);
+    EXPECT_EQ(pairs, brute_force(boxes)) << "reset " << reset;
+    std::shuffle(boxes.begin(), boxes.end(), std::mt19937(5));
+    if (reset) tracker.reset();
+    tracker.find_pairs(boxes, pairs);
+    EXPECT_EQ(pairs, brute_force(boxes)) << "reset " << reset;
+  }
+}
+
+TEST(TrackingBroadPhase, BoxesAtRestKeepTheirPairs) {
+  const auto boxes = random_boxes(1000, 12, 30, 4);
+  TrackingBroadPhase tracker;
+  std::vector<BoxPair> pairs;
+  const auto expected = brute_force(boxes);
+  for (int call = 0; call < 5; ++call) {
+    tracker.find_pairs(boxes, pairs);
+    EXPECT_EQ(pairs, expected);
+  }
+  tracker.find_pairs({}, pairs);
   EXPECT_TRUE(pairs.empty());
 }
 

@@ -460,35 +460,54 @@ class Report:
             self.image(fig, "features.png", "Feature prices: time per substep with each term")
 
     def broad_phase(self):
-        found = {n: r for n, r in self.runs.items() if "BroadPhase" in n or "broad_phase" in n.lower()}
-        if not found:
-            self.target("Broad-phase for 10,000 sheets, share of the world step", "–",
-                        f"< {pct(TARGET_BROADPHASE_SHARE)}", None, "no broad-phase benchmark in this run")
+        what = "Broad-phase for 10,000 sheets, share of the world step"
+        goal = f"< {pct(TARGET_BROADPHASE_SHARE)}"
+        scratch = {n: r for n, r in self.runs.items() if n.startswith("BM_BroadPhase/")}
+        tracking = {n: r for n, r in self.runs.items() if n.startswith("BM_BroadPhaseTracking/")}
+        if not scratch and not tracking:
+            self.target(what, "–", goal, None, "no broad-phase benchmark in this run")
             return
-        self.out("## Broad-phase", "", "| benchmark | µs per call |", "|---|---|")
-        for n in sorted(found):
-            self.used.add(n)
-            self.out(f"| {n} | {us(found[n].step_seconds)}{cv_text(found[n])} |")
+
+        def boxes(name):
+            match = re.match(r"[^/]+/(\d+)", name)
+            return int(match.group(1)) if match else None
+
+        by_count = defaultdict(dict)
+        for kind, runs in (("scratch", scratch), ("tracking", tracking)):
+            for n, r in runs.items():
+                if boxes(n) is not None:
+                    self.used.add(n)
+                    by_count[boxes(n)][kind] = r
+        self.out("## Broad-phase", "",
+                 "From scratch (BM_BroadPhase): the box tree built and traversed on every call. Tracking "
+                 "(BM_BroadPhaseTracking, what the world uses): the same boxes moving every call (speeds 0–3 m/s, "
+                 "dt = 1 ms), fat boxes kept between calls, the tree refitted or rebuilt only when boxes leave them; "
+                 "its time includes moving the boxes.", "",
+                 "| boxes | from scratch, µs per call | tracking, µs per call |", "|---|---|---|")
+        for count in sorted(by_count):
+            cells = [f"{us(r.step_seconds)}{cv_text(r)}" if r else "–"
+                     for r in (by_count[count].get("scratch"), by_count[count].get("tracking"))]
+            self.out(f"| {count} | {cells[0]} | {cells[1]} |")
         self.out("")
-        bp = next((r for n, r in found.items() if n.endswith("/10000")), None)
+        scratch_10k, tracking_10k = by_count[10000].get("scratch"), by_count[10000].get("tracking")
         world = {n: r for n, r in self.runs.items() if n.startswith("BM_WorldStep10kSheets")}
-        if bp is None or not world:
-            self.target("Broad-phase for 10,000 sheets, share of the world step", "–",
-                        f"< {pct(TARGET_BROADPHASE_SHARE)}", None, "needs BM_BroadPhase/10000 and BM_WorldStep10kSheets")
+        if tracking_10k is None or not world:
+            self.target(what, "–", goal, None, "needs BM_BroadPhaseTracking/10000 and BM_WorldStep10kSheets")
             return
         self.out("World step with the same number of sheets (8×8 points each, scattered as the boxes above):", "",
-                 "| benchmark | µs per step | broad-phase share |", "|---|---|---|")
-        shares = []
+                 "| benchmark | µs per step | tracking share | from-scratch share |", "|---|---|---|---|")
+        shares = {}
         for n in sorted(world):
             self.used.add(n)
-            share = bp.step_seconds / world[n].step_seconds
-            shares.append(share)
-            self.out(f"| {n} | {us(world[n].step_seconds)}{cv_text(world[n])} | {pct(share)} |")
+            shares[n] = tracking_10k.step_seconds / world[n].step_seconds
+            from_scratch = pct(scratch_10k.step_seconds / world[n].step_seconds) if scratch_10k else "–"
+            self.out(f"| {n} | {us(world[n].step_seconds)}{cv_text(world[n])} | {pct(shares[n])} | {from_scratch} |")
         self.out("")
-        worst = max(shares)
-        self.target("Broad-phase for 10,000 sheets, share of the world step", pct(worst),
-                    f"< {pct(TARGET_BROADPHASE_SHARE)}", worst < TARGET_BROADPHASE_SHARE,
-                    "" if worst < TARGET_BROADPHASE_SHARE else f"over by {pct(worst - TARGET_BROADPHASE_SHARE)}")
+        # The target is stated for the world at 2 threads; any other thread count if that is missing.
+        two = next((n for n in shares if re.match(r"BM_WorldStep10kSheets/2(/|$)", n)), None)
+        share = shares[two] if two else max(shares.values())
+        self.target(what, pct(share), goal, share < TARGET_BROADPHASE_SHARE,
+                    "" if share < TARGET_BROADPHASE_SHARE else f"over by {pct(share - TARGET_BROADPHASE_SHARE)}")
 
     def notes(self):
         """Why a missed target was missed, from this run's own numbers."""
@@ -542,9 +561,9 @@ class Report:
             extra = (bare.step_seconds - kernel.step_seconds) * 1e6
             host = ("Beyond the kernel, a World of several sheets runs the host stage every substep, because contacts "
                     "between them are possible: one more pass over each sheet's positions for its bounding box, and "
-                    "the broad-phase over the boxes; then the task arena's entry. What would close it: taking the box "
-                    "inside the integrator's row sweep (the positions are in cache there), and skipping the broad-phase "
-                    "while no box has moved past its margin.")
+                    "the broad-phase over the boxes (a containment check per box while no box leaves its fat box); then "
+                    "the task arena's entry. What would close it: taking the box inside the integrator's row sweep "
+                    "(the positions are in cache there).")
             if over <= 2 * noise:
                 notes.append(f"- **World overhead.** The World costs {100 * over:+.1f} % over the bare kernel, within "
                              f"twice this run's repetition noise (±{100 * noise:.0f} %). {host}")
@@ -561,10 +580,12 @@ class Report:
                              "amortise it.")
                 notes.append(text)
         if any(w.startswith("Broad-phase") for w in missed):
-            notes.append("- **Broad-phase share.** The 10,000-sheet world does little per sheet (64 points), while the "
-                         "broad-phase rebuilds its box tree from scratch every substep. What would close it: refitting "
-                         "the tree (boxes move little between substeps) instead of rebuilding it, rebuilding only when "
-                         "a box leaves its margin, and taking the boxes during integration.")
+            notes.append("- **Broad-phase share.** The 10,000-sheet world does little per sheet (64 points). The "
+                         "broad-phase keeps each sheet's fat box between substeps and only checks containment and "
+                         "filters the candidate pairs while no box leaves its fat box; its cost per substep is then "
+                         "O(sheets + candidates), which this run still finds too large a share. What would close it: "
+                         "checking containment while the bounds are taken (in the integrator's row sweep), and "
+                         "parallelising the check and the filter over the sheets.")
         if notes:
             self.out("## Notes on missed targets", "", *notes, "")
 

@@ -121,7 +121,7 @@ struct BasicWorld<Real>::Impl {
 
   // Host stage scratch, kept between substeps so a settled scene does not allocate.
   std::vector<detail::Aabb> bounds, grown;
-  detail::BroadPhase broad_phase;
+  detail::TrackingBroadPhase broad_phase;  // reset when `active` changes
   std::vector<detail::BoxPair> pairs;
   std::vector<detail::PairContacts<Real>> pair_work;
   tbb::enumerable_thread_specific<detail::ContactGrid<Real>> grids;  // narrow-phase scratch
@@ -696,6 +696,7 @@ SheetId BasicWorld<Real>::add_sheet(const SheetDef& def) {
   impl_->take_reference(slot);
   slot.bounds_fresh = false;
   impl_->active.push_back(index);
+  impl_->broad_phase.reset();
   return {index, slot.generation};
 }
 
@@ -707,6 +708,7 @@ void BasicWorld<Real>::remove_sheet(SheetId id) {
   ++slot.generation;
   impl_->free_slots.push_back(id.index);
   std::erase(impl_->active, id.index);
+  impl_->broad_phase.reset();
 }
 
 template <class Real>
