@@ -451,6 +451,7 @@ struct BasicWorld<Real>::Impl {
   // (always its own pair). A frame whose sheets are in contact at its start is not tried:
   // only a frame in which a contact begins is computed twice.
   std::vector<detail::Aabb> swept, swept_grown, block_swept;
+  detail::TrackingBroadPhase swept_broad_phase;  // over the frames' swept boxes; reset with broad_phase
   std::vector<detail::Vec3Array<Real>> saved;  // positions, then velocities, per sheet
 
   bool frame_may_be_contact_free() const {
@@ -460,13 +461,13 @@ struct BasicWorld<Real>::Impl {
 
   // Whether sheets with these boxes are out of each other's contact range and out of
   // every obstacle's reach (what the host stage would find for them).
-  bool apart(const std::vector<detail::Aabb>& boxes) {
+  bool apart(const std::vector<detail::Aabb>& boxes, detail::TrackingBroadPhase& tracker) {
     if (contacts_possible()) {
       const auto params = detail::ContactParams<Real>::make(def.contact_thickness, def.contact_xi,
                                                             def.contact_strength, def.contact_range);
       swept_grown.resize(boxes.size());
       for (std::size_t k = 0; k < boxes.size(); ++k) swept_grown[k] = boxes[k].inflated(0.5 * double(params.range));
-      broad_phase.find_pairs(swept_grown, pairs);
+      tracker.find_pairs(swept_grown, pairs);
       if (!pairs.empty()) return false;
     }
     for (const detail::Aabb& box : boxes)
@@ -480,14 +481,14 @@ struct BasicWorld<Real>::Impl {
     swept.resize(n);
     parallel(n, [&](std::size_t k) { swept[k] = current_bounds(slots[active[k]]); });
     // Sheets already in contact, or at an obstacle, would only be undone: no try.
-    if (!apart(swept)) return false;
+    if (!apart(swept, broad_phase)) return false;
     saved.resize(2 * n);
     parallel(n, [&](std::size_t k) {
       saved[2 * k] = at(k).position;
       saved[2 * k + 1] = at(k).velocity;
     });
     integrate_runs(h, count, &swept);
-    if (apart(swept)) return true;
+    if (apart(swept, swept_broad_phase)) return true;
     parallel(n, [&](std::size_t k) {
       Sheet<Real>& s = at(k);
       s.position = saved[2 * k];
@@ -697,6 +698,7 @@ SheetId BasicWorld<Real>::add_sheet(const SheetDef& def) {
   slot.bounds_fresh = false;
   impl_->active.push_back(index);
   impl_->broad_phase.reset();
+  impl_->swept_broad_phase.reset();
   return {index, slot.generation};
 }
 
@@ -709,6 +711,7 @@ void BasicWorld<Real>::remove_sheet(SheetId id) {
   impl_->free_slots.push_back(id.index);
   std::erase(impl_->active, id.index);
   impl_->broad_phase.reset();
+  impl_->swept_broad_phase.reset();
 }
 
 template <class Real>
