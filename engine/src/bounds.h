@@ -25,34 +25,26 @@ struct Aabb {
   }
 };
 
-// Grows `box` to contain points [0, count) of the three coordinate arrays. Eight
-// independent running minima/maxima per axis: no single dependency chain, so the compiler
-// turns the loop into packed min/max (the host stage reads every point of every sheet each
-// substep; this keeps it cheap).
+// Grows `box` to contain points [0, count) of the three coordinate arrays. The host stage
+// and contact-free frames read every point of every sheet each substep: the min/max
+// reduction is an `omp simd` loop, so it runs as packed min/max (-fopenmp-simd). Comparisons
+// with NaN are false, so a NaN coordinate is skipped unless it is the first; a NaN first
+// point, or a NaN box, gives a NaN box, which overlaps nothing.
 template <class Real>
 void include_points(Aabb& box, const Real* x, const Real* y, const Real* z, std::size_t count) {
   if (count == 0) return;
   const Real* axes[3] = {x, y, z};
   for (int k = 0; k < 3; ++k) {
     const Real* a = axes[k];
-    constexpr std::size_t lanes = 8;
-    Real lo[lanes], hi[lanes];
-    for (std::size_t l = 0; l < lanes; ++l) lo[l] = hi[l] = a[0];
-    std::size_t i = 0;
-    for (; i + lanes <= count; i += lanes)
-      for (std::size_t l = 0; l < lanes; ++l) {
-        lo[l] = a[i + l] < lo[l] ? a[i + l] : lo[l];
-        hi[l] = a[i + l] > hi[l] ? a[i + l] : hi[l];
-      }
-    for (; i < count; ++i) {
-      lo[0] = a[i] < lo[0] ? a[i] : lo[0];
-      hi[0] = a[i] > hi[0] ? a[i] : hi[0];
+    Real low = a[0], high = a[0];
+#pragma omp simd reduction(min : low) reduction(max : high)
+    for (std::size_t i = 1; i < count; ++i) {
+      low = a[i] < low ? a[i] : low;
+      high = a[i] > high ? a[i] : high;
     }
-    // (comparisons with NaN are false: a NaN after the first point is skipped, a NaN first
-    // point, or a NaN box, gives a NaN box, which overlaps nothing)
-    const double low = *std::min_element(lo, lo + lanes), high = *std::max_element(hi, hi + lanes);
-    box.lo[k] = std::isnan(low) || std::isnan(box.lo[k]) ? low + box.lo[k] : std::min(box.lo[k], low);
-    box.hi[k] = std::isnan(high) || std::isnan(box.hi[k]) ? high + box.hi[k] : std::max(box.hi[k], high);
+    const double lo = low, hi = high;
+    box.lo[k] = std::isnan(lo) || std::isnan(box.lo[k]) ? lo + box.lo[k] : std::min(box.lo[k], lo);
+    box.hi[k] = std::isnan(hi) || std::isnan(box.hi[k]) ? hi + box.hi[k] : std::max(box.hi[k], hi);
   }
 }
 
