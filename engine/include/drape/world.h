@@ -166,7 +166,9 @@ class BasicWorld {
   // Advances every sheet by `substeps` steps of def().dt (with def().adaptive: by
   // substeps·dt seconds in adaptive substeps, see WorldDef), then runs the stability guard
   // when def().guard is on. A halted world (the guard failed) does not step until
-  // set_dt/set_integrator/set_adaptive; it returns the failure again.
+  // set_dt/set_integrator/set_adaptive; it returns the failure again. step(n) gives the same
+  // bits as n calls of step(1), and is faster: substeps that nothing couples (no contact,
+  // no obstacle near) run while each sheet is in cache (docs/architecture.md).
   StabilityReport step(int substeps = 1);
   // Advances by `seconds` in equal substeps no longer than the step in use (def().dt, or the
   // adaptive step), landing exactly on time() + seconds; then the guard as in step().
@@ -214,7 +216,8 @@ class BasicWorld {
   // Worker threads of step(); 0: all cores. Results do not depend on it, bit for bit.
   void set_threads(int threads);
   // Overlapping sheet pairs (including a sheet with itself when self_collision is on) that
-  // the last substep's host stage handed to the contact stage.
+  // the last substep's host stage handed to the contact stage (0 after a frame of substeps
+  // that no contact coupled).
   std::size_t contact_pair_count() const;
   std::uint64_t step_count() const;   // substeps taken
 
