@@ -16,7 +16,9 @@
 # Extra arguments go to drape_bench, e.g. --benchmark_filter=Fig13 for a partial report.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-tools/setup.sh
+# libbullet-dev: the comparison with Bullet's soft bodies (bench/bench_bullet.cpp), which
+# only the benchmarks need.
+DRAPE_EXTRA_PACKAGES="${DRAPE_EXTRA_PACKAGES:-} libbullet-dev" tools/setup.sh
 build=${DRAPE_BENCH_BUILD_DIR:-build-bench}
 min_time=${DRAPE_BENCH_MIN_TIME:-0.2}
 repetitions=${DRAPE_BENCH_REPETITIONS:-3}
