@@ -154,6 +154,9 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
   };
 
   const auto start = std::chrono::steady_clock::now();
+  const std::uint64_t first_step = world.step_count();
+  double points = 0;
+  for (SheetId id : world.sheets()) points += double(world.view(id).x.size());
   const int line_every = std::max(1, frames / 10);
   try {
     if (!opt.resume_dir) write_frame(0);
@@ -187,7 +190,11 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   log << (opt.progress_bar ? "\n" : "") << "drape: wrote " << std::max(0, frames + 1 - first_frame + (opt.resume_dir ? 0 : 1)) << " frames to " << dir.string() << " in "
-      << std::setprecision(3) << seconds << " s\n";
+      << std::setprecision(3) << seconds << " s";
+  // the run's throughput, output included: what the scene costs on this machine
+  const double point_steps = points * double(world.step_count() - first_step);
+  if (seconds > 0 && point_steps > 0) log << " (" << point_steps / seconds / 1e6 << " M point-steps/s)";
+  log << '\n';
   return exit_ok;
 }
 
