@@ -64,16 +64,24 @@ struct ContactForces {
 // order, so one grid per thread serves every pair that thread computes.
 template <class Real>
 struct ContactGrid {
-  struct Cell {  // a sheet cell near the region: its box (not grown) and where it is
-    Real lo[3], hi[3];
-    std::uint32_t corner, i, j;  // point (i, j), the cell's first corner
+  struct Cell {  // a sheet cell near the region, in the sheet's cell order while binning
+    Real lo[3], hi[3];    // its box, not grown
+    std::uint32_t corner;  // point (i, j), the cell's first corner: ascending with the cell
+    std::uint32_t bin;     // the grid cell holding its box's low corner
   };
-  std::vector<Cell> cells;           // candidates, in the sheet's cell order
-  std::vector<std::uint32_t> start;  // per grid cell, into items (CSR)
-  std::vector<std::uint32_t> items;  // indices into cells, grouped by grid cell, ascending
-  std::vector<std::uint32_t> range;  // per candidate: its grid cells g0[3], g1[3]
-  std::vector<std::uint32_t> cursor; // per grid cell, while filling items
-  std::vector<Real> gap2;            // per candidate of one query: squared gap to its box
+  struct Near {  // a cell whose box is within range of the query point
+    std::uint32_t corner;
+    Real gap2;  // squared distance from the point to the cell's box
+  };
+  std::vector<Cell> cells;                // near the region, in the sheet's cell order
+  std::vector<std::uint32_t> start;       // per grid cell, into the arrays below (CSR)
+  std::vector<Real> lo[3], hi[3];         // their boxes grouped by grid cell, each group in
+  std::vector<std::uint32_t> corner;      // ascending cell order (structure of arrays)
+  std::vector<Real> run_lo[3], run_hi[3];  // the candidates of one run of query points,
+  std::vector<std::uint32_t> run_corner;  // gathered contiguous
+  std::vector<Real> gap2;                 // one query point: squared gaps to their boxes
+  std::vector<std::uint32_t> pick;        // one query point: which of them are within range,
+  std::vector<Near> near;                 // and those cells
 };
 
 // The contact work of one overlapping pair of sheets (a < b), or of one sheet with itself
