@@ -206,21 +206,28 @@ TEST(Contacts, FlatSheetDoesNotRepelItself) {
   EXPECT_EQ(work.on_a.size(), 0u);
 }
 
+// A flat sheet of d's cells whose rows above the middle are folded back over the lower
+// half, `above` metres above it (row i onto row m − i).
+Sheet<double> folded_sheet(const SheetDef& d, double above) {
+  auto s = build_sheet<double>(d);
+  const std::uint32_t cols = d.n + 1;
+  for (std::uint32_t i = d.m / 2 + 1; i <= d.m; ++i)
+    for (std::uint32_t j = 0; j < cols; ++j) {
+      const std::uint32_t p = i * cols + j, mirror = (d.m - i) * cols + j;
+      s.position.y[p] = s.position.y[mirror];
+      s.position.z[p] = above;
+    }
+  return s;
+}
+
 TEST(Contacts, FoldedSheetPushesItsHalvesApartAndConservesMomentum) {
   SheetDef d;
   d.m = 20;
   d.n = 10;
   d.width = 0.2;
   d.height = 0.4;
-  auto s = build_sheet<double>(d);
-  // Fold rows above the middle back over the lower half, 8 mm above it.
+  const auto s = folded_sheet(d, 0.008);
   const std::uint32_t cols = d.n + 1;
-  for (std::uint32_t i = 11; i <= 20; ++i)
-    for (std::uint32_t j = 0; j < cols; ++j) {
-      const std::uint32_t p = i * cols + j, mirror = (20 - i) * cols + j;
-      s.position.y[p] = s.position.y[mirror];
-      s.position.z[p] = 0.008;
-    }
   PairContacts<double> work;
   ContactGrid<double> grid;
   self_contacts(s, sheet_bounds(s), kParams, work, grid);
@@ -405,17 +412,13 @@ TEST(Contacts, SelfContactMatchesEveryPointAgainstEveryTriangleOutsideTheRing) {
     d.n = 12;
     d.width = 0.12;
     d.height = 0.24;
-    auto s = build_sheet<double>(d);
-    // Fold the upper half back over the lower one, 7 mm above it and shifted, then crumple
-    // both halves: each half in range of the other and of its own far parts.
-    const std::uint32_t cols = d.n + 1;
-    for (std::uint32_t i = 13; i <= d.m; ++i)
-      for (std::uint32_t j = 0; j < cols; ++j) {
-        const std::uint32_t p = i * cols + j, mirror = (d.m - i) * cols + j;
-        s.position.x[p] = s.position.x[mirror] + 0.004 * unit(rng);
-        s.position.y[p] = s.position.y[mirror] + 0.003;
-        s.position.z[p] = 0.007;
-      }
+    // The upper half folded 7 mm above the lower one and shifted, then both crumpled: each
+    // half in range of the other and of its own far parts.
+    auto s = folded_sheet(d, 0.007);
+    for (std::uint32_t p = (d.m / 2 + 1) * (d.n + 1); p < s.size(); ++p) {
+      s.position.x[p] += 0.004 * unit(rng);
+      s.position.y[p] += 0.003;
+    }
     for (std::uint32_t p = 0; p < s.size(); ++p) {
       s.position.x[p] += 0.002 * unit(rng);
       s.position.y[p] += 0.002 * unit(rng);

@@ -138,24 +138,33 @@ void repel(std::uint32_t q, V3<Real> p, const Nearest<Real>& best, const Contact
     if (wt[k] != 0) on_s.push(best.tri[k], -wt[k] * F.x, -wt[k] * F.y, -wt[k] * F.z);
 }
 
-// Points of q inside `region` against the cells of s binned in a uniform grid over the
-// region. `ring` < 0: no exclusion; otherwise q == s and cells within `ring` rows/columns
-// of the point are skipped.
+// Where a position falls in the narrow-phase grid over a region: grid cell `cell(k, v)`
+// along axis k, monotone in v, so a range of positions maps to a range of cells; bins
+// numbered with axis ax[2] innermost, so a row of bins along it is contiguous.
+struct GridLayout {
+  double lo[3], inv[3];
+  int dims[3], ax[3];  // ax: axes from outermost to innermost
+  double width[3];     // the widest binned box along each axis
+  double margin[3];    // slack against rounding when a query range is turned into cells
+  int cell(int k, double v) const { return std::clamp(int((v - lo[k]) * inv[k]), 0, dims[k] - 1); }
+  std::size_t bin(const int c[3]) const {
+    return (std::size_t(c[ax[0]]) * dims[ax[1]] + c[ax[1]]) * dims[ax[2]] + c[ax[2]];
+  }
+  std::size_t bins() const { return std::size_t(dims[0]) * dims[1] * dims[2]; }
+};
+
+// Bins the cells of s whose boxes, grown by R, meet `region` into grid's CSR arrays.
+// False when there is none.
 template <class Real>
-void points_against_cells(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb& region,
-                          const ContactParams<Real>& prm, int ring, ContactForces<Real>& on_q,
-                          ContactForces<Real>& on_s, ContactGrid<Real>& grid) {
+bool bin_cells(const Sheet<Real>& s, const Aabb& region, double R, ContactGrid<Real>& grid, GridLayout& layout) {
   using Cell = typename ContactGrid<Real>::Cell;
   const auto& ts = *s.topology;
   const std::uint32_t n = ts.n, cols = ts.cols();
-  if (ts.m == 0 || ts.n == 0) return;  // a line of points has no cells
-  const double R = prm.range;
-  const Real R2 = prm.range * prm.range;
-
   // The cells whose boxes, grown by R, meet the region: only they can be within R of a
   // point inside it. `width`: their widest box along each axis.
   grid.cells.clear();
-  double width[3] = {0, 0, 0};
+  double* width = layout.width;
+  std::fill(width, width + 3, 0.0);
   const auto& X = s.position;
   for (std::uint32_t i = 0; i < ts.m; ++i)
     for (std::uint32_t j = 0; j < n; ++j) {
@@ -173,16 +182,17 @@ void points_against_cells(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb
       for (int k = 0; k < 3; ++k) width[k] = std::max(width[k], double(cell.hi[k] - cell.lo[k]));
       grid.cells.push_back(cell);
     }
-  if (grid.cells.empty()) return;
+  if (grid.cells.empty()) return false;
 
   // A cell is binned once, by its box's low corner. A point x reaches every cell whose box
   // is within R of it by the grid cells over [x − R − width, x + R] (its box's low corner
-  // lies there), widened by `margin` against rounding. The grid cells of one row along the
-  // innermost axis are contiguous, so a query reads one run per row it crosses: the axis
-  // with the most cells goes innermost, and is cut finer than the others (a third of the
-  // span against a half), as its cells cost no extra run. Never more grid cells than twice
-  // the binned cells, so building stays linear.
-  double span[3], margin[3], size[3];
+  // lies there, its "span"), widened by `margin` against rounding. The grid cells of one
+  // row along the innermost axis are contiguous, so a query reads one stretch per row it
+  // crosses: the axis with the most cells goes innermost and is cut finer (a quarter of the
+  // span, against a whole span across), as its cells cost no extra stretch. Never more
+  // grid cells than twice the binned cells, so building stays linear.
+  double span[3], size[3];
+  double* margin = layout.margin;
   for (int k = 0; k < 3; ++k) {
     span[k] = 2 * R + width[k];
     margin[k] = 1e-6 * (span[k] + std::abs(region.lo[k]) + std::abs(region.hi[k]));
@@ -190,13 +200,13 @@ void points_against_cells(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb
   int inner = 0;
   for (int k = 1; k < 3; ++k)
     if ((region.hi[k] - region.lo[k]) / span[k] > (region.hi[inner] - region.lo[inner]) / span[inner]) inner = k;
-  int ax[3];  // axes from outermost to innermost
+  int* ax = layout.ax;
   for (int k = 0, o = 0; k < 3; ++k)
     if (k != inner) ax[o++] = k;
   ax[2] = inner;
   for (int k = 0; k < 3; ++k) size[k] = k == ax[2] ? span[k] / 4 : span[k];
   const double cap = 2.0 * grid.cells.size() + 8;
-  int dims[3];
+  int* dims = layout.dims;
   for (;;) {
     double total = 1;
     for (int k = 0; k < 3; ++k) {
@@ -206,25 +216,19 @@ void points_against_cells(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb
     if (total <= cap) break;
     for (double& e : size) e *= 1.5;
   }
-  double inv[3];
   for (int k = 0; k < 3; ++k) {
     const double e = region.hi[k] - region.lo[k];
-    inv[k] = e > 0 ? dims[k] / e : 0.0;
+    layout.lo[k] = region.lo[k];
+    layout.inv[k] = e > 0 ? dims[k] / e : 0.0;
   }
-  auto cell_of = [&](int k, double v) {  // monotone in v, so a range of v maps to a range of cells
-    return std::clamp(int((v - region.lo[k]) * inv[k]), 0, dims[k] - 1);
-  };
-  auto bin_of = [&](const int c[3]) {
-    return (std::size_t(c[ax[0]]) * dims[ax[1]] + c[ax[1]]) * dims[ax[2]] + c[ax[2]];
-  };
 
   // Counting sort into CSR arrays, in the sheet's cell order: each grid cell's candidates
   // ascend, and its boxes lie contiguous for the gap test.
-  const std::size_t grid_cells = std::size_t(dims[0]) * dims[1] * dims[2];
+  const std::size_t grid_cells = layout.bins();
   grid.start.assign(grid_cells + 1, 0);
   for (Cell& cell : grid.cells) {
-    const int c[3] = {cell_of(0, cell.lo[0]), cell_of(1, cell.lo[1]), cell_of(2, cell.lo[2])};
-    cell.bin = std::uint32_t(bin_of(c));
+    const int c[3] = {layout.cell(0, cell.lo[0]), layout.cell(1, cell.lo[1]), layout.cell(2, cell.lo[2])};
+    cell.bin = std::uint32_t(layout.bin(c));
     ++grid.start[cell.bin + 1];
   }
   for (std::size_t g = 0; g < grid_cells; ++g) grid.start[g + 1] += grid.start[g];
@@ -250,6 +254,26 @@ void points_against_cells(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb
   }
   for (std::size_t g = grid_cells; g > 0; --g) grid.start[g] = grid.start[g - 1];
   grid.start[0] = 0;
+
+  return true;
+}
+
+// Points of q inside `region` against the cells of s binned in a uniform grid over the
+// region. `ring` < 0: no exclusion; otherwise q == s and cells within `ring` rows/columns
+// of the point are skipped.
+template <class Real>
+void points_against_cells(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb& region,
+                          const ContactParams<Real>& prm, int ring, ContactForces<Real>& on_q,
+                          ContactForces<Real>& on_s, ContactGrid<Real>& grid) {
+  if (s.topology->m == 0 || s.topology->n == 0) return;  // a line of points has no cells
+  const std::uint32_t cols = s.topology->cols();
+  const double R = prm.range;
+  const Real R2 = prm.range * prm.range;
+  GridLayout layout;
+  if (!bin_cells(s, region, R, grid, layout)) return;
+  const double* width = layout.width;
+  const double* margin = layout.margin;
+  const int* ax = layout.ax;
 
   // Points go in runs of up to `run_points` consecutive points of one row, near each other.
   // A run asks the grid once, for the cells within R of its box (each axis apart, widened
@@ -287,17 +311,17 @@ void points_against_cells(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb
     for (int k = 0; k < 3; ++k) {   // if its box's low corner is below keep_hi and its
       keep_lo[k] = lo[k] - R - margin[k];  // high corner above keep_lo, on every axis
       keep_hi[k] = hi[k] + R + margin[k];
-      g0[k] = cell_of(k, keep_lo[k] - width[k]);
-      g1[k] = cell_of(k, keep_hi[k]);
+      g0[k] = layout.cell(k, keep_lo[k] - width[k]);
+      g1[k] = layout.cell(k, keep_hi[k]);
     }
     std::uint32_t count = 0;
     int c[3];
     for (c[ax[0]] = g0[ax[0]]; c[ax[0]] <= g1[ax[0]]; ++c[ax[0]])
       for (c[ax[1]] = g0[ax[1]]; c[ax[1]] <= g1[ax[1]]; ++c[ax[1]]) {
         c[ax[2]] = g0[ax[2]];
-        const std::uint32_t first = grid.start[bin_of(c)];
+        const std::uint32_t first = grid.start[layout.bin(c)];
         c[ax[2]] = g1[ax[2]];
-        const std::uint32_t last = grid.start[bin_of(c) + 1];
+        const std::uint32_t last = grid.start[layout.bin(c) + 1];
         for (std::uint32_t t = first; t < last; ++t) {
           bool keep = true;
           for (int k = 0; k < 3; ++k) {
