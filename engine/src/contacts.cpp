@@ -28,12 +28,15 @@ V3<Real> sub(V3<Real> a, V3<Real> b) { return {a.x - b.x, a.y - b.y, a.z - b.z};
 template <class Real>
 Real dot(V3<Real> a, V3<Real> b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
 
-// std::max by value: the same result, without the branch a reference forces on the
-// vectoriser.
+// max(a, 0) without a comparison, so the loop below vectorises even where GCC will not
+// turn a floating-point comparison into a select (AVX2 with -ftrapping-math): exact, as
+// a + |a| is 2a or 0 and halving is exact.
 template <class Real>
-Real larger(Real a, Real b) { return a < b ? b : a; }
+Real positive_part(Real a) { return (a + std::abs(a)) * Real(0.5); }
 
-// gap2[t] = squared distance from x to box t, for t < count: one pass the vectoriser takes.
+// gap2[t] = squared distance from x to box t, for t < count: one vectorised pass. Along
+// each axis the gap is max(lo − x, x − hi, 0) = max(lo − x, 0) + max(x − hi, 0), as
+// lo ≤ hi makes at least one of the two zero.
 template <class Real>
 void box_gaps(V3<Real> x, const Real* const lo[3], const Real* const hi[3], std::uint32_t count,
               Real* __restrict gap2) {
@@ -44,9 +47,9 @@ void box_gaps(V3<Real> x, const Real* const lo[3], const Real* const hi[3], std:
   const Real* __restrict hy = hi[1];
   const Real* __restrict hz = hi[2];
   for (std::uint32_t t = 0; t < count; ++t) {
-    const Real ex = larger(larger(lx[t] - x.x, x.x - hx[t]), Real(0));
-    const Real ey = larger(larger(ly[t] - x.y, x.y - hy[t]), Real(0));
-    const Real ez = larger(larger(lz[t] - x.z, x.z - hz[t]), Real(0));
+    const Real ex = positive_part(lx[t] - x.x) + positive_part(x.x - hx[t]);
+    const Real ey = positive_part(ly[t] - x.y) + positive_part(x.y - hy[t]);
+    const Real ez = positive_part(lz[t] - x.z) + positive_part(x.z - hz[t]);
     gap2[t] = ex * ex + ey * ey + ez * ez;
   }
 }
