@@ -24,7 +24,8 @@
 // is nearest (the lowest cell of equally near ones) is tested first, then the others in
 // ascending cell order while their boxes are still nearer than the best triangle: a cell
 // whose box is no nearer cannot win. The winner is the nearest triangle whatever the grid;
-// the order only decides between triangles at the same distance to the last bit.
+// the order only decides between triangles whose distances agree to rounding (a point
+// over a shared vertex), and then the force on the point is the same.
 #pragma once
 
 #include <cstdint>
