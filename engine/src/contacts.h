@@ -14,9 +14,18 @@
 // of the nearest T; T's normal when p lies on T), and the opposite force is shared by T's three
 // vertices with q's barycentric weights, so every contact conserves momentum to rounding.
 //
-// Candidates come from a uniform grid over the pair's overlap region: the other sheet's
-// cells are binned by their boxes grown by R, and each point inside the region tests only
-// the cells binned where it lies. Never all points against all cells.
+// Candidates come from a uniform grid over the pair's overlap region, never all points
+// against all cells. Each cell of the other sheet whose box, grown by R, meets the region is
+// binned once, by its box's low corner (a cell within R of x has that corner within
+// [x − R − w, x + R], w the widest binned box). The query side goes in runs of up to 8
+// consecutive points of a row: a run gathers the cells within R of its box, per axis, into
+// contiguous arrays with one grid lookup, and each of its points measures the gap to every
+// gathered box in one vectorised pass, keeping those under R. Of these, the cell whose box
+// is nearest (the lowest cell of equally near ones) is tested first, then the others in
+// ascending cell order while their boxes are still nearer than the best triangle: a cell
+// whose box is no nearer cannot win. The winner is the nearest triangle whatever the grid;
+// the order only decides between triangles whose distances agree to rounding (a point
+// over a shared vertex), and then the force on the point is the same.
 #pragma once
 
 #include <cstdint>
@@ -64,16 +73,24 @@ struct ContactForces {
 // order, so one grid per thread serves every pair that thread computes.
 template <class Real>
 struct ContactGrid {
-  struct Cell {  // a sheet cell near the region: its box (not grown) and where it is
-    Real lo[3], hi[3];
-    std::uint32_t corner, i, j;  // point (i, j), the cell's first corner
+  struct Cell {  // a sheet cell near the region, while binning
+    Real lo[3], hi[3];     // its box, not grown
+    std::uint32_t corner;  // point (i, j), the cell's first corner: ascending with the cell
+    std::uint32_t bin;     // the grid cell holding its box's low corner
   };
-  std::vector<Cell> cells;           // candidates, in the sheet's cell order
-  std::vector<std::uint32_t> start;  // per grid cell, into items (CSR)
-  std::vector<std::uint32_t> items;  // indices into cells, grouped by grid cell, ascending
-  std::vector<std::uint32_t> range;  // per candidate: its grid cells g0[3], g1[3]
-  std::vector<std::uint32_t> cursor; // per grid cell, while filling items
-  std::vector<Real> gap2;            // per candidate of one query: squared gap to its box
+  struct Near {  // a cell whose box is within R of the query point
+    std::uint32_t corner;
+    Real gap2;  // squared distance from the point to the cell's box
+  };
+  std::vector<Cell> cells;                 // near the region, in the sheet's cell order
+  std::vector<std::uint32_t> start;        // per grid cell, into the arrays below (CSR)
+  std::vector<Real> lo[3], hi[3];          // their boxes grouped by grid cell, each group
+  std::vector<std::uint32_t> corner;       // in ascending cell order (structure of arrays)
+  std::vector<Real> run_lo[3], run_hi[3];  // the cells near one run of query points,
+  std::vector<std::uint32_t> run_corner;   // gathered contiguous
+  std::vector<Real> gap2;                  // one query point: squared gaps to those boxes
+  std::vector<std::uint32_t> pick;         // one query point: which of them are within R,
+  std::vector<Near> near;                  // and those cells
 };
 
 // The contact work of one overlapping pair of sheets (a < b), or of one sheet with itself
