@@ -565,7 +565,8 @@ class Report:
         load = (self.context.get("load_avg") or [0])[0]
         cpus = self.context.get("num_cpus", 2)
         missed = {what for what, _, _, v, _ in self.targets if v == verdict(False)}
-        if any(w.startswith("Fig 13 slope") for w in missed) and getattr(self, "fig13_slope", None) is not None:
+        fig13_missed = [w for w in missed if w.startswith("Fig 13 slope")]
+        if fig13_missed and getattr(self, "fig13_slope", None) is not None:
             small, large = self.split_label
             lines = []
             for key, how in (((PAPER_INTEGRATOR, "f64"), "in frames"), ((PAPER_INTEGRATOR + SINGLE, "f64"), "with step(1)")):
@@ -573,22 +574,28 @@ class Report:
                 s_large = self.split_slopes.get((key, large))
                 if s_small is not None and s_large is not None:
                     lines.append(f"{how}, {s_small:.3f} over sides {small} and {s_large:.3f} over sides {large}")
-            c_all = self.ceiling_slope
-            l2 = next((c["size"] for c in self.context.get("caches", []) if c["level"] == 2), None)
-            text = (f"- **Fig 13 slope.** The fit over all sizes is {self.fig13_slope:.3f} in frames; split in two: "
-                    + "; ".join(lines) + ".")
-            if c_all is not None:
-                text += (f" The plain-array ceiling (one substep per sweep, no engine) shows {c_all:.3f}.")
-            text += (" A slope above 1 is the memory hierarchy: the cost per point is constant while a sheet's "
-                     "arrays fit the cache" + (f" (L2: {l2 // 1024} KiB per core)" if l2 else "")
-                     + " and grows once every substep streams them from L3 or memory; frames of substeps run large "
-                     "sheets as waves of rows (docs/architecture.md), which stream a sheet once per run of substeps "
-                     "instead. A slope below 1 is the other end: the smallest sheets pay fixed costs per row and per "
-                     "substep (rows of 16 points fill two vector registers, with a scalar remainder for the 15 "
-                     "horizontal springs), so their cost per point is the highest. What would close it: removing "
-                     "the scalar remainders (padded rows, or an overlapping last vector for the idempotent spring "
-                     "loops) for small sheets, and more substeps per wave for rows of 1,024 points, which needs "
-                     "fewer bytes per point (float32) or a larger cache.")
+            text = "- **Fig 13 slope.** Split in two: " + "; ".join(lines) + "."
+            if self.ceiling_slope is not None:
+                text += f" The plain-array ceiling (one substep per sweep, no engine) shows {self.ceiling_slope:.3f}."
+            if any("step(1)" in w for w in fig13_missed):
+                top = max((int(m.group(1)) for n in self.runs
+                           for m in [re.fullmatch(rf"BM_Fig13Single/{PAPER_INTEGRATOR}/f64/(\d+)", n)] if m), default=None)
+                single = self.get(f"BM_Fig13Single/{PAPER_INTEGRATOR}/f64/{top}") if top else None
+                ceiling = self.get(f"BM_CeilingSheet/{top}") if top else None
+                text += (" With one substep per call every substep sweeps the whole sheet, so a sheet beyond the "
+                         "caches is streamed from L3 or memory every substep and its cost per point grows")
+                if single and ceiling:
+                    text += (f"; at {top}×{top} points step(1) runs at {pct(single.rate / ceiling.rate)} of the "
+                             "plain-array ceiling, which sweeps the same way, so that sweep has nothing left to give")
+                text += (". What closes it is not calling it that way: a frame of substeps per call runs large sheets "
+                         "as waves of rows (docs/architecture.md), streaming a sheet once per run of substeps; that "
+                         "fit is the frames row.")
+            if any("frames" in w for w in fig13_missed):
+                text += (" In frames, a slope above 1 is what is left of the memory hierarchy at the largest sizes, "
+                         "and a slope below 1 the fixed costs per row and per substep of the smallest sheets (rows of "
+                         "16 points fill two vector registers, with a scalar remainder for the 15 horizontal "
+                         "springs). What would close it: padded rows for small sheets, and more substeps per wave "
+                         "for rows of 1,024 points, which needs fewer bytes per point (float32) or a larger cache.")
             notes.append(text)
         speed_missed = [w for w in missed if w.startswith("2-thread speedup")]
         if speed_missed:
