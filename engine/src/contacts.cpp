@@ -328,11 +328,11 @@ void points_against_cells(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb
         c[ax[2]] = g1[ax[2]];
         const std::uint32_t last = grid.start[layout.bin(c) + 1];
         for (std::uint32_t t = first; t < last; ++t) {
-          bool keep = true;
+          unsigned keep = 1;  // branch-free: bitwise on 0/1, not && on bools
           for (int k = 0; k < 3; ++k) {
             rlo[k][count] = grid.lo[k][t];
             rhi[k][count] = grid.hi[k][t];
-            keep &= (grid.lo[k][t] <= keep_hi[k]) & (grid.hi[k][t] >= keep_lo[k]);
+            keep &= unsigned(grid.lo[k][t] <= keep_hi[k]) & unsigned(grid.hi[k][t] >= keep_lo[k]);
           }
           rcorner[count] = grid.corner[t];
           count += keep;
