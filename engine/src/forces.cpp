@@ -210,13 +210,8 @@ void sheet_forces_rows(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> 
                   [&](std::uint32_t i) { row_terms(s, std::size_t(i) * cols, cols, v, f); });
   const auto& an = s.anchors;
   const std::size_t begin = row_begin * cols, end = row_end * cols;
-  for (std::size_t a = 0; a < an.point.size(); ++a) {  // eq (8): k (p0 − x)
-    const std::uint32_t p = an.point[a];
-    if (p < begin || p >= end) continue;
-    f.x[p] += an.stiffness[a] * (an.tx[a] - x.x[p]);
-    f.y[p] += an.stiffness[a] * (an.ty[a] - x.y[p]);
-    f.z[p] += an.stiffness[a] * (an.tz[a] - x.z[p]);
-  }
+  for (std::size_t a = 0; a < an.point.size(); ++a)
+    if (an.point[a] >= begin && an.point[a] < end) add_anchor(an, a, x, f, an.point[a]);
 }
 
 namespace {
@@ -233,12 +228,7 @@ template <class Real>
 void sheet_forces_by_rows(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f, RowSink sink) {
   const Topology<Real>& t = *s.topology;
   const auto& an = s.anchors;
-  auto anchor = [&](std::size_t a) {  // eq (8): k (p0 − x)
-    const std::uint32_t p = an.point[a];
-    f.x[p] += an.stiffness[a] * (an.tx[a] - x.x[p]);
-    f.y[p] += an.stiffness[a] * (an.ty[a] - x.y[p]);
-    f.z[p] += an.stiffness[a] * (an.tz[a] - x.z[p]);
-  };
+  auto anchor = [&](std::size_t a) { add_anchor(an, a, x, f, an.point[a]); };
   // Obstacle forces (eq 9) follow the sheet's surface normal, which reads the rows on both
   // sides of a point, so they cannot be added row by row once earlier rows have moved.
   // A sheet within the cache budget is in cache for the second pass anyway, and one sink
@@ -350,20 +340,11 @@ void wave_rows(Sheet<Real>& s, Springs horizontal_springs, Springs vertical_spri
     const std::size_t p = std::size_t(i) * cols, end = p + cols;
     const Vec3Ptr<Real> x = X(i), v = V(i), f = F(i);
     if (!s.damping.empty()) damp<Real>(cols, s.damping.data() + p, v.x, v.y, v.z, f.x, f.y, f.z);
-    for (std::size_t& a = w.next_anchor[level]; a < an.point.size() && an.point[a] < end; ++a) {
-      const std::size_t q = an.point[a] - p;  // eq (8): k (p0 − x)
-      f.x[q] += an.stiffness[a] * (an.tx[a] - x.x[q]);
-      f.y[q] += an.stiffness[a] * (an.ty[a] - x.y[q]);
-      f.z[q] += an.stiffness[a] * (an.tz[a] - x.z[q]);
-    }
+    for (std::size_t& a = w.next_anchor[level]; a < an.point.size() && an.point[a] < end; ++a)
+      add_anchor(an, a, ConstVec3Ptr<Real>(x), f, an.point[a] - p);
     if (sink.done) sink.done(sink.context, RowState<Real>{x, v, f, p, cols});
-    for (std::size_t& k = w.next_pin[level]; k < pins.point.size() && pins.point[k] < end; ++k) {
-      const std::size_t q = pins.point[k] - p;
-      x.x[q] = pins.tx[k];
-      x.y[q] = pins.ty[k];
-      x.z[q] = pins.tz[k];
-      v.x[q] = v.y[q] = v.z[q] = Real(0);
-    }
+    for (std::size_t& k = w.next_pin[level]; k < pins.point.size() && pins.point[k] < end; ++k)
+      hold_pin(pins, k, x, v, pins.point[k] - p);
     if (swept && i >= row_begin && i < row_end) include_points(*swept, x.x, x.y, x.z, cols);
   };
   // Step q of one substep's sweep, as in spring_rows: q = 0 starts row lo; q ≥ 1 adds the

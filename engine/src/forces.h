@@ -27,6 +27,25 @@ ConstVec3Ptr<Real> cptr(const Vec3Array<Real>& a) { return {a.x.data(), a.y.data
 template <class Real>
 Vec3Ptr<Real> ptr(Vec3Array<Real>& a) { return {a.x.data(), a.y.data(), a.z.data()}; }
 
+// eq (8): anchor a's force k (p0 − x) added to point q of x and f (a whole sheet's arrays,
+// or one row's with q counted from its start). Every path adds anchors through this.
+template <class Real>
+inline void add_anchor(const Anchors<Real>& an, std::size_t a, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, std::size_t q) {
+  f.x[q] += an.stiffness[a] * (an.tx[a] - x.x[q]);
+  f.y[q] += an.stiffness[a] * (an.ty[a] - x.y[q]);
+  f.z[q] += an.stiffness[a] * (an.tz[a] - x.z[q]);
+}
+
+// Hard pin k: point q of x and v (indexed as in add_anchor) back on its pin and at rest,
+// whatever the update did.
+template <class Real>
+inline void hold_pin(const Pins<Real>& pins, std::size_t k, Vec3Ptr<Real> x, Vec3Ptr<Real> v, std::size_t q) {
+  x.x[q] = pins.tx[k];
+  x.y[q] = pins.ty[k];
+  x.z[q] = pins.tz[k];
+  v.x[q] = v.y[q] = v.z[q] = Real(0);
+}
+
 // eq (6)–(7): writes (not adds) the elastic force of every spring into f, both endpoints.
 // `row` is scratch of n+1 values per component.
 template <class Real>

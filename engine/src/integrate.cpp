@@ -12,19 +12,12 @@ namespace drape::detail {
 
 namespace {
 
-// Hard pins: whatever the update did, a pinned point is back on its pin and at rest.
-// Only the pins among points [begin, end), the range a block of the world updated.
+// Hard pins (hold_pin) among points [begin, end), the range a block of the world updated.
 template <class Real>
 void apply_pins(Sheet<Real>& s, std::size_t begin = 0, std::size_t end = SIZE_MAX) {
   const auto& pins = s.pins;
-  for (std::size_t k = 0; k < pins.point.size(); ++k) {
-    const std::uint32_t p = pins.point[k];
-    if (p < begin || p >= end) continue;
-    s.position.x[p] = pins.tx[k];
-    s.position.y[p] = pins.ty[k];
-    s.position.z[p] = pins.tz[k];
-    s.velocity.x[p] = s.velocity.y[p] = s.velocity.z[p] = Real(0);
-  }
+  for (std::size_t k = 0; k < pins.point.size(); ++k)
+    if (pins.point[k] >= begin && pins.point[k] < end) hold_pin(pins, k, ptr(s.position), ptr(s.velocity), pins.point[k]);
 }
 
 // Both first-order updates run over all three axes in one pass, so inv_mass is read once

@@ -299,10 +299,14 @@ struct BasicWorld<Real>::Impl {
         continue;
       }
       if (s.row_scratch.x.size() < std::size_t(count) * cols) s.row_scratch.resize(std::size_t(count) * cols);
-      for (std::uint32_t b = 0; b < count; ++b)
-        blocks.push_back({k, std::uint32_t(std::uint64_t(rows) * b / count), std::uint32_t(std::uint64_t(rows) * (b + 1) / count),
-                          b, true});
+      push_row_blocks(k, rows, count);
     }
+  }
+
+  // Sheet k's rows cut into `count` blocks of equal size (± 1 row).
+  void push_row_blocks(std::uint32_t k, std::uint32_t rows, std::uint64_t count) {
+    for (std::uint64_t b = 0; b < count; ++b)
+      blocks.push_back({k, std::uint32_t(rows * b / count), std::uint32_t(rows * (b + 1) / count), std::uint32_t(b), true});
   }
 
   void gather(std::size_t k, std::size_t begin, std::size_t end) {
@@ -385,9 +389,7 @@ struct BasicWorld<Real>::Impl {
         blocks.push_back({k, 0, rows, 0, false});
         continue;
       }
-      for (std::uint64_t b = 0; b < count; ++b)
-        blocks.push_back({k, std::uint32_t(rows * b / count), std::uint32_t(rows * (b + 1) / count), std::uint32_t(b),
-                          true});
+      push_row_blocks(k, rows, count);
     }
   }
 
