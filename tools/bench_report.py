@@ -298,6 +298,9 @@ class Report:
             if m:
                 bullet[(int(m.group(1)), int(m.group(2)))] = self.get(name)
         if not bullet:
+            self.out("## Against an established engine: Bullet's soft bodies", "",
+                     "Left out of this run: drape_bench was built without Bullet (Debian's libbullet-dev was "
+                     "not found, or the build had -DDRAPE_OPTIONAL_PACKAGES=OFF). `tools/bench.sh` installs it.", "")
             return
         sides = sorted({side for side, _ in bullet})
         rows = []
