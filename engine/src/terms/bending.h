@@ -21,55 +21,46 @@
 
 namespace drape::detail::bending {
 
-// Row q's own line: r_j = x_{j−1} − 2x_j + x_{j+1} for j = 1 … n−1 into the scratch row (r_0 =
-// r_n = 0), then f_j −= k (r_{j−1} − 2 r_j + r_{j+1}), each point written once per loop.
+// One component of row q's own line: r_j = x_{j−1} − 2x_j + x_{j+1} for j = 1 … n−1 into
+// the scratch row (r_0 = r_n = 0), then f_j −= k (r_{j−1} − 2 r_j + r_{j+1}): each loop
+// writes one point per iteration through restrict pointers, so both vectorise.
+template <class Real>
+inline void along_line(std::uint32_t n, const Real* __restrict x, Real k, Real* __restrict r, Real* __restrict f) {
+  r[0] = r[n] = Real(0);
+  for (std::uint32_t j = 1; j < n; ++j) r[j] = x[j - 1] - Real(2) * x[j] + x[j + 1];
+  f[0] -= k * r[1];
+  for (std::uint32_t j = 1; j < n; ++j) f[j] -= k * (r[j - 1] - Real(2) * r[j] + r[j + 1]);
+  f[n] -= k * r[n - 1];
+}
+
 template <class Real>
 inline void along_row(std::uint32_t n, ConstVec3Ptr<Real> x, Real k, Vec3Ptr<Real> r, Vec3Ptr<Real> f) {
   if (n < 2) return;
-  r.x[0] = r.y[0] = r.z[0] = r.x[n] = r.y[n] = r.z[n] = Real(0);
-  for (std::uint32_t j = 1; j < n; ++j) {
-    r.x[j] = x.x[j - 1] - Real(2) * x.x[j] + x.x[j + 1];
-    r.y[j] = x.y[j - 1] - Real(2) * x.y[j] + x.y[j + 1];
-    r.z[j] = x.z[j - 1] - Real(2) * x.z[j] + x.z[j + 1];
-  }
-  f.x[0] -= k * r.x[1];
-  f.y[0] -= k * r.y[1];
-  f.z[0] -= k * r.z[1];
-  for (std::uint32_t j = 1; j < n; ++j) {
-    f.x[j] -= k * (r.x[j - 1] - Real(2) * r.x[j] + r.x[j + 1]);
-    f.y[j] -= k * (r.y[j - 1] - Real(2) * r.y[j] + r.y[j + 1]);
-    f.z[j] -= k * (r.z[j - 1] - Real(2) * r.z[j] + r.z[j + 1]);
-  }
-  f.x[n] -= k * r.x[n - 1];
-  f.y[n] -= k * r.y[n - 1];
-  f.z[n] -= k * r.z[n - 1];
+  along_line(n, x.x, k, r.x, f.x);
+  along_line(n, x.y, k, r.y, f.y);
+  along_line(n, x.z, k, r.z, f.z);
 }
 
-// The column lines through rows a, b, c (consecutive): r = xa − 2xb + xc per column, and
-// −k r, +2k r, −k r on the rows this sweep owns.
+// One component of the column lines through rows a, b, c (consecutive): r = xa − 2xb + xc
+// per column, and −k r, +2k r, −k r on the rows this sweep owns.
+template <bool ToA, bool ToB, bool ToC, class Real>
+inline void across_line(std::uint32_t cols, const Real* __restrict a, const Real* __restrict b,
+                        const Real* __restrict c, Real k, Real* __restrict fa, Real* __restrict fb,
+                        Real* __restrict fc) {
+  for (std::uint32_t j = 0; j < cols; ++j) {
+    const Real r = k * (a[j] - Real(2) * b[j] + c[j]);
+    if constexpr (ToA) fa[j] -= r;
+    if constexpr (ToB) fb[j] += Real(2) * r;
+    if constexpr (ToC) fc[j] -= r;
+  }
+}
+
 template <bool ToA, bool ToB, bool ToC, class Real>
 inline void across_rows(std::uint32_t cols, ConstVec3Ptr<Real> a, ConstVec3Ptr<Real> b, ConstVec3Ptr<Real> c, Real k,
                         Vec3Ptr<Real> fa, Vec3Ptr<Real> fb, Vec3Ptr<Real> fc) {
-  for (std::uint32_t j = 0; j < cols; ++j) {
-    const Real rx = k * (a.x[j] - Real(2) * b.x[j] + c.x[j]);
-    const Real ry = k * (a.y[j] - Real(2) * b.y[j] + c.y[j]);
-    const Real rz = k * (a.z[j] - Real(2) * b.z[j] + c.z[j]);
-    if constexpr (ToA) {
-      fa.x[j] -= rx;
-      fa.y[j] -= ry;
-      fa.z[j] -= rz;
-    }
-    if constexpr (ToB) {
-      fb.x[j] += Real(2) * rx;
-      fb.y[j] += Real(2) * ry;
-      fb.z[j] += Real(2) * rz;
-    }
-    if constexpr (ToC) {
-      fc.x[j] -= rx;
-      fc.y[j] -= ry;
-      fc.z[j] -= rz;
-    }
-  }
+  across_line<ToA, ToB, ToC>(cols, a.x, b.x, c.x, k, fa.x, fb.x, fc.x);
+  across_line<ToA, ToB, ToC>(cols, a.y, b.y, c.y, k, fa.y, fb.y, fc.y);
+  across_line<ToA, ToB, ToC>(cols, a.z, b.z, c.z, k, fa.z, fb.z, fc.z);
 }
 
 // Row q has arrived: its own line's triples, then the column triples of rows q−2, q−1, q.

@@ -10,38 +10,47 @@
 namespace drape::detail::shear {
 
 // The two diagonals of cell (i, j): "down" joins (i, j)–(i+1, j+1), "up" joins
-// (i, j+1)–(i+1, j). Each loop writes two distinct points per iteration, so it vectorises.
+// (i, j+1)–(i+1, j). Each loop writes two distinct points per iteration and every pointer
+// is restrict, so both vectorise like the grid springs.
+template <bool ToA, bool ToB, class Real>
+inline void diagonals(std::uint32_t n, const Real* __restrict ax, const Real* __restrict ay, const Real* __restrict az,
+                      const Real* __restrict bx, const Real* __restrict by, const Real* __restrict bz, Real k,
+                      Real rest, Real* __restrict fax, Real* __restrict fay, Real* __restrict faz,
+                      Real* __restrict fbx, Real* __restrict fby, Real* __restrict fbz) {
+  for (std::uint32_t j = 0; j < n; ++j) {
+    const Real dx = ax[j] - bx[j + 1], dy = ay[j] - by[j + 1], dz = az[j] - bz[j + 1];
+    const Real s = spring_scale(dx, dy, dz, rest, k);
+    if constexpr (ToA) {
+      fax[j] += s * dx;
+      fay[j] += s * dy;
+      faz[j] += s * dz;
+    }
+    if constexpr (ToB) {
+      fbx[j + 1] -= s * dx;
+      fby[j + 1] -= s * dy;
+      fbz[j + 1] -= s * dz;
+    }
+  }
+  for (std::uint32_t j = 0; j < n; ++j) {
+    const Real dx = ax[j + 1] - bx[j], dy = ay[j + 1] - by[j], dz = az[j + 1] - bz[j];
+    const Real s = spring_scale(dx, dy, dz, rest, k);
+    if constexpr (ToA) {
+      fax[j + 1] += s * dx;
+      fay[j + 1] += s * dy;
+      faz[j + 1] += s * dz;
+    }
+    if constexpr (ToB) {
+      fbx[j] -= s * dx;
+      fby[j] -= s * dy;
+      fbz[j] -= s * dz;
+    }
+  }
+}
+
 template <bool ToA, bool ToB, class Real>
 inline void cell_row(std::uint32_t n, ConstVec3Ptr<Real> a, ConstVec3Ptr<Real> b, Real k, Real rest, Vec3Ptr<Real> fa,
                      Vec3Ptr<Real> fb) {
-  for (std::uint32_t j = 0; j < n; ++j) {
-    const Real dx = a.x[j] - b.x[j + 1], dy = a.y[j] - b.y[j + 1], dz = a.z[j] - b.z[j + 1];
-    const Real s = spring_scale(dx, dy, dz, rest, k);
-    if constexpr (ToA) {
-      fa.x[j] += s * dx;
-      fa.y[j] += s * dy;
-      fa.z[j] += s * dz;
-    }
-    if constexpr (ToB) {
-      fb.x[j + 1] -= s * dx;
-      fb.y[j + 1] -= s * dy;
-      fb.z[j + 1] -= s * dz;
-    }
-  }
-  for (std::uint32_t j = 0; j < n; ++j) {
-    const Real dx = a.x[j + 1] - b.x[j], dy = a.y[j + 1] - b.y[j], dz = a.z[j + 1] - b.z[j];
-    const Real s = spring_scale(dx, dy, dz, rest, k);
-    if constexpr (ToA) {
-      fa.x[j + 1] += s * dx;
-      fa.y[j + 1] += s * dy;
-      fa.z[j + 1] += s * dz;
-    }
-    if constexpr (ToB) {
-      fb.x[j] -= s * dx;
-      fb.y[j] -= s * dy;
-      fb.z[j] -= s * dz;
-    }
-  }
+  diagonals<ToA, ToB>(n, a.x, a.y, a.z, b.x, b.y, b.z, k, rest, fa.x, fa.y, fa.z, fb.x, fb.y, fb.z);
 }
 
 // Row q has arrived: the diagonals between rows q−1 and q.
