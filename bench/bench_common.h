@@ -27,6 +27,9 @@ struct Features {
   bool pins = false;     // four corners hard-pinned (the paper's Figs 5, 7 set-up)
   bool anchors = false;  // four corners held by eq (8) springs instead
   bool damping = false;  // eq (4)'s C
+  bool shear = false;    // diagonal springs, k_s = 0.3 k (issue 12)
+  bool bending = false;  // quadratic bending, a bending length of 5 cm (issue 12)
+  bool air = false;      // pressure and skin friction per cell against the world's wind (issue 12)
 };
 
 // A flat side×side-point sheet of cloth, 1 m square, 1 kg, k = 100 N/m: the Fig 13 scene.
@@ -38,6 +41,12 @@ inline SheetDef square_sheet(std::uint32_t side, Features f = {true, false, fals
   if (f.pins) sd.pins = corner_points(sd.m, sd.n);
   if (f.anchors) sd.anchors = anchors_at(corner_points(sd.m, sd.n), 1000.0);
   if (f.damping) sd.damping = 1e-3;
+  if (f.shear) sd.shear = ShearDef{0.3 * sd.stiffness, std::nullopt};
+  if (f.bending) {  // k_b = ρ_A g ℓ³ / h² (docs/scene-format.md), ρ_A = 1 kg/m², ℓ = 5 cm
+    const double h = 1.0 / sd.n;
+    sd.bending = BendingDef{9.81 * 0.05 * 0.05 * 0.05 / (h * h)};
+  }
+  if (f.air) sd.air = AirDef{1.2, 0.05};
   return sd;
 }
 

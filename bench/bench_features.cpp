@@ -27,6 +27,7 @@ drape::WorldDef one_thread() {
   drape::WorldDef wd = drape::bench::world_def();
   wd.threads = 1;
   wd.contact_strength = 0;
+  wd.wind.velocity = {3.0, 0.0, 1.0};  // felt only by sheets with air
   return wd;
 }
 
@@ -65,6 +66,11 @@ void BM_Feature_finite_check_per_frame(benchmark::State& state) { run(state, {fa
 void BM_Feature_finite_check_per_substep(benchmark::State& state) { run(state, {false, false, false}, 1); }
 void BM_Feature_obstacle(benchmark::State& state) { run(state, {false, false, false}, 0, true); }
 void BM_Feature_all(benchmark::State& state) { run(state, {true, true, true}, demo_frame, true); }
+// The cloth terms of issue 12, each alone on the bare sheet, then all three together.
+void BM_Feature_shear(benchmark::State& state) { run(state, {false, false, false, true, false, false}); }
+void BM_Feature_bending(benchmark::State& state) { run(state, {false, false, false, false, true, false}); }
+void BM_Feature_air(benchmark::State& state) { run(state, {false, false, false, false, false, true}); }
+void BM_Feature_cloth(benchmark::State& state) { run(state, {false, false, false, true, true, true}); }
 
 // The bare kernel with no world around it: the same sheets built by the engine and stepped
 // by calling the integrator directly, so "bare" minus this is the world's own overhead
@@ -91,6 +97,10 @@ BENCHMARK(BM_Feature_damping);
 BENCHMARK(BM_Feature_finite_check_per_frame);
 BENCHMARK(BM_Feature_finite_check_per_substep);
 BENCHMARK(BM_Feature_obstacle);
+BENCHMARK(BM_Feature_shear);
+BENCHMARK(BM_Feature_bending);
+BENCHMARK(BM_Feature_air);
+BENCHMARK(BM_Feature_cloth);
 
 // The default contact settings with the same sheets 1.5 m apart: no pair is ever found,
 // so this is the price of looking (each sheet's box every substep, the broad-phase).

@@ -181,6 +181,47 @@ TEST(SceneFile, BadEngineKnobsNameTheirPath) {
             "test.json: sheets[0].self_collision: must be true or false, got a number");
 }
 
+TEST(SceneFile, ClothTermsAndWindAreReadAndOffByDefault) {
+  const Scene d = parse_scene(minimal, "m.json");
+  EXPECT_FALSE(d.sheets[0].shear);
+  EXPECT_FALSE(d.sheets[0].bending);
+  EXPECT_FALSE(d.sheets[0].air);
+  EXPECT_EQ(d.world.wind, drape::WorldDef{}.wind);
+  const Scene s = parse_scene(R"({"frames": 1, "wind": {"velocity": [3, 0, 1], "density": 1.0},
+    "sheets": [{"grid": [2, 2], "size": [1, 1], "stiffness": 5, "shear": {"stiffness": 2, "rest_length": 0.6},
+                "bending": {"stiffness": 0.3}, "air": {"drag": 1.1, "friction": 0.02}},
+               {"grid": [2, 2], "size": [1, 1], "stiffness": 5, "shear": {"stiffness": 2}, "air": {}}]})", "c.json");
+  EXPECT_EQ(s.world.wind.velocity, (drape::Vec3{3, 0, 1}));
+  EXPECT_EQ(s.world.wind.density, 1.0);
+  ASSERT_TRUE(s.sheets[0].shear && s.sheets[0].bending && s.sheets[0].air);
+  EXPECT_EQ(s.sheets[0].shear->stiffness, 2.0);
+  EXPECT_EQ(s.sheets[0].shear->rest_length, 0.6);
+  EXPECT_EQ(s.sheets[0].bending->stiffness, 0.3);
+  EXPECT_EQ(s.sheets[0].air->drag, 1.1);
+  EXPECT_EQ(s.sheets[0].air->friction, 0.02);
+  EXPECT_FALSE(s.sheets[1].shear->rest_length);
+  EXPECT_EQ(s.sheets[1].air->drag, drape::AirDef{}.drag);
+}
+
+TEST(SceneFile, BadClothTermsNameTheirPath) {
+  const std::pair<std::string, std::string> cases[] = {
+      {R"("shear": {"stiffness": -2})", "test.json: sheets[0].shear.stiffness: must be positive (got -2)"},
+      {R"("shear": {})", "test.json: sheets[0].shear.stiffness: missing (required)"},
+      {R"("shear": {"stiffness": 2, "rest_length": -1})", "test.json: sheets[0].shear.rest_length: must not be negative (got -1)"},
+      {R"("bending": {"stiffnes": 1})", "test.json: sheets[0].bending.stiffnes: unknown key"},
+      {R"("air": {"drag": -1})", "test.json: sheets[0].air.drag: must not be negative (got -1)"},
+      {R"("air": 3)", "test.json: sheets[0].air: must be an object"},
+  };
+  for (const auto& [field, expected] : cases) {
+    const std::string message =
+        error_of(R"({"frames": 1, "sheets": [{"grid": [2, 2], "size": [1, 1], "stiffness": 5, )" + field + "}]}");
+    EXPECT_EQ(message.rfind(expected, 0), 0u) << "field: " << field << "\nmessage: " << message;
+  }
+  EXPECT_EQ(error_of(R"({"frames": 1, "wind": {"density": -1}, "sheets": [{"grid": [2, 2], "size": [1, 1], "stiffness": 5}]})")
+                .rfind("test.json: wind.density: must not be negative (got -1)", 0),
+            0u);
+}
+
 TEST(SceneFile, UnreadableFileIsReported) {
   try {
     drape::app::load_scene("/nonexistent/scene.json");
@@ -229,7 +270,8 @@ TEST(SceneFile, SetOverrideOnAMissingPathNamesIt) {
   EXPECT_EQ(error("sheets[x].m"), "m.json: --set sheets[x].m: \"[x]\" is not an index or [*]");
   EXPECT_EQ(error("sheets[*].stifness"), "m.json: sheets[0].stifness: unknown key (known here: name, grid, size, "
                                          "center, orientation, velocity, mass, point_mass, stiffness, "
-                                         "stiffness_regions, rest_length, damping, anchors, pins, self_collision)");
+                                         "stiffness_regions, rest_length, damping, anchors, pins, self_collision, shear, "
+                                         "bending, air)");
 }
 
 // Inputs the fuzzer (scene_fuzz) found or that are built like them: each is refused with a

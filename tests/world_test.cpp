@@ -146,8 +146,13 @@ TEST(Worlds, CollidingFreeSheetsConserveMomentum) {
 
 // Sheets stacked so that they touch, one large enough to be split into row blocks, one
 // folding onto itself.
-void build_contact_scene(World& w) {
+void build_contact_scene(World& w, bool cloth = false) {
   SheetDef d;
+  if (cloth) {
+    d.shear = ShearDef{40, std::nullopt};
+    d.bending = BendingDef{0.5};
+    d.air = AirDef{1.0, 0.02};
+  }
   d.m = d.n = 12;
   d.width = d.height = 0.3;
   d.mass = 0.1;
@@ -166,16 +171,20 @@ void build_contact_scene(World& w) {
   big.width = big.height = 0.6;
   big.center = {0, 0, -0.006};
   big.pins = corner_points(big.m, big.n);
+  big.shear = d.shear;
+  big.bending = d.bending;
+  big.air = d.air;
   w.add_sheet(big);
 }
 
-std::vector<unsigned char> run_contact_scene(int threads, std::uint32_t block_points, int steps) {
+std::vector<unsigned char> run_contact_scene(int threads, std::uint32_t block_points, int steps, bool cloth = false) {
   WorldDef wd;
   wd.dt = 5e-4;
   wd.threads = threads;
   wd.block_points = block_points;
+  wd.wind = {{0.5, 0.2, 1.0}, 1.2};
   World w(wd);
-  build_contact_scene(w);
+  build_contact_scene(w, cloth);
   std::size_t pairs = 0;
   for (int k = 0; k < steps; ++k) {
     w.step();
@@ -199,6 +208,16 @@ TEST(Worlds, SplittingSheetsIntoRowBlocksChangesNoBit) {
   const auto blocks = run_contact_scene(2, 100, 60);  // the large sheet in 12 blocks of 3–4 rows
   ASSERT_EQ(whole.size(), blocks.size());
   EXPECT_TRUE(std::memcmp(whole.data(), blocks.data(), whole.size()) == 0);
+}
+
+TEST(Worlds, ClothWithContactsIsTheSameOnOneAndTwoThreadsWholeOrInBlocks) {
+  const auto one = run_contact_scene(1, 1u << 30, 60, true);
+  const auto two = run_contact_scene(2, 1u << 30, 60, true);
+  const auto blocks = run_contact_scene(2, 100, 60, true);
+  ASSERT_EQ(one.size(), two.size());
+  EXPECT_TRUE(one == two);
+  EXPECT_TRUE(one == blocks);
+  EXPECT_FALSE(one == run_contact_scene(1, 1u << 30, 60, false));  // the terms did act
 }
 
 TEST(Worlds, SetThreadsKeepsTheResult) {
@@ -245,18 +264,22 @@ std::vector<unsigned char> reference_bytes(const SheetDef& d, const WorldDef& wd
 }
 
 TEST(Worlds, OneSheetMatchesDirectIntegrationBitForBit) {
-  for (Integrator integrator : {Integrator::SemiImplicitEuler, Integrator::ForwardEuler})
-    for (std::uint32_t block_points : {1u << 30, 2000u}) {
-      WorldDef wd;
-      wd.dt = 2e-4;
-      wd.integrator = integrator;
-      wd.block_points = block_points;
-      World w(wd);
-      w.add_sheet(lone_sheet());
-      w.step(30);
-      EXPECT_EQ(state_bytes(w), reference_bytes(lone_sheet(), wd, 30))
-          << integrator_name(integrator) << " block_points " << block_points;
-    }
+  SheetDef cloth = lone_sheet();
+  cloth.shear = ShearDef{100, std::nullopt};
+  cloth.bending = BendingDef{1};
+  for (const SheetDef& d : {lone_sheet(), cloth})
+    for (Integrator integrator : {Integrator::SemiImplicitEuler, Integrator::ForwardEuler})
+      for (std::uint32_t block_points : {1u << 30, 2000u}) {
+        WorldDef wd;
+        wd.dt = 2e-4;
+        wd.integrator = integrator;
+        wd.block_points = block_points;
+        World w(wd);
+        w.add_sheet(d);
+        w.step(30);
+        EXPECT_EQ(state_bytes(w), reference_bytes(d, wd, 30))
+            << integrator_name(integrator) << " block_points " << block_points << (d.shear ? " cloth" : "");
+      }
 }
 
 // A frame of substeps on sheets with nothing between them (no contacts, no obstacles)
@@ -264,10 +287,14 @@ TEST(Worlds, OneSheetMatchesDirectIntegrationBitForBit) {
 // rows beyond its edges, through many substeps at once; sheets beyond the cache budget
 // as waves. The reference is the same
 // world stepped one substep per call, which never runs a wave.
+//
+// With `cloth`, the sheets also carry shear, bending (which reads two rows on each side:
+// the wave lags two rows per substep, halos are twice as deep) and air in a wind.
 template <class W>
 std::vector<unsigned char> run_frames(Integrator integrator, int threads, std::uint32_t block_points,
-                                      int frames, int substeps) {
+                                      int frames, int substeps, bool cloth = false) {
   WorldDef wd;
+  wd.wind = {{1.5, -0.5, 0.8}, 1.2};
   wd.dt = 1e-4;
   wd.integrator = integrator;
   wd.threads = threads;
@@ -287,6 +314,11 @@ std::vector<unsigned char> run_frames(Integrator integrator, int threads, std::u
   tall.anchors = anchors_at(std::vector<std::uint32_t>{2500, 7, 1300}, 400.0);  // not in point order: no wave
   tall.orientation = quat_from_axis_angle({1, 0, 0}, 0.3);
   tall.initial_velocity = {0.3, -0.1, 0.2};
+  if (cloth) {
+    tall.shear = ShearDef{60, std::nullopt};
+    tall.bending = BendingDef{2};
+    tall.air = AirDef{1.2, 0.05};
+  }
   w.add_sheet(tall);
   tall.anchors = anchors_at(std::vector<std::uint32_t>{7, 1300, 2500}, 400.0);  // in point order
   tall.center = {2, 0, 0};
@@ -303,6 +335,7 @@ std::vector<unsigned char> run_frames(Integrator integrator, int threads, std::u
   row.n = 9;
   row.center = {5, 0, 0};
   row.pins = {0};
+  if (cloth) row.bending = BendingDef{2};
   w.add_sheet(row);
   row.m = 9;
   row.n = 0;
@@ -322,19 +355,27 @@ std::vector<unsigned char> run_frames(Integrator integrator, int threads, std::u
 }
 
 template <class W>
-void expect_frames_change_no_bit() {
-  for (Integrator integrator : {Integrator::SemiImplicitEuler, Integrator::ForwardEuler, Integrator::RK4})
+void expect_frames_change_no_bit(bool cloth = false) {
+  for (Integrator integrator : {Integrator::SemiImplicitEuler, Integrator::ForwardEuler, Integrator::RK4}) {
+    std::vector<unsigned char> first;
     for (auto [threads, block_points] : {std::pair{1, 1u << 30}, std::pair{2, 300u}, std::pair{2, 1u << 30}}) {
-      const auto one_by_one = run_frames<W>(integrator, threads, block_points, 21, 1);
-      EXPECT_TRUE(run_frames<W>(integrator, threads, block_points, 3, 7) == one_by_one)
+      const auto one_by_one = run_frames<W>(integrator, threads, block_points, 21, 1, cloth);
+      EXPECT_TRUE(run_frames<W>(integrator, threads, block_points, 3, 7, cloth) == one_by_one)
           << integrator_name(integrator) << ", " << threads << " threads, block_points " << block_points;
-      EXPECT_TRUE(run_frames<W>(integrator, threads, block_points, 1, 21) == one_by_one)
+      EXPECT_TRUE(run_frames<W>(integrator, threads, block_points, 1, 21, cloth) == one_by_one)
           << integrator_name(integrator) << ", " << threads << " threads, block_points " << block_points;
+      // and the same bits with 1 or 2 threads, whole sheets or row blocks
+      if (first.empty()) first = one_by_one;
+      EXPECT_TRUE(one_by_one == first) << integrator_name(integrator) << ", " << threads << " threads, block_points "
+                                       << block_points;
     }
+  }
 }
 
 TEST(Worlds, FramesOfSubstepsChangeNoBit) { expect_frames_change_no_bit<World>(); }
 TEST(Worlds, FramesOfSubstepsChangeNoBitInFloat) { expect_frames_change_no_bit<WorldF>(); }
+TEST(Worlds, FramesOfClothChangeNoBit) { expect_frames_change_no_bit<World>(true); }
+TEST(Worlds, FramesOfClothChangeNoBitInFloat) { expect_frames_change_no_bit<WorldF>(true); }
 
 // With contacts on and an obstacle, a frame runs as if nothing coupled the substeps and
 // is kept only when no two sheets' boxes over the frame came within contact range and no

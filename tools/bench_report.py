@@ -431,7 +431,7 @@ class Report:
 
     def features(self):
         order = ["kernel_only", "bare", "pins", "anchors", "damping", "finite_check_per_frame",
-                 "finite_check_per_substep", "obstacle", "contacts", "all"]
+                 "finite_check_per_substep", "obstacle", "contacts", "all", "shear", "bending", "air", "cloth"]
         meaning = {
             "kernel_only": "spring kernel + integrator called directly, no World",
             "bare": "World: springs + semi-implicit Euler + gravity, contacts off",
@@ -444,6 +444,10 @@ class Report:
             "obstacle": "+ a floor (eq 9) under every sheet, acting on all points",
             "contacts": "+ contacts between sheets",
             "all": "pins + anchors + damping + floor + all_finite() per frame",
+            "shear": "+ shear springs on both diagonals of every cell (issue 12)",
+            "bending": "+ quadratic bending along every grid line (issue 12)",
+            "air": "+ air pressure and skin friction per cell against a wind (issue 12)",
+            "cloth": "+ shear + bending + air",
             "frames": "the bare World stepped 33 substeps per step() call (guard off): the base of the next row",
             "guard_per_frame": "+ the stability guard once per step() call of 33 substeps (guard on), against frames",
         }
@@ -511,6 +515,28 @@ class Report:
             ax.set_title("Feature prices")
             ax.legend()
             self.image(fig, "features.png", "Feature prices: time per substep with each term")
+
+    def cloth_terms(self):
+        """Issue 12's terms, priced in nanoseconds per point and substep on top of the bare
+        World (the same runs as the feature table)."""
+        bare = self.runs.get("BM_Feature_bare")
+        terms = [(n, self.runs.get(f"BM_Feature_{n}")) for n in ("shear", "bending", "air", "cloth")]
+        terms = [(n, r) for n, r in terms if r is not None]
+        if bare is None or not terms:
+            return
+        points = bare.rate * bare.step_seconds
+        self.out("## Cloth terms", "",
+                 "Shear, bending and air (issue 12), each on the 48 sheets of 64×64 of the feature table, one "
+                 "thread: what each adds per point and substep, and as a multiple of the bare World's whole "
+                 "substep (springs + integrator). A sheet without them runs the paper's kernel unchanged.", "",
+                 "| term | ns per point-step | added ns per point-step | × bare |", "|---|---|---|---|")
+        base = bare.step_seconds / points
+        self.out(f"| bare | {1e9 * base:.2f} | – | 1.00 |")
+        for n, r in terms:
+            self.used.add(r.name)
+            per = r.step_seconds / points
+            self.out(f"| {n} | {1e9 * per:.2f}{cv_text(r)} | {1e9 * (per - base):+.2f} | {per / base:.2f} |")
+        self.out("")
 
     def broad_phase(self):
         what = "Broad-phase for 10,000 sheets, share of the world step"
@@ -672,6 +698,7 @@ class Report:
         self.threads()
         self.precision()
         self.features()
+        self.cloth_terms()
         self.broad_phase()
         self.notes()
         self.others()

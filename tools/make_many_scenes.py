@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Writes the two many-sheet scenes of issue 4: scenes/stack_sphere.json (sheets dropped
 onto a sphere settle into layers) and scenes/rain_torus.json (sheets rain over a torus and
-a plane). The JSON files are committed; rerun this after changing a parameter here.
+a plane; since issue 12 they are cloth: shear springs and bending). The JSON files are
+committed; rerun this after changing a parameter here.
 
     tools/make_many_scenes.py
 """
@@ -48,20 +49,35 @@ def stack_sphere():
     }
 
 
+def cloth_bending(mass, side, cells, length=None):
+    """k_b giving the sheet a bending length (D / (rho_A g))^(1/3) of `length`: a strip of
+    cloth that long sticks out straight, a longer one droops. D = k_b h^2 per unit width
+    (one grid line of EI = k_b h^3 every h)."""
+    h = side / cells
+    areal_density = mass / (side * side)
+    length = BENDING_LENGTH if length is None else length
+    return rounded(areal_density * 9.81 * length ** 3 / h ** 2, 6)
+
+
 def rain_torus():
     sheets = []
     for k in range(36):
         i, j = k % 6, k // 6
         tilt = 0.5 * (k % 7) / 6
+        cells, side, mass = 8 + k % 6, rounded(0.3 + 0.06 * (k % 6)), rounded(0.05 + 0.03 * (k % 5))
+        stiffness = [100.0, 200.0, 400.0, 800.0][k % 4]
         sheet = {
             "name": f"drop{k:02d}",
-            "grid": [8 + k % 6, 8 + k % 6],
-            "size": rounded([0.3 + 0.06 * (k % 6)] * 2),
+            "grid": [cells, cells],
+            "size": [side, side],
             "center": rounded([-0.75 + 0.3 * i, -0.75 + 0.3 * j, 1.0 + 0.15 * ((7 * k) % 12)]),
             "velocity": [0, 0, -0.5],
-            "mass": rounded(0.05 + 0.03 * (k % 5)),
-            "stiffness": [100.0, 200.0, 400.0, 800.0][k % 4],
+            "mass": mass,
+            "stiffness": stiffness,
             "damping": 0.005,
+            # cloth (issue 12): shear springs at SHEAR_RATIO of the grid's stiffness, and bending
+            "shear": {"stiffness": rounded(SHEAR_RATIO * stiffness)},
+            "bending": {"stiffness": cloth_bending(mass, side, cells)},
         }
         if tilt > 0:
             sheet["orientation"] = {"axis": rounded([math.cos(k), math.sin(k), 0]), "degrees": rounded(math.degrees(tilt), 4)}
@@ -71,7 +87,8 @@ def rain_torus():
     return {
         "description": "Beyond the paper (issue 4): 36 sheets of six sizes (0.3-0.6 m, 8x8-13x13 cells), five masses "
                        "and four stiffnesses (100-800 N/m) rain onto a torus (R = 0.6 m, r = 0.2 m) lying on a plane; "
-                       "every ninth sheet also collides with itself.",
+                       "every ninth sheet also collides with itself. Since issue 12 the sheets are cloth: shear "
+                       "springs at 0.3 of the grid stiffness and bending with a bending length of 6 cm.",
         "dt": DT_RAIN,
         "fps": 30,
         "duration": DURATION_RAIN,
@@ -89,6 +106,7 @@ def rain_torus():
 
 DT_STACK, DURATION_STACK = 4e-4, 1.4
 DT_RAIN, DURATION_RAIN = 3e-4, 2.5
+SHEAR_RATIO, BENDING_LENGTH = 0.3, 0.06
 CONTACTS = {"contact_thickness": 0.005, "contact_xi": 0.002, "contact_strength": 2e-3}
 
 if __name__ == "__main__":

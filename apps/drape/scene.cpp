@@ -230,7 +230,8 @@ std::vector<std::uint32_t> read_points(const Node& node, std::uint32_t m, std::u
 
 SheetDef read_sheet(const Node& node, Precision precision, std::string& name, std::size_t index) {
   node.expect_object({"name", "grid", "size", "center", "orientation", "velocity", "mass", "point_mass", "stiffness",
-                      "stiffness_regions", "rest_length", "damping", "anchors", "pins", "self_collision"});
+                      "stiffness_regions", "rest_length", "damping", "anchors", "pins", "self_collision", "shear",
+                      "bending", "air"});
   SheetDef s;
   name = node.has("name") ? node.child("name").string() : "sheet" + std::to_string(index);
   const Node grid = node.required("grid");
@@ -302,6 +303,24 @@ SheetDef read_sheet(const Node& node, Precision precision, std::string& name, st
   }
   if (node.has("pins")) s.pins = read_points(node.child("pins"), s.m, s.n);
   if (node.has("self_collision")) s.self_collision = node.child("self_collision").boolean();
+  if (node.has("shear")) {
+    const Node sh = node.child("shear");
+    sh.expect_object({"stiffness", "rest_length"});
+    s.shear = ShearDef{sh.required("stiffness").positive(), std::nullopt};
+    if (sh.has("rest_length")) s.shear->rest_length = sh.child("rest_length").non_negative();
+  }
+  if (node.has("bending")) {
+    const Node b = node.child("bending");
+    b.expect_object({"stiffness"});
+    s.bending = BendingDef{b.required("stiffness").positive()};
+  }
+  if (node.has("air")) {
+    const Node a = node.child("air");
+    a.expect_object({"drag", "friction"});
+    s.air = AirDef{};
+    if (a.has("drag")) s.air->drag = a.child("drag").non_negative();
+    if (a.has("friction")) s.air->friction = a.child("friction").non_negative();
+  }
   if (const std::string problem = validate(s); !problem.empty()) node.fail(problem);
   return s;
 }
@@ -449,6 +468,12 @@ void read_world_knobs(const Node& top, WorldDef& w) {
   if (top.has("contact_strength")) w.contact_strength = top.child("contact_strength").non_negative();
   if (top.has("contact_range")) w.contact_range = top.child("contact_range").positive();
   if (top.has("block_points")) w.block_points = std::uint32_t(top.child("block_points").whole(1, 4294967295u));
+  if (top.has("wind")) {
+    const Node wind = top.child("wind");
+    wind.expect_object({"velocity", "density"});
+    if (wind.has("velocity")) w.wind.velocity = wind.child("velocity").vec3();
+    if (wind.has("density")) w.wind.density = wind.child("density").non_negative();
+  }
 }
 
 }  // namespace
@@ -483,7 +508,7 @@ Scene parse_scene(std::string_view text, const std::string& file, std::span<cons
   top.expect_object({"description", "dt", "substeps", "fps", "frames", "duration", "integrator", "precision",
                      "gravity", "cg_tolerance", "cg_max_iterations", "adaptive", "adaptive_safety", "guard",
                      "guard_energy_growth", "contact_thickness", "contact_xi", "contact_strength", "contact_range",
-                     "block_points", "sheets", "obstacles", "output", "camera"});
+                     "block_points", "wind", "sheets", "obstacles", "output", "camera"});
   Scene scene;
   scene.file = file;
   scene.source = std::string(text);

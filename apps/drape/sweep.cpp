@@ -40,7 +40,7 @@ SweepOutcome simulate_in(const Scene& scene, int frames) {
   // each sheet's weight times a drop of its diagonal + 1 m): a run that blows up passes it by
   // orders of magnitude while staying finite for many frames, a sound one never nears it.
   const Energies e0 = world.energies();
-  double scale = std::abs(e0.kinetic) + std::abs(e0.spring) + std::abs(e0.gravity) + std::abs(e0.anchor) +
+  double scale = std::abs(e0.kinetic) + std::abs(e0.spring) + std::abs(e0.bending) + std::abs(e0.gravity) + std::abs(e0.anchor) +
                  std::abs(e0.obstacle) + 1e-9;
   const double g = std::hypot(def.gravity.x, def.gravity.y, def.gravity.z);
   for (const auto& s : scene.sheets) {

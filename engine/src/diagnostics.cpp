@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include "terms/terms.h"
+
 namespace drape::detail {
 
 template <class Real>
@@ -74,6 +76,7 @@ Energies sheet_energies(const Sheet<Real>& s, Vec3 g) {
   const std::size_t vertical = t.springs() - horizontal;
   e.spring += spring_energy_run(vertical, x.x.data(), x.y.data(), x.z.data(), x.x.data() + cols, x.y.data() + cols,
                                 x.z.data() + cols, rest + horizontal, k + horizontal);
+  add_term_energies(s, cptr(x), e.spring, e.bending);
   const auto& an = s.anchors;
   for (std::size_t a = 0; a < an.point.size(); ++a) {
     const std::uint32_t p = an.point[a];
@@ -110,6 +113,7 @@ double sheet_stable_step(const Sheet<Real>& s) {
     k_sum[t.a[e]] += 2.0 * t.stiffness[e];
     k_sum[t.b[e]] += 2.0 * t.stiffness[e];
   }
+  add_term_stiffness_bounds(s, k_sum.data());
   for (std::size_t k = 0; k < s.anchors.point.size(); ++k) k_sum[s.anchors.point[k]] += s.anchors.stiffness[k];
   for (std::uint32_t p : s.pins.point) k_sum[p] = 0.0;  // pinned points do not move
   double omega2 = 0.0;

@@ -1,4 +1,6 @@
-// Force kernels: springs (eqs 6–7), damping (eq 4's C), anchors (eq 8); obstacles (eq 9) live in obstacles.cpp.
+// The row sweep and the paper's kernels: springs (eqs 6–7), damping (eq 4's C), anchors
+// (eq 8). The other terms live in terms/ (their list: terms/terms.h); obstacles (eq 9) in
+// obstacles.cpp.
 #include "forces.h"
 
 #include <algorithm>
@@ -7,21 +9,11 @@
 #include <utility>
 
 #include "obstacles.h"
+#include "terms/terms.h"
 
 namespace drape::detail {
 
 namespace {
-
-// Spring force on the first endpoint of a spring whose endpoints differ by d = x1 − x2:
-// −k (|d| − ℓ)/|d| · d (eq 6 carries the opposite sign because the paper moves f_spr to
-// the right-hand side of eq 4). A zero-length spring has no direction and contributes
-// nothing: the select keeps 0/0 out of the result.
-template <class Real>
-inline Real spring_scale(Real dx, Real dy, Real dz, Real rest, Real k) {
-  const Real len = std::sqrt(dx * dx + dy * dy + dz * dz);
-  const Real inv = len > Real(0) ? Real(1) / len : Real(0);
-  return -k * (len - rest) * inv;
-}
 
 // Where a kernel finds k and ℓ of spring e: per-spring arrays, or one constant for the
 // whole run (Topology::uniform), chosen once per sheet so the loops carry no branch.
@@ -98,39 +90,74 @@ inline void column_springs(std::uint32_t cols, const Real* __restrict xa, const 
   }
 }
 
-// Rows [begin, end) of the sheet; every row sums its terms in the same order
-// (own horizontal springs, spring to the row above, spring to the row below). done(i) is
-// called as soon as row i's spring forces are final, while the row is still in cache, so
-// per-point terms can be added in the same sweep instead of another pass over the sheet.
-template <class Real, class Springs, class RowDone>
-void spring_rows(const Topology<Real>& t, Springs horizontal_springs, Springs vertical_springs, ConstVec3Ptr<Real> x,
-                 Vec3Ptr<Real> f, Vec3Ptr<Real> row, std::uint32_t begin, std::uint32_t end, RowDone done) {
+// Row q arrives in a sweep: every row stencil whose last row is q adds its forces, in the
+// order of terms/terms.h: row q's own grid springs (which write, not add, its forces, so f
+// needs no clearing pass), the grid springs between rows q−1 and q, then the other terms.
+template <class Real, class Springs, class Terms, class Window>
+inline void arrive(const Topology<Real>& t, Springs horizontal_springs, Springs vertical_springs, const Terms& terms,
+                   const Window& w, std::uint32_t q) {
   const std::uint32_t n = t.n, cols = t.cols();
-  auto horizontal = [&](std::uint32_t i) {
-    const std::size_t p = std::size_t(i) * cols;
-    row_springs(n, x.x + p, x.y + p, x.z + p, horizontal_springs.offset(std::size_t(i) * n), row.x, row.y, row.z,
-                f.x + p, f.y + p, f.z + p);
-  };
-  auto vertical = [&]<bool ToA, bool ToB>(std::uint32_t i) {
-    const std::size_t a = std::size_t(i) * cols, b = a + cols;
-    column_springs<ToA, ToB>(cols, x.x + a, x.y + a, x.z + a, x.x + b, x.y + b, x.z + b,
-                             vertical_springs.offset(std::size_t(i) * cols), f.x + a, f.y + a, f.z + a, f.x + b,
-                             f.y + b, f.z + b);
-  };
-  if (begin >= end) return;
-  // Row i+1's horizontal springs assign its forces before the vertical springs of rows
-  // i–i+1 add to them, so f needs no separate clearing pass.
-  horizontal(begin);
-  if (begin > 0) vertical.template operator()<false, true>(begin - 1);
-  for (std::uint32_t i = begin; i + 1 < end; ++i) {
-    horizontal(i + 1);
-    vertical.template operator()<true, true>(i);
-    done(i);
+  if (w.owns(q)) {
+    const ConstVec3Ptr<Real> x = w.x(q);
+    const Vec3Ptr<Real> f = w.f(q);
+    row_springs(n, x.x, x.y, x.z, horizontal_springs.offset(std::size_t(q) * n), w.scratch.x, w.scratch.y,
+                w.scratch.z, f.x, f.y, f.z);
   }
-  if (end - 1 < t.m) vertical.template operator()<true, false>(end - 1);
-  done(end - 1);
+  if (q > w.read_lo) {
+    const ConstVec3Ptr<Real> xa = w.x(q - 1), xb = w.x(q);
+    const Vec3Ptr<Real> fa = w.f(q - 1), fb = w.f(q);
+    auto vertical = [&]<bool ToA, bool ToB>() {
+      column_springs<ToA, ToB>(cols, xa.x, xa.y, xa.z, xb.x, xb.y, xb.z,
+                               vertical_springs.offset(std::size_t(q - 1) * cols), fa.x, fa.y, fa.z, fb.x, fb.y, fb.z);
+    };
+    const bool to_a = w.owns(q - 1), to_b = w.owns(q);
+    if (to_a && to_b)
+      vertical.template operator()<true, true>();
+    else if (to_b)
+      vertical.template operator()<false, true>();
+    else if (to_a)
+      vertical.template operator()<true, false>();
+  }
+  terms.arrive(w, q);
 }
 
+// Rows of one sheet's arrays (a whole sheet, or a block of it that reads all rows).
+template <class Real>
+struct ArrayRows {
+  ConstVec3Ptr<Real> xs, vs;
+  Vec3Ptr<Real> fs;
+  std::size_t cols;
+  ConstVec3Ptr<Real> x(std::uint32_t i) const {
+    const std::size_t p = i * cols;
+    return {xs.x + p, xs.y + p, xs.z + p};
+  }
+  ConstVec3Ptr<Real> v(std::uint32_t i) const {
+    const std::size_t p = i * cols;
+    return {vs.x + p, vs.y + p, vs.z + p};
+  }
+  Vec3Ptr<Real> f(std::uint32_t i) const {
+    const std::size_t p = i * cols;
+    return {fs.x + p, fs.y + p, fs.z + p};
+  }
+};
+
+// The row sweep of a sheet's arrays for rows [begin, end): rows arrive in order, reading
+// up to `reach` rows beyond the range, and done(i) is called as soon as row i's stencil
+// forces are final, while the row is still in cache, so per-point terms (and an
+// integrator's update) run in the same sweep instead of another pass over the sheet.
+template <class Real, class Springs, class Terms, class RowDone>
+void sweep_rows(const Topology<Real>& t, Springs horizontal_springs, Springs vertical_springs, const Terms& terms,
+                ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f, Vec3Ptr<Real> row, std::uint32_t begin,
+                std::uint32_t end, RowDone done) {
+  if (begin >= end) return;
+  const RowWindow<Real, ArrayRows<Real>> w{{x, v, f, t.cols()}, t.cols(), 0, begin, end, row};
+  const std::uint32_t reach = terms.reach(), last = std::min(end - 1 + reach, t.m);
+  for (std::uint32_t q = begin; q <= last; ++q) {
+    arrive(t, horizontal_springs, vertical_springs, terms, w, q);
+    if (q >= begin + reach) done(q - reach);
+  }
+  for (std::uint32_t i = last + 1 >= begin + reach ? last + 1 - reach : begin; i < end; ++i) done(i);
+}
 // Calls body(horizontal springs, vertical springs) with the spring parameters picked once
 // per call: constants when the topology is uniform, per-spring arrays otherwise.
 template <class Real, class Body>
@@ -146,11 +173,17 @@ void with_springs(const Topology<Real>& t, Body body) {
   }
 }
 
+// The sweep with the sheet's terms picked once: the paper's kernel alone (NoRowTerms)
+// when the sheet has none of the others.
 template <class Real, class RowDone>
-void springs_by_rows(const Topology<Real>& t, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row,
-                     std::uint32_t row_begin, std::uint32_t row_end, RowDone done) {
+void sheet_sweep(const Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f, Vec3Ptr<Real> row,
+                 std::uint32_t row_begin, std::uint32_t row_end, RowDone done) {
+  const Topology<Real>& t = *s.topology;
   with_springs(t, [&](auto horizontal, auto vertical) {
-    spring_rows(t, horizontal, vertical, x, f, row, row_begin, row_end, done);
+    if (has_row_terms(s))
+      sweep_rows(t, horizontal, vertical, row_terms_of(s), x, v, f, row, row_begin, row_end, done);
+    else
+      sweep_rows(t, horizontal, vertical, NoRowTerms{}, x, v, f, row, row_begin, row_end, done);
   });
 }
 
@@ -181,7 +214,9 @@ inline void damp(std::size_t count, const Real* __restrict c, const Real* __rest
 template <class Real>
 void spring_forces(const Topology<Real>& t, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row,
                    std::uint32_t row_begin, std::uint32_t row_end) {
-  springs_by_rows(t, x, f, row, row_begin, row_end, [](std::uint32_t) {});
+  with_springs(t, [&](auto horizontal, auto vertical) {
+    sweep_rows(t, horizontal, vertical, NoRowTerms{}, x, x, f, row, row_begin, row_end, [](std::uint32_t) {});
+  });
 }
 
 template <class Real>
@@ -189,16 +224,23 @@ void spring_forces(const Topology<Real>& t, ConstVec3Ptr<Real> x, Vec3Ptr<Real> 
   spring_forces(t, x, f, row, 0, t.rows());
 }
 
-// The per-point terms of points [p, p + count), in the one order every path uses:
-// damping, then contacts (anchors and obstacles follow).
+// Terms 5–6 of terms/terms.h (damping, contacts) on the `count` points from the sheet's
+// point p, whose velocities and forces are at v and f (a row of the sheet's arrays, or of
+// a wave's copies). Anchors and obstacles follow.
 template <class Real>
-inline void row_terms(const Sheet<Real>& s, std::size_t p, std::size_t count, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f) {
-  if (!s.damping.empty())
-    damp<Real>(count, s.damping.data() + p, v.x + p, v.y + p, v.z + p, f.x + p, f.y + p, f.z + p);
+inline void add_point_terms(const Sheet<Real>& s, std::size_t p, std::size_t count, ConstVec3Ptr<Real> v,
+                            Vec3Ptr<Real> f) {
+  if (!s.damping.empty()) damp<Real>(count, s.damping.data() + p, v.x, v.y, v.z, f.x, f.y, f.z);
   if (s.has_contacts) {
     const auto& c = s.contact_force;
-    add_contacts<Real>(count, c.x.data() + p, c.y.data() + p, c.z.data() + p, f.x + p, f.y + p, f.z + p);
+    add_contacts<Real>(count, c.x.data() + p, c.y.data() + p, c.z.data() + p, f.x, f.y, f.z);
   }
+}
+
+// add_point_terms on the sheet's own arrays.
+template <class Real>
+inline void row_terms(const Sheet<Real>& s, std::size_t p, std::size_t count, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f) {
+  add_point_terms(s, p, count, {v.x + p, v.y + p, v.z + p}, {f.x + p, f.y + p, f.z + p});
 }
 
 template <class Real>
@@ -206,8 +248,8 @@ void sheet_forces_rows(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> 
                        std::uint32_t row_begin, std::uint32_t row_end) {
   const Topology<Real>& t = *s.topology;
   const std::size_t cols = t.cols();
-  springs_by_rows(t, x, f, row, row_begin, row_end,
-                  [&](std::uint32_t i) { row_terms(s, std::size_t(i) * cols, cols, v, f); });
+  sheet_sweep(s, x, v, f, row, row_begin, row_end,
+              [&](std::uint32_t i) { row_terms(s, std::size_t(i) * cols, cols, v, f); });
   const auto& an = s.anchors;
   const std::size_t begin = row_begin * cols, end = row_end * cols;
   for (std::size_t a = 0; a < an.point.size(); ++a)
@@ -236,8 +278,8 @@ void sheet_forces_by_rows(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Rea
   // mostly in their scalar remainders (BM_Fig13 at small sizes, BM_WorldStep10kSheets).
   if (!s.near_obstacles.empty() || !std::is_sorted(an.point.begin(), an.point.end()) || fits_cache_budget(s)) {
     // finish every force first, then hand over the whole sheet
-    springs_by_rows(t, x, f, ptr(s.row_scratch), 0, t.rows(),
-                    [&](std::uint32_t i) { row_terms(s, std::size_t(i) * t.cols(), t.cols(), v, f); });
+    sheet_sweep(s, x, v, f, ptr(s.row_scratch), 0, t.rows(),
+                [&](std::uint32_t i) { row_terms(s, std::size_t(i) * t.cols(), t.cols(), v, f); });
     for (std::size_t a = 0; a < an.point.size(); ++a) anchor(a);
     // eq (9): only obstacles the host stage found near this sheet
     for (const NearObstacle& o : s.near_obstacles) obstacle_forces(t, o, x, f);
@@ -246,11 +288,12 @@ void sheet_forces_by_rows(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Rea
   }
   // Every term of row i is added as soon as its springs are final (same order as above:
   // springs, damping, contacts, anchors), then the row goes to the sink while it is still
-  // in cache. A new per-point force term belongs in row_terms; one that reads neighbouring
-  // rows' positions, like obstacles, must send its sheets to the branch above.
+  // in cache. A new per-point force term belongs in add_point_terms, a row stencil in
+  // terms/terms.h; one that reads all rows' positions, like obstacles, must send its sheets
+  // to the branch above.
   const std::uint32_t cols = t.cols();
   std::size_t next_anchor = 0;
-  springs_by_rows(t, x, f, ptr(s.row_scratch), 0, t.rows(), [&](std::uint32_t i) {
+  sheet_sweep(s, x, v, f, ptr(s.row_scratch), 0, t.rows(), [&](std::uint32_t i) {
     const std::size_t p = std::size_t(i) * cols;
     row_terms(s, p, cols, v, f);
     for (; next_anchor < an.point.size() && an.point[next_anchor] < p + cols; ++next_anchor) anchor(next_anchor);
@@ -278,14 +321,19 @@ std::uint32_t wave_levels(std::uint32_t cols, std::size_t bytes_per_value) {
 
 namespace {
 
-// The rows a block's wave steps: the block and up to `levels` rows beyond each edge. A
-// halo row's first neighbour outside the range is missing, so its state goes wrong one
-// row further in at every substep: after `levels` substeps exactly the halo is wrong.
+// The rows a block's wave steps: the block and up to `halo` = levels·R rows beyond each
+// edge. A halo row's neighbours outside the range are missing, so its state goes wrong R
+// rows further in at every substep: after `levels` substeps exactly the halo is wrong.
 struct WaveRange {
   std::uint32_t lo, hi;
 };
-WaveRange wave_range(std::uint32_t rows, std::uint32_t levels, std::uint32_t row_begin, std::uint32_t row_end) {
-  return {row_begin > levels ? row_begin - levels : 0, std::min(rows, row_end + levels)};
+WaveRange wave_range(std::uint32_t rows, std::uint32_t halo, std::uint32_t row_begin, std::uint32_t row_end) {
+  return {row_begin > halo ? row_begin - halo : 0, std::min(rows, row_end + halo)};
+}
+
+template <class Real>
+std::uint32_t wave_halo(const Sheet<Real>& s, std::uint32_t levels) {
+  return levels * force_reach(s);
 }
 
 // Where halo row i lives in the block's copies: the rows above the block, then below.
@@ -298,37 +346,41 @@ Vec3Ptr<Real> at(Vec3Array<Real>& a, std::size_t offset) {
   return {a.x.data() + offset, a.y.data() + offset, a.z.data() + offset};
 }
 
-template <class Real, class Springs>
-void wave_rows(Sheet<Real>& s, Springs horizontal_springs, Springs vertical_springs, std::uint32_t levels,
-               std::uint32_t row_begin, std::uint32_t row_end, WaveScratch<Real>& w, WaveSink<Real> sink,
-               Aabb* swept) {
-  const Topology<Real>& t = *s.topology;
-  const std::uint32_t n = t.n, cols = t.cols();
-  const WaveRange range = wave_range(t.rows(), levels, row_begin, row_end);
-  const std::uint32_t lo = range.lo, hi = range.hi;
-  // A row's force is in use from its horizontal springs at substep 0 to its update at the
-  // last substep: levels + 1 waves, so a ring of levels + 2 rows or more never collides
-  // (a power of two: the slot is a mask, not a division, on every row of every substep).
-  const std::uint32_t ring = std::bit_ceil(levels + 2), mask = ring - 1;
-  if (w.forces.x.size() < std::size_t(ring) * cols) w.forces.resize(std::size_t(ring) * cols);
-  if (w.row.x.size() < cols) w.row.resize(cols);
-  auto state = [&](Vec3Array<Real>& own, Vec3Array<Real>& halo, std::uint32_t i) {
+// A wave's rows: the block's own from the sheet, halo rows from the copies, forces from
+// the ring.
+template <class Real>
+struct WaveRows {
+  Sheet<Real>* s;
+  WaveScratch<Real>* w;
+  WaveRange range;
+  std::uint32_t row_begin, row_end, cols, mask;
+  Vec3Ptr<Real> state(Vec3Array<Real>& own, Vec3Array<Real>& halo, std::uint32_t i) const {
     if (i >= row_begin && i < row_end) return at(own, std::size_t(i) * cols);
     return at(halo, halo_slot(range, row_begin, row_end, i) * cols);
-  };
-  auto X = [&](std::uint32_t i) { return state(s.position, w.halo_x, i); };
-  auto V = [&](std::uint32_t i) { return state(s.velocity, w.halo_v, i); };
-  auto F = [&](std::uint32_t i) { return at(w.forces, std::size_t((i - lo) & mask) * cols); };
-  const Vec3Ptr<Real> row = ptr(w.row);
-  auto horizontal = [&](std::uint32_t i) {
-    const Vec3Ptr<Real> x = X(i), f = F(i);
-    row_springs(n, x.x, x.y, x.z, horizontal_springs.offset(std::size_t(i) * n), row.x, row.y, row.z, f.x, f.y, f.z);
-  };
-  auto vertical = [&](std::uint32_t i) {
-    const Vec3Ptr<Real> xa = X(i), xb = X(i + 1), fa = F(i), fb = F(i + 1);
-    column_springs<true, true>(cols, xa.x, xa.y, xa.z, xb.x, xb.y, xb.z, vertical_springs.offset(std::size_t(i) * cols),
-                               fa.x, fa.y, fa.z, fb.x, fb.y, fb.z);
-  };
+  }
+  Vec3Ptr<Real> xm(std::uint32_t i) const { return state(s->position, w->halo_x, i); }
+  Vec3Ptr<Real> vm(std::uint32_t i) const { return state(s->velocity, w->halo_v, i); }
+  ConstVec3Ptr<Real> x(std::uint32_t i) const { return xm(i); }
+  ConstVec3Ptr<Real> v(std::uint32_t i) const { return vm(i); }
+  Vec3Ptr<Real> f(std::uint32_t i) const { return at(w->forces, std::size_t((i - range.lo) & mask) * cols); }
+};
+
+template <class Real, class Springs, class Terms>
+void wave_rows(Sheet<Real>& s, Springs horizontal_springs, Springs vertical_springs, const Terms& terms,
+               std::uint32_t levels, std::uint32_t row_begin, std::uint32_t row_end, WaveScratch<Real>& w,
+               WaveSink<Real> sink, Aabb* swept) {
+  const Topology<Real>& t = *s.topology;
+  const std::uint32_t cols = t.cols(), reach = terms.reach();
+  const WaveRange range = wave_range(t.rows(), levels * reach, row_begin, row_end);
+  const std::uint32_t lo = range.lo, hi = range.hi;
+  // A row's force is in use from its arrival at substep 0 to its update at the last
+  // substep: levels·R + 1 waves, so a ring of levels·R + 2 rows or more never collides
+  // (a power of two: the slot is a mask, not a division, on every row of every substep).
+  const std::uint32_t ring = std::bit_ceil(levels * reach + 2), mask = ring - 1;
+  if (w.forces.x.size() < std::size_t(ring) * cols) w.forces.resize(std::size_t(ring) * cols);
+  if (w.row.x.size() < cols) w.row.resize(cols);
+  const WaveRows<Real> rows{&s, &w, range, row_begin, row_end, cols, mask};
+  const RowWindow<Real, WaveRows<Real>> window{rows, cols, lo, lo, hi, ptr(w.row)};
   const auto& an = s.anchors;
   const auto& pins = s.pins;
   const std::size_t first = std::size_t(lo) * cols;
@@ -338,8 +390,8 @@ void wave_rows(Sheet<Real>& s, Springs horizontal_springs, Springs vertical_spri
   // anchors), the integrator's update, then its pins, as integrate() sets them after a sweep.
   auto finish = [&](std::uint32_t level, std::uint32_t i) {
     const std::size_t p = std::size_t(i) * cols, end = p + cols;
-    const Vec3Ptr<Real> x = X(i), v = V(i), f = F(i);
-    if (!s.damping.empty()) damp<Real>(cols, s.damping.data() + p, v.x, v.y, v.z, f.x, f.y, f.z);
+    const Vec3Ptr<Real> x = rows.xm(i), v = rows.vm(i), f = rows.f(i);
+    add_point_terms<Real>(s, p, cols, v, f);
     for (std::size_t& a = w.next_anchor[level]; a < an.point.size() && an.point[a] < end; ++a)
       add_anchor(an, a, ConstVec3Ptr<Real>(x), f, an.point[a] - p);
     if (sink.done) sink.done(sink.context, RowState<Real>{x, v, f, p, cols});
@@ -347,26 +399,18 @@ void wave_rows(Sheet<Real>& s, Springs horizontal_springs, Springs vertical_spri
       hold_pin(pins, k, x, v, pins.point[k] - p);
     if (swept && i >= row_begin && i < row_end) include_points(*swept, x.x, x.y, x.z, cols);
   };
-  // Step q of one substep's sweep, as in spring_rows: q = 0 starts row lo; q ≥ 1 adds the
-  // springs of row lo + q (its own and the ones to the row above) and finishes the row above.
+  // Step q of one substep's sweep, as in sweep_rows: row lo + q arrives (while there is
+  // one), and row lo + q − R is final.
   auto step = [&](std::uint32_t level, std::uint32_t q) {
-    if (q == 0) {
-      horizontal(lo);
-      return;
-    }
-    const std::uint32_t i = lo + q - 1;
-    if (i + 1 < hi) {
-      horizontal(i + 1);
-      vertical(i);
-    }
-    finish(level, i);
+    if (lo + q < hi) arrive(t, horizontal_springs, vertical_springs, terms, window, lo + q);
+    if (q >= reach) finish(level, lo + q - reach);
   };
-  // Substep `level` runs one step behind substep level − 1, which has just moved the row
-  // below the one it needs: every read sees the state of its own substep.
-  const std::uint32_t steps = hi - lo + 1;
-  for (std::uint32_t wave = 0; wave + 1 < steps + levels; ++wave)
-    for (std::uint32_t level = 0; level < levels && level <= wave; ++level)
-      if (wave - level < steps) step(level, wave - level);
+  // Substep `level` runs R steps behind substep level − 1, which has just moved the last row
+  // it needs: every read sees the state of its own substep.
+  const std::uint32_t steps = hi - lo + reach;
+  for (std::uint32_t wave = 0; wave < steps + (levels - 1) * reach; ++wave)
+    for (std::uint32_t level = 0; level < levels && level * reach <= wave; ++level)
+      if (wave - level * reach < steps) step(level, wave - level * reach);
 }
 
 }  // namespace
@@ -375,7 +419,7 @@ template <class Real>
 void wave_take_halo(const Sheet<Real>& s, std::uint32_t levels, std::uint32_t row_begin, std::uint32_t row_end,
                     WaveScratch<Real>& w) {
   const std::uint32_t cols = s.topology->cols();
-  const WaveRange range = wave_range(s.topology->rows(), levels, row_begin, row_end);
+  const WaveRange range = wave_range(s.topology->rows(), wave_halo(s, levels), row_begin, row_end);
   const std::size_t rows = (row_begin - range.lo) + (range.hi - row_end);
   if (w.halo_x.x.size() < rows * cols) {
     w.halo_x.resize(rows * cols);
@@ -398,7 +442,10 @@ void sheet_wave(Sheet<Real>& s, std::uint32_t levels, std::uint32_t row_begin, s
                 WaveScratch<Real>& w, WaveSink<Real> sink, Aabb* swept) {
   if (levels == 0 || row_begin >= row_end) return;
   with_springs(*s.topology, [&](auto horizontal, auto vertical) {
-    wave_rows(s, horizontal, vertical, levels, row_begin, row_end, w, sink, swept);
+    if (has_row_terms(s))
+      wave_rows(s, horizontal, vertical, row_terms_of(s), levels, row_begin, row_end, w, sink, swept);
+    else
+      wave_rows(s, horizontal, vertical, NoRowTerms{}, levels, row_begin, row_end, w, sink, swept);
   });
 }
 

@@ -1,31 +1,14 @@
 // Force terms of one sheet. Each physical effect is one kernel over SoA arrays; a sheet
-// runs only the kernels of the terms it has (chosen per sheet, never per point).
+// runs only the kernels of the terms it has (chosen per sheet, never per point). The list
+// of terms and their order: terms/terms.h. One row sweep (forces.cpp) runs them for whole
+// sheets, row blocks and waves.
 #pragma once
 
 #include "bounds.h"
 #include "sheet_data.h"
+#include "terms/rows.h"
 
 namespace drape::detail {
-
-template <class Real>
-struct ConstVec3Ptr {
-  const Real* x;
-  const Real* y;
-  const Real* z;
-};
-
-template <class Real>
-struct Vec3Ptr {
-  Real* x;
-  Real* y;
-  Real* z;
-  operator ConstVec3Ptr<Real>() const { return {x, y, z}; }
-};
-
-template <class Real>
-ConstVec3Ptr<Real> cptr(const Vec3Array<Real>& a) { return {a.x.data(), a.y.data(), a.z.data()}; }
-template <class Real>
-Vec3Ptr<Real> ptr(Vec3Array<Real>& a) { return {a.x.data(), a.y.data(), a.z.data()}; }
 
 // eq (8): anchor a's force k (p0 − x) added to point q of x and f (a whole sheet's arrays,
 // or one row's with q counted from its start). Every path adds anchors through this.
@@ -97,9 +80,9 @@ void sheet_forces_by_rows(Sheet<Real>& sheet, ConstVec3Ptr<Real> x, ConstVec3Ptr
 // ---- Several substeps in one sweep (temporal blocking) ------------------------------
 //
 // A first-order explicit step moves a row using only the forces on it, which read the row
-// and its two neighbours. So substep ℓ+1 of row r can run as soon as substep ℓ has moved
-// rows r−1, r and r+1: a sweep of `levels` substeps walks the rows as a wave, substep ℓ
-// one row behind substep ℓ−1, and a sheet beyond the caches is streamed from memory once
+// and the R rows on each side (R = force_reach: 1 for the grid springs, 2 with bending). So
+// substep ℓ+1 of row r can run as soon as substep ℓ has moved rows r−R … r+R: a sweep of
+// `levels` substeps walks the rows as a wave, substep ℓ R rows behind substep ℓ−1, and a sheet beyond the caches is streamed from memory once
 // per `levels` substeps instead of once per substep, while its arithmetic, row by row and
 // term by term, is that of `levels` separate sweeps: the state is bit-identical.
 
@@ -149,7 +132,7 @@ bool fits_cache_budget(const Sheet<Real>& sheet);
 // Moves rows [row_begin, row_end) of a wave_ready sheet `levels` substeps ahead, calling
 // `sink` for every row and substep in order, then setting the row's pins; `swept`, when
 // given, grows to contain those rows at every substep. Rows outside the range are not
-// written. A block that is not the whole sheet also steps the `levels`
+// written. A block that is not the whole sheet also steps the levels·R
 // rows beyond each of its edges, in copies: call wave_take_halo for every block of the
 // sheet before any block's wave, since the waves of other blocks move those rows.
 template <class Real>

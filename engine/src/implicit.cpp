@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "forces.h"
+#include "terms/terms.h"
 
 namespace drape::detail {
 
@@ -34,6 +35,8 @@ void build_pattern(ImplicitScratch<Real>& sc, const Sheet<Real>& s) {
     block(t.a[e], t.b[e]);
     block(t.b[e], t.a[e]);
   }
+  // the other terms' blocks (terms/terms.h), wherever their Jacobians reach
+  add_term_jacobians(s, cptr(s.position), [&](std::uint32_t p, std::uint32_t q, const Real (&)[3][3]) { block(p, q); });
   sc.system.resize(n3, n3);
   sc.system.setFromTriplets(entries.begin(), entries.end());
   sc.system.makeCompressed();
@@ -98,30 +101,14 @@ void implicit_euler_step(Sheet<Real>& s, const StepParams<Real>& p) {
       b[3 * q + r] -= dt2 * kk * vq[r];
     }
   }
-  // Springs (eq 6): with d = xa − xb, L = |d|, u = d/L, the Jacobian of the force on a is
-  //   ∂fa/∂xa = −k [u uᵀ + (1 − ℓ/L)(I − u uᵀ)] = −G.
-  // A compressed spring (L < ℓ) makes (1 − ℓ/L) negative and G indefinite, so the system
-  // could lose the positive definiteness CG needs: the transverse term is clamped at 0
-  // (Baraff & Witkin's and Choi & Ko's remedy). This only drops a destabilising part of the
-  // linearisation; the force itself on the right-hand side stays exact. A zero-length spring
-  // with ℓ = 0 is linear, G = k·I; with ℓ > 0 it has no direction and the kernel applies no
-  // force, so G = 0.
+  // Springs (eq 6): ∂fa/∂xa = −G (spring_stiffness, terms/rows.h, clamped where compressed).
+  // That only drops a destabilising part of the linearisation; the force itself on the
+  // right-hand side stays exact.
   for (std::uint32_t e = 0; e < t.springs(); ++e) {
     const std::uint32_t pa = t.a[e], pb = t.b[e];
     const Real d[3] = {x.x[pa] - x.x[pb], x.y[pa] - x.y[pb], x.z[pa] - x.z[pb]};
-    const Real len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-    const Real k = t.stiffness[e], rest = t.rest_length[e];
-    Real u[3] = {0, 0, 0};
-    Real transverse;
-    if (len > Real(0)) {
-      for (int r = 0; r < 3; ++r) u[r] = d[r] / len;
-      transverse = std::max(Real(0), Real(1) - rest / len);
-    } else {
-      transverse = rest == Real(0) ? Real(1) : Real(0);
-    }
     Real gm[3][3];
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c) gm[r][c] = k * ((Real(1) - transverse) * u[r] * u[c] + (r == c ? transverse : Real(0)));
+    spring_stiffness(d, t.stiffness[e], t.rest_length[e], gm);
     const Real fa = sc.free[pa], fb = sc.free[pb];
     const Real dv[3] = {v.x[pa] - v.x[pb], v.y[pa] - v.y[pb], v.z[pa] - v.z[pb]};
     for (int r = 0; r < 3; ++r) {
@@ -143,6 +130,21 @@ void implicit_euler_step(Sheet<Real>& s, const StepParams<Real>& p) {
       b[3 * pb + r] += fb * dt2 * jv;
     }
   }
+  // The other terms (terms/terms.h): M − dt²·J on their blocks, dt²·J·v on the right-hand
+  // side, with pinned points' rows and columns dropped as above.
+  add_term_jacobians(s, cptr(s.position), [&](std::uint32_t p, std::uint32_t q, const Real (&j)[3][3]) {
+    const Real mask = p == q ? sc.free[p] : sc.free[p] * sc.free[q];
+    const Real vq[3] = {v.x[q], v.y[q], v.z[q]};
+    for (int r = 0; r < 3; ++r) {
+      Real* row = a + offset_of(sc.system, int(3 * p) + r, int(3 * q));
+      Real jv = 0;
+      for (int c = 0; c < 3; ++c) {
+        row[c] -= mask * dt2 * j[r][c];
+        jv += j[r][c] * vq[c];
+      }
+      b[3 * p + r] += sc.free[p] * dt2 * jv;
+    }
+  });
   // Pinned points: their rows keep only M (their columns are already dropped above) and
   // their right-hand side is zero, so Δv = 0 there.
   for (std::uint32_t q : s.pins.point)

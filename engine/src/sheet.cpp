@@ -150,6 +150,17 @@ std::string validate(const SheetDef& d) {
   }
   for (std::size_t p = 0; p < d.pins.size(); ++p)
     if (d.pins[p] >= points) return problem(indexed("pins", p), "is not a point of the grid", d.pins[p]);
+  if (d.shear) {
+    if (!positive(d.shear->stiffness)) return problem("shear.stiffness", "must be positive and finite", d.shear->stiffness);
+    if (d.shear->rest_length && !non_negative(*d.shear->rest_length))
+      return problem("shear.rest_length", "must be non-negative and finite", *d.shear->rest_length);
+  }
+  if (d.bending && !positive(d.bending->stiffness))
+    return problem("bending.stiffness", "must be positive and finite", d.bending->stiffness);
+  if (d.air) {
+    if (!non_negative(d.air->drag)) return problem("air.drag", "must be non-negative and finite", d.air->drag);
+    if (!non_negative(d.air->friction)) return problem("air.friction", "must be non-negative and finite", d.air->friction);
+  }
   return {};
 }
 
@@ -191,6 +202,10 @@ Sheet<Real> build_sheet(const SheetDef& d) {
       if (inside(topo->a[e]) && inside(topo->b[e])) topo->stiffness[e] = static_cast<Real>(reg.stiffness);
   }
   topo->find_uniform();
+  if (d.shear)
+    topo->shear = typename Topology<Real>::Shear{static_cast<Real>(d.shear->stiffness),
+                                                 static_cast<Real>(d.shear->rest_length.value_or(std::hypot(double(l1), double(l2))))};
+  if (d.bending) topo->bending = static_cast<Real>(d.bending->stiffness);
 
   Sheet<Real> s;
   s.topology = std::move(topo);
@@ -199,6 +214,12 @@ Sheet<Real> build_sheet(const SheetDef& d) {
   s.force.resize(count);
   s.row_scratch.resize(cols);
   s.self_collision = d.self_collision;
+  if (d.air) {
+    s.air.emplace();
+    s.air->drag_coefficient = d.air->drag;
+    s.air->friction_coefficient = d.air->friction;
+    set_wind(s, Wind{});
+  }
   for (std::uint32_t i = 0; i <= m; ++i)
     for (std::uint32_t j = 0; j <= n; ++j) {
       // eqs (2)–(3): row-major; local grid centred on the sheet's centre

@@ -43,6 +43,15 @@ struct Topology {
   };
   std::optional<Uniform> uniform;
 
+  // Terms beyond the paper's grid springs that depend only on the definition (terms.h).
+  // Empty: the sheet does not have the term.
+  struct Shear {
+    Real stiffness, rest;
+    friend bool operator==(const Shear&, const Shear&) = default;
+  };
+  std::optional<Shear> shear;
+  std::optional<Real> bending;  // k_b
+
   std::uint32_t cols() const { return n + 1; }
   std::uint32_t rows() const { return m + 1; }
   std::uint32_t points() const { return rows() * cols(); }
@@ -63,6 +72,21 @@ struct Topology {
     uniform = Uniform{k, rh, rv};
   }
 };
+
+// Air on a sheet (terms/air.h): its coefficients times ½ρ, and the wind, which the world
+// sets from WorldDef::wind.
+template <class Real>
+struct Air {
+  Real pressure = 0;  // ½ ρ C_n
+  Real friction = 0;  // ½ ρ C_t
+  Real wind[3] = {0, 0, 0};
+  double drag_coefficient = 0, friction_coefficient = 0;  // C_n, C_t, to redo the products when ρ changes
+};
+
+template <class Real>
+struct Sheet;
+template <class Real>
+void set_wind(Sheet<Real>& sheet, const Wind& wind);
 
 template <class Real>
 struct Anchors {  // eq (8), structure of arrays
@@ -121,6 +145,7 @@ struct Sheet {
   AlignedArray<Real> damping;         // per point; empty: the sheet has no damping term
   Anchors<Real> anchors;
   Pins<Real> pins;
+  std::optional<Air<Real>> air;
   Vec3Array<Real> row_scratch;       // one row of horizontal spring forces
   std::vector<Real> integrator_scratch;  // extra state an integrator may keep (RK4's stages)
   // Shared between copies of a sheet only until one of them steps implicitly again: the
@@ -142,5 +167,17 @@ struct Sheet {
 // swaps in a shared equal one when it has it.
 template <class Real>
 Sheet<Real> build_sheet(const SheetDef& def);
+
+// The world's wind into a sheet with air (nothing for a sheet without).
+template <class Real>
+void set_wind(Sheet<Real>& s, const Wind& wind) {
+  if (!s.air) return;
+  auto& a = *s.air;
+  a.pressure = static_cast<Real>(0.5 * wind.density * a.drag_coefficient);
+  a.friction = static_cast<Real>(0.5 * wind.density * a.friction_coefficient);
+  a.wind[0] = static_cast<Real>(wind.velocity.x);
+  a.wind[1] = static_cast<Real>(wind.velocity.y);
+  a.wind[2] = static_cast<Real>(wind.velocity.z);
+}
 
 }  // namespace drape::detail

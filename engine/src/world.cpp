@@ -34,6 +34,10 @@ std::string validate(const WorldDef& d) {
   const auto finite = [](double v) { return std::isfinite(v); };
   if (!(d.dt > 0) || !finite(d.dt)) return problem("dt", "must be positive and finite", d.dt);
   if (!finite(d.gravity.x) || !finite(d.gravity.y) || !finite(d.gravity.z)) return "gravity must be finite";
+  if (!finite(d.wind.velocity.x) || !finite(d.wind.velocity.y) || !finite(d.wind.velocity.z))
+    return "wind.velocity must be finite";
+  if (!(d.wind.density >= 0) || !finite(d.wind.density))
+    return problem("wind.density", "must be non-negative and finite", d.wind.density);
   if (!integrator_from_name(integrator_name(d.integrator))) return problem("integrator", "is not an integrator", double(d.integrator));
   if (d.threads < 0) return problem("threads", "must be 0 (all cores) or positive", d.threads);
   if (!(d.cg_tolerance > 0) || !finite(d.cg_tolerance)) return problem("cg_tolerance", "must be positive and finite", d.cg_tolerance);
@@ -557,7 +561,7 @@ struct BasicWorld<Real>::Impl {
   }
 
   // Motion energy: what an unstable step inflates.
-  static double motion_energy(const Energies& e) { return e.kinetic + e.spring + e.anchor + e.obstacle; }
+  static double motion_energy(const Energies& e) { return e.kinetic + e.spring + e.bending + e.anchor + e.obstacle; }
 
   // The guard's energy of one sheet: its own terms and every obstacle's potential (as in
   // diagnostics(): not only the near ones, so the value does not depend on the broad-phase).
@@ -682,6 +686,7 @@ template <class Real>
 SheetId BasicWorld<Real>::add_sheet(const SheetDef& def) {
   if (std::string problem = validate(def); !problem.empty()) throw std::invalid_argument("drape: sheet " + problem);
   Sheet<Real> sheet = detail::build_sheet<Real>(def);
+  detail::set_wind(sheet, impl_->def.wind);
   impl_->share_topology(sheet);
   std::uint32_t index;
   if (!impl_->free_slots.empty()) {
@@ -832,7 +837,10 @@ void BasicWorld<Real>::Impl::set_def(const WorldDef& d) {
   def = d;
   if (new_arena) make_arena();
   failure.reset();
-  for (std::uint32_t index : active) slots[index].guard.has_reference = false;
+  for (std::uint32_t index : active) {
+    slots[index].guard.has_reference = false;
+    detail::set_wind(*slots[index].sheet, def.wind);
+  }
 }
 
 template <class Real>
@@ -941,6 +949,7 @@ Energies BasicWorld<Real>::energies() const {
     const Energies e = diagnostics(id).energy;
     total.kinetic += e.kinetic;
     total.spring += e.spring;
+    total.bending += e.bending;
     total.gravity += e.gravity;
     total.anchor += e.anchor;
     total.obstacle += e.obstacle;

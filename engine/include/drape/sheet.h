@@ -29,6 +29,33 @@ struct AnchorDef {
   std::optional<Vec3> target;   // m; default: the point's initial position
 };
 
+// Shear springs (issue 12): both diagonals of every cell, (i, j)–(i+1, j+1) and
+// (i, j+1)–(i+1, j), with the spring force of eq (6). Resists in-plane shear, which the
+// paper's grid springs resist only to third order in the shear.
+struct ShearDef {
+  double stiffness = 0;              // N/m, every diagonal spring
+  std::optional<double> rest_length; // m; default: the diagonal of the rest cell, √(ℓ1² + ℓ2²)
+};
+
+// Bending (issue 12): a quadratic energy on three consecutive points along every grid line,
+// E = ½ k_b Σ |x_a − 2 x_b + x_c|² (Bergou et al. 2006, quadratic bending for a flat rest
+// state). Zero for straight lines, unchanged by rigid motions, with a constant Hessian. A
+// line of spacing h behaves as a beam of bending stiffness EI = k_b·h³ (docs/architecture.md).
+struct BendingDef {
+  double stiffness = 0;  // k_b, N/m
+};
+
+// Air (issue 12): per cell, against the world's wind (WorldDef::wind), with v the cell's
+// mean velocity relative to the air, n its unit normal and A its area:
+//   pressure  F = −½ ρ C_n A |v·n| (v·n) n   (drag of a falling sheet; across the flow it is
+//             the lift of an inclined plate)
+//   friction  F = −½ ρ C_t A |v_t| v_t,      v_t = v − (v·n) n
+// a quarter of each on every corner of the cell.
+struct AirDef {
+  double drag = 1.0;      // C_n, dimensionless
+  double friction = 0.0;  // C_t, dimensionless
+};
+
 // A grid of (m+1)×(n+1) points: m cells vertically (rows i = 0..m), n cells horizontally
 // (columns j = 0..n). Point (i, j) has index i·(n+1)+j, as in eqs (2)–(3). The grid spans
 // width Lh along local x (h1 = Lh/n) and height Lv along local y (h2 = Lv/m), centred on
@@ -52,6 +79,12 @@ struct SheetDef {
   // Default: the spacings h1, h2, so the flat sheet starts without stress.
   std::optional<double> rest_length_h;
   std::optional<double> rest_length_v;
+
+  // Terms beyond the paper, each off unless set (a sheet without them runs the paper's
+  // kernel and pays nothing for them).
+  std::optional<ShearDef> shear;
+  std::optional<BendingDef> bending;
+  std::optional<AirDef> air;
 
   double damping = 0.0;               // C of eq (4), N·s/m per point; 0: no damping term
   std::vector<double> point_damping;  // per point; when given, overrides `damping`

@@ -15,6 +15,13 @@ struct Vec3 {
   friend constexpr bool operator==(const Vec3&, const Vec3&) = default;
 };
 
+// The air every sheet with SheetDef::air moves in: uniform, steady.
+struct Wind {
+  Vec3 velocity{};        // m/s
+  double density = 1.2;   // ρ, kg/m³ (air at 20 °C)
+  friend constexpr bool operator==(const Wind&, const Wind&) = default;
+};
+
 // A unit quaternion that rotates a sheet's local frame (grid in the local x–y plane,
 // normal along local +z) into the world frame. Identity: the sheet lies flat, facing +z.
 struct Quat {

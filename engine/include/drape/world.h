@@ -21,6 +21,7 @@ struct WorldDef {
   double dt = 1e-3;                    // s, one substep (with `adaptive`: the frame unit of step())
   Vec3 gravity{0.0, 0.0, -9.81};       // m/s²; z is up
   Integrator integrator = Integrator::SemiImplicitEuler;
+  Wind wind;                           // for sheets with SheetDef::air only
   int threads = 0;                     // worker threads for step(); 0: all cores
 
   // Implicit Euler's conjugate-gradient solve: stop at relative residual |r|/|b| below
@@ -62,11 +63,12 @@ std::string validate(const WorldDef& def);
 
 struct Energies {
   double kinetic = 0;  // ½ Σ m v²
-  double spring = 0;   // ½ Σ k (|x1 − x2| − ℓ)²
+  double spring = 0;   // ½ Σ k (|x1 − x2| − ℓ)², grid and shear springs
+  double bending = 0;  // ½ k_b Σ |x_a − 2x_b + x_c|² (SheetDef::bending)
   double gravity = 0;  // −Σ m g·x (zero at the origin)
   double anchor = 0;   // ½ Σ k |x − p0|², eq (8)
   double obstacle = 0; // Σ c·exp(−f/ξ) over points and obstacles, eq (9) (linear past the cap)
-  double total() const { return kinetic + spring + gravity + anchor + obstacle; }
+  double total() const { return kinetic + spring + bending + gravity + anchor + obstacle; }
 };
 
 struct SheetDiagnostics {
@@ -103,10 +105,10 @@ enum class StabilityStatus {
 // sheets were added), when it was detected and how bad it was, and what would be stable.
 //
 // energy_growth is dimensionless: 1 + (E − E₀)/S. E is the sheet's total energy (kinetic +
-// spring + gravity + anchors + obstacles); E₀ its value when the guard took its reference: at
+// spring + bending + gravity + anchors + obstacles); E₀ its value when the guard took its reference: at
 // add_sheet, and again at the first step after state()/set_state() handed out the state,
 // after obstacles were added or removed, or after the stepping changed (set_dt, ...). S is
-// the energy scale at that reference: kinetic + spring + anchor + obstacle energy, and at
+// the energy scale at that reference: kinetic + spring + bending + anchor + obstacle energy, and at
 // least the work gravity does over the sheet's extent (≥ 1 mm). Energy that only changes
 // form (a sheet falling) leaves E − E₀ near 0 however large it gets. 1 means energy
 // conserved, below 1 dissipation; an unstable explicit step grows it geometrically.
