@@ -65,7 +65,7 @@ struct Energies {
   double spring = 0;   // ½ Σ k (|x1 − x2| − ℓ)²
   double gravity = 0;  // −Σ m g·x (zero at the origin)
   double anchor = 0;   // ½ Σ k |x − p0|², eq (8)
-  double obstacle = 0; // Σ c·exp(−f/ξ) over points and obstacles, eq (9) (linear past the cap)
+  double obstacle = 0; // Σ c·exp(−f/ξ) over points and obstacles, eq (9) (cut off at 16ξ, linear past the cap)
   double total() const { return kinetic + spring + gravity + anchor + obstacle; }
 };
 
