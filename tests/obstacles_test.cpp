@@ -205,8 +205,9 @@ TEST(Obstacles, KernelMatchesEq9PointByPointOnCrumpledSheets) {
         }
         const double cap = 5.0;
         std::vector<double> fx(count, 0.0), fy(count, 0.0), fz(count, 0.0);
-        drape::detail::obstacle_forces<double>(*sheet.topology, drape::detail::NearObstacle{&o, cap},
-                                               drape::detail::cptr(sheet.position), {fx.data(), fy.data(), fz.data()});
+        drape::detail::obstacle_forces<double>(*sheet.topology, drape::detail::NearObstacle{.obstacle = &o, .exponent_cap = cap},
+                                               drape::detail::cptr(sheet.position), drape::detail::cptr(sheet.velocity),
+                                               sheet.inv_mass.data(), {fx.data(), fy.data(), fz.data()});
         const auto& x = sheet.position;
         const double bound = d.c / d.xi * std::exp(-16.0);
         int beyond = 0, within = 0;
@@ -498,6 +499,74 @@ TEST(Obstacles, FarObstacleLeavesTheSheetBitIdentical) {
     return std::vector<double>(v.z.begin(), v.z.end());
   };
   EXPECT_EQ(run(false), run(true));
+}
+
+// Coulomb friction (obstacles.h): a 3×3 sheet lying on a plane tilted by θ, started at the
+// height where eq (9)'s force carries its weight's normal part m·g·cos θ. With tan θ < μ it
+// stays put; with tan θ > μ it slides with a = g·(sin θ − μ·cos θ). μ is the larger of the
+// sheet's and the obstacle's coefficients, whichever of them holds it.
+struct Incline {
+  double along = 0, speed = 0;  // mean displacement and velocity down the slope
+};
+
+Incline slide_down(double theta, double mu_sheet, double mu_obstacle, double seconds) {
+  const double g = 9.81, point_mass = 0.01;
+  const drape::Quat tilt = drape::quat_from_axis_angle({1, 0, 0}, theta);
+  const Vec3 normal = drape::rotate(tilt, {0, 0, 1}), down = drape::rotate(tilt, {0, -1, 0});
+  ObstacleDef plane;
+  plane.shape = ObstacleShape::Plane;
+  plane.orientation = tilt;
+  plane.c = 0.01;
+  plane.xi = 0.01;
+  plane.friction = mu_obstacle;
+  // (c/ξ)·(exp(−f/ξ) − e^−16) = m·g·cos θ
+  const double rest = -plane.xi * std::log(point_mass * g * std::cos(theta) * plane.xi / plane.c + std::exp(-16.0));
+  drape::WorldDef wd;
+  wd.dt = 1e-3;
+  drape::World world(wd);
+  drape::SheetDef s;
+  s.m = s.n = 2;
+  s.width = s.height = 0.1;
+  s.mass = 9 * point_mass;
+  s.orientation = tilt;
+  s.center = scaled(normal, rest);
+  s.friction = mu_sheet;
+  const auto id = world.add_sheet(s);
+  world.add_obstacle(plane);
+  const auto before = world.view(id);
+  std::vector<double> start;
+  for (std::size_t p = 0; p < 9; ++p) start.push_back(before.x[p] * down.x + before.y[p] * down.y + before.z[p] * down.z);
+  world.step(std::uint64_t(std::lround(seconds / wd.dt)));
+  EXPECT_TRUE(world.all_finite());
+  const auto v = world.view(id);
+  Incline r;
+  for (std::size_t p = 0; p < 9; ++p) {
+    r.along += (v.x[p] * down.x + v.y[p] * down.y + v.z[p] * down.z - start[p]) / 9;
+    r.speed += (v.vx[p] * down.x + v.vy[p] * down.y + v.vz[p] * down.z) / 9;
+  }
+  return r;
+}
+
+TEST(Obstacles, FrictionHoldsASheetOnAnInclineFlatterThanItsAngle) {
+  const double theta = 20 * std::numbers::pi / 180;  // tan θ = 0.36
+  for (auto [sheet, obstacle] : {std::pair{0.5, 0.0}, std::pair{0.0, 0.5}, std::pair{0.5, 0.3}}) {
+    const Incline r = slide_down(theta, sheet, obstacle, 1.0);
+    EXPECT_LT(std::abs(r.along), 1e-6) << "mu " << sheet << ", " << obstacle;  // less than 1 µm in 1 s
+    EXPECT_LT(std::abs(r.speed), 1e-6) << "mu " << sheet << ", " << obstacle;
+  }
+  // without friction the same sheet slides with g·sin θ (0.1 % over half a second)
+  const Incline free = slide_down(theta, 0.0, 0.0, 0.5);
+  EXPECT_NEAR(free.speed, 9.81 * std::sin(theta) * 0.5, 1e-3 * 9.81 * std::sin(theta) * 0.5);
+}
+
+TEST(Obstacles, FrictionSlowsASlidingSheetToGTimesSinMinusMuCos) {
+  const double theta = 30 * std::numbers::pi / 180, mu = 0.2, t = 0.5;  // tan θ = 0.58 > μ
+  const double a = 9.81 * (std::sin(theta) - mu * std::cos(theta));
+  for (auto [sheet, obstacle] : {std::pair{mu, 0.0}, std::pair{0.0, mu}, std::pair{mu, 0.1}}) {
+    const Incline r = slide_down(theta, sheet, obstacle, t);
+    EXPECT_NEAR(r.speed, a * t, 5e-3 * a * t) << "mu " << sheet << ", " << obstacle;
+    EXPECT_NEAR(r.along, 0.5 * a * t * t, 1e-2 * 0.5 * a * t * t) << "mu " << sheet << ", " << obstacle;
+  }
 }
 
 TEST(Obstacles, RemovedObstacleNoLongerActsAndItsIdIsStale) {

@@ -31,6 +31,7 @@ std::string validate(const ObstacleDef& d) {
   if (!positive(d.c)) return fail("c", "must be positive and finite", d.c);
   if (!positive(d.xi)) return fail("xi", "must be positive and finite", d.xi);
   if (!positive(d.max_exponent)) return fail("max_exponent", "must be positive and finite", d.max_exponent);
+  if (!(std::isfinite(d.friction) && d.friction >= 0)) return fail("friction", "must be non-negative and finite", d.friction);
   switch (d.shape) {
     case ObstacleShape::Plane: break;
     case ObstacleShape::Sphere:
@@ -222,11 +223,37 @@ inline void project_on_normal(double ax, double ay, double az, double bx, double
   fz = nn > 0 ? dot * nz : fz;
 }
 
-// One loop per shape and force mode, chosen once per obstacle: no feature branch per point.
-template <LocalFn fn, bool project, class Real>
-void repel(const Topology<Real>& t, const Obstacle& o, double cap, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f) {
+// Coulomb friction on one point (docs/scene-format.md, Friction): N the repulsion F's part
+// along g = ∇f, v* the velocity the substep would leave the point with (its total force
+// so far, F included, and gravity), and the force against v*'s tangential part, the smaller
+// of μ·N and m·|v*_t|/dt (what stops the slip within the substep). Adds it to F.
+struct Rub {
+  double mu, dt, gravity[3];
+  void operator()(const double g[3], double F[3], const double total[3], const double v[3], double inv_mass) const {
+    const double g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
+    const double inv_g2 = g2 > 0 ? 1.0 / g2 : 0.0;
+    const double along = F[0] * g[0] + F[1] * g[1] + F[2] * g[2];
+    const double load = along > 0 ? along * std::sqrt(inv_g2) : 0.0;  // N
+    double w[3];
+    for (int k = 0; k < 3; ++k) w[k] = v[k] + dt * (inv_mass * total[k] + gravity[k]);
+    const double wn = (w[0] * g[0] + w[1] * g[1] + w[2] * g[2]) * inv_g2;
+    double slip[3];
+    for (int k = 0; k < 3; ++k) slip[k] = w[k] - wn * g[k];
+    const double speed = std::sqrt(slip[0] * slip[0] + slip[1] * slip[1] + slip[2] * slip[2]);
+    const double stop = inv_mass > 0 ? 1.0 / (inv_mass * dt) : std::numeric_limits<double>::infinity();
+    const double k = speed > 0 ? std::min(mu * load / (speed > 0 ? speed : 1.0), stop) : 0.0;
+    for (int c = 0; c < 3; ++c) F[c] -= k * slip[c];
+  }
+};
+
+// One loop per shape, force mode and friction, chosen once per obstacle: no feature branch
+// per point.
+template <LocalFn fn, bool project, bool rub, class Real>
+void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near, ConstVec3Ptr<Real> x,
+           ConstVec3Ptr<Real> v, const Real* inv_mass, Vec3Ptr<Real> f) {
   const std::uint32_t m = t.m, n = t.n, cols = t.cols();
-  const ForceScale scale = force_scale_of(o.def, cap);
+  const ForceScale scale = force_scale_of(o.def, near.exponent_cap);
+  const Rub friction{near.friction, near.dt, {near.gravity[0], near.gravity[1], near.gravity[2]}};
   Chunk c;
   for (std::uint32_t i = 0; i <= m; ++i) {
     const std::size_t row = std::size_t(i) * cols;
@@ -250,6 +277,12 @@ void repel(const Topology<Real>& t, const Obstacle& o, double cap, ConstVec3Ptr<
                             double(x.z[row + r]) - x.z[row + l], double(x.x[up + j]) - x.x[down + j],
                             double(x.y[up + j]) - x.y[down + j], double(x.z[up + j]) - x.z[down + j], F[0], F[1],
                             F[2]);
+        if constexpr (rub) {
+          const double g[3] = {c.gx[k], c.gy[k], c.gz[k]};
+          const double total[3] = {f.x[p] + F[0], f.y[p] + F[1], f.z[p] + F[2]};
+          const double vel[3] = {double(v.x[p]), double(v.y[p]), double(v.z[p])};
+          friction(g, F, total, vel, double(inv_mass[p]));
+        }
         f.x[p] += static_cast<Real>(F[0]);
         f.y[p] += static_cast<Real>(F[1]);
         f.z[p] += static_cast<Real>(F[2]);
@@ -264,14 +297,16 @@ void repel(const Topology<Real>& t, const Obstacle& o, double cap, ConstVec3Ptr<
   }
 }
 
-template <bool project, class Real>
-void repel_shape(const Topology<Real>& t, const Obstacle& o, double cap, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f) {
+template <bool project, bool rub, class Real>
+void repel_shape(const Topology<Real>& t, const NearObstacle& near, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v,
+                 const Real* inv_mass, Vec3Ptr<Real> f) {
+  const Obstacle& o = *near.obstacle;
   switch (o.def.shape) {
-    case ObstacleShape::Plane: repel<plane_f, project>(t, o, cap, x, f); break;
-    case ObstacleShape::Sphere: repel<sphere_f, project>(t, o, cap, x, f); break;
-    case ObstacleShape::Ellipsoid: repel<ellipsoid_f, project>(t, o, cap, x, f); break;
-    case ObstacleShape::Torus: repel<torus_f, project>(t, o, cap, x, f); break;
-    case ObstacleShape::Box: repel<box_f, project>(t, o, cap, x, f); break;
+    case ObstacleShape::Plane: repel<plane_f, project, rub>(t, o, near, x, v, inv_mass, f); break;
+    case ObstacleShape::Sphere: repel<sphere_f, project, rub>(t, o, near, x, v, inv_mass, f); break;
+    case ObstacleShape::Ellipsoid: repel<ellipsoid_f, project, rub>(t, o, near, x, v, inv_mass, f); break;
+    case ObstacleShape::Torus: repel<torus_f, project, rub>(t, o, near, x, v, inv_mass, f); break;
+    case ObstacleShape::Box: repel<box_f, project, rub>(t, o, near, x, v, inv_mass, f); break;
   }
 }
 
@@ -351,12 +386,13 @@ bool may_touch(const Obstacle& o, const Aabb& box) {
 }
 
 template <class Real>
-void obstacle_forces(const Topology<Real>& t, const NearObstacle& near, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f) {
-  const Obstacle& o = *near.obstacle;
-  if (o.def.full_gradient)
-    repel_shape<false>(t, o, near.exponent_cap, x, f);
-  else
-    repel_shape<true>(t, o, near.exponent_cap, x, f);
+void obstacle_forces(const Topology<Real>& t, const NearObstacle& near, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v,
+                     const Real* inv_mass, Vec3Ptr<Real> f) {
+  const bool project = !near.obstacle->def.full_gradient, rub = near.friction > 0;
+  if (project && rub) repel_shape<true, true>(t, near, x, v, inv_mass, f);
+  if (project && !rub) repel_shape<true, false>(t, near, x, v, inv_mass, f);
+  if (!project && rub) repel_shape<false, true>(t, near, x, v, inv_mass, f);
+  if (!project && !rub) repel_shape<false, false>(t, near, x, v, inv_mass, f);
 }
 
 template <class Real>
@@ -369,8 +405,10 @@ double obstacle_energy(const Sheet<Real>& s, const Obstacle& o, double cap) {
   return e;
 }
 
-template void obstacle_forces<double>(const Topology<double>&, const NearObstacle&, ConstVec3Ptr<double>, Vec3Ptr<double>);
-template void obstacle_forces<float>(const Topology<float>&, const NearObstacle&, ConstVec3Ptr<float>, Vec3Ptr<float>);
+template void obstacle_forces<double>(const Topology<double>&, const NearObstacle&, ConstVec3Ptr<double>,
+                                      ConstVec3Ptr<double>, const double*, Vec3Ptr<double>);
+template void obstacle_forces<float>(const Topology<float>&, const NearObstacle&, ConstVec3Ptr<float>,
+                                     ConstVec3Ptr<float>, const float*, Vec3Ptr<float>);
 template double obstacle_energy<double>(const Sheet<double>&, const Obstacle&, double);
 template double obstacle_energy<float>(const Sheet<float>&, const Obstacle&, double);
 
