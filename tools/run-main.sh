@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # The main job: set up a fresh Debian machine, build drape (Release), simulate every paper
-# scene (scenes/fig*.json) and the many-sheet scenes (scenes/stack_sphere.json,
-# scenes/rain_torus.json) and draw one PNG per scene into figures/ (git-ignored).
+# scene (scenes/fig*.json), the many-sheet scenes (scenes/stack_sphere.json,
+# scenes/rain_torus.json) and the friction scene (scenes/tablecloth.json) and draw one PNG
+# per scene into figures/ (git-ignored).
 #
-#   tools/run-main.sh          figures/figNN.png, figures/stack_sphere.png, figures/rain_torus.png
+#   tools/run-main.sh          figures/figNN.png, figures/stack_sphere.png, figures/rain_torus.png,
+#                              figures/tablecloth.png
 #   tools/run-main.sh --docs   also the smaller copies shown in docs/figures.md (docs/img/figures/)
 #
 # Figures the paper shows as an animation get a strip of frames, left to right, all seen by
@@ -36,12 +38,14 @@ figures=(
   "fig12 0,9,11,13,16 400x400"
 )
 
-# Beyond the paper (issue 4): many sheets with contacts. These take tens of seconds each, so
-# each is simulated once (drape run) and both pictures are drawn from its frames.
+# Beyond the paper (issues 4, 13): many sheets with contacts, and a tablecloth held by friction.
+# These take seconds to tens of seconds each, so each is simulated once (drape run) and both
+# pictures are drawn from its frames.
 # scene  frames  panel size
 many=(
   "stack_sphere 0,10,20,43 400x400"
   "rain_torus   0,15,30,75 400x400"
+  "tablecloth   0,5,10,90  400x400"
 )
 
 out=figures
