@@ -7,6 +7,7 @@
 #include <cmath>
 #include <random>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "bounds.h"
@@ -183,6 +184,86 @@ TEST(Contacts, ForceOnAPointLyingOnTheSurfaceIsFiniteAndMatchesTheBound) {
   // The reaction goes to the triangle's three corners with weights summing to one.
   const P3 r = total(work.on_b);
   EXPECT_NEAR(r[2], -work.on_a.fz[0], 1e-12 * bound);
+}
+
+// Friction (contacts.h) by hand: a 1 kg point 5 mm (= h) above triangle (0,0)(0,1)(1,1) of
+// a static sheet of 1 m cells, 9 points of 1/9 kg, at weights (¼, ½, ¼). The load is
+// N = (c/ξ)·(1 − tail). Sliding at 1 m/s it meets μ·N against its motion; at 1 µm/s, less
+// than μ·N stops it within dt: v / (dt·(1/m_p + Σ w_k²/m_k)) = v / (dt · 4.375 kg⁻¹).
+TEST(Contacts, FrictionOnAPointIsMuTimesLoadOrWhatStopsItsSlipWithinTheStep) {
+  SheetDef surface;
+  surface.m = surface.n = 2;
+  surface.width = surface.height = 2.0;
+  SheetDef single;
+  single.m = single.n = 0;
+  single.center = {-1.0 + 0.75, -1.0 + 0.25, 0.005};
+  single.friction = 0.3;
+  ContactParams<double> prm = kParams;
+  prm.dt = 1e-3;
+  const double load = prm.strength / prm.xi * (1 - prm.tail);
+  for (double speed : {1.0, 1e-6}) {
+    single.initial_velocity = {speed, 0, 0};
+    const auto s = build_sheet<double>(surface), q = build_sheet<double>(single);
+    PairContacts<double> work;
+    ContactGrid<double> grid;
+    pair_contacts(q, sheet_bounds(q), s, sheet_bounds(s), prm, work, grid);
+    ASSERT_EQ(work.on_a.size(), 1u);
+    const double expected = speed > 0.5 ? 0.3 * load : speed / (prm.dt * (1.0 + 9.0 * (0.0625 + 0.25 + 0.0625)));
+    EXPECT_NEAR(work.on_a.fx[0], -expected, 1e-12 * load) << "speed " << speed;
+    EXPECT_NEAR(work.on_a.fy[0], 0.0, 1e-12 * load);
+    EXPECT_NEAR(work.on_a.fz[0], load, 1e-12 * load);
+    const P3 r = total(work.on_b);  // equal and opposite, shared by the corners
+    EXPECT_NEAR(r[0], expected, 1e-12 * load);
+    EXPECT_NEAR(r[2], -load, 1e-12 * load);
+  }
+}
+
+// Friction between two rumpled sheets moving every which way: the pair's forces still sum
+// to zero (equal and opposite), each point's friction is tangential and at most μ·N, and
+// friction never adds energy: its power Σ F·v over both sheets is ≤ 0.
+TEST(Contacts, FrictionBetweenSheetsIsEqualAndOppositeAndOnlyDissipates) {
+  for (unsigned seed = 1; seed <= 5; ++seed) {
+    auto [a, b] = close_sheets(seed);
+    std::mt19937 rng(seed + 100);
+    std::uniform_real_distribution<double> u(-0.5, 0.5);
+    for (auto* s : {&a, &b})
+      for (std::size_t p = 0; p < s->size(); ++p) {
+        s->velocity.x[p] = u(rng);
+        s->velocity.y[p] = u(rng);
+        s->velocity.z[p] = u(rng);
+      }
+    ContactParams<double> prm = kParams;
+    prm.dt = 1e-3;
+    PairContacts<double> plain, rubbing;
+    ContactGrid<double> grid;
+    pair_contacts(a, sheet_bounds(a), b, sheet_bounds(b), prm, plain, grid);
+    b.friction = 0.4;  // the larger of the two coefficients acts
+    a.friction = 0.1;
+    pair_contacts(a, sheet_bounds(a), b, sheet_bounds(b), prm, rubbing, grid);
+    ASSERT_EQ(plain.on_a.size(), rubbing.on_a.size());
+    ASSERT_EQ(plain.on_b.size(), rubbing.on_b.size());
+    P3 sum{0, 0, 0};
+    double scale = 0, power = 0, friction_size = 0;
+    for (const auto& [sheet, with, without] : {std::tuple{&a, &rubbing.on_a, &plain.on_a}, std::tuple{&b, &rubbing.on_b, &plain.on_b}})
+      for (std::size_t e = 0; e < with->size(); ++e) {
+        ASSERT_EQ(with->point[e], without->point[e]);
+        const P3 F{with->fx[e], with->fy[e], with->fz[e]}, N{without->fx[e], without->fy[e], without->fz[e]};
+        const P3 t = sub(F, N);
+        const std::uint32_t p = with->point[e];
+        const P3 v{sheet->velocity.x[p], sheet->velocity.y[p], sheet->velocity.z[p]};
+        for (int k = 0; k < 3; ++k) sum[k] += F[k];
+        scale += std::sqrt(dot(F, F));
+        power += dot(t, v);
+        friction_size += std::sqrt(dot(t, t));
+        // a point's own entry: friction ⟂ its load and at most μ·|load| (reactions are
+        // weighted sums of such entries, so they obey the same bound)
+        EXPECT_LE(std::sqrt(dot(t, t)), 0.4 * std::sqrt(dot(N, N)) * (1 + 1e-12) + 1e-15);
+        EXPECT_NEAR(dot(t, N), 0.0, 1e-12 * dot(N, N) + 1e-18);
+      }
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(sum[k], 0.0, 1e-13 * scale) << "seed " << seed;
+    EXPECT_GT(friction_size, 0.0);
+    EXPECT_LT(power, 0.0) << "seed " << seed;
+  }
 }
 
 TEST(Contacts, NoForceBeyondTheRange) {

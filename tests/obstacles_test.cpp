@@ -152,6 +152,104 @@ TEST(Obstacles, ForceScaleIsMinusEnergySlopeAlsoPastTheCap) {
   }
 }
 
+// The cut-off (obstacles.h): −dE/df is zero from R = 16 ξ on, and anywhere within
+// (c/ξ)·e^−16 of the exact c/ξ·exp(min(−f/ξ, cap)) of eq (9), computed here with std::exp
+// (plus 10⁻¹⁴ of it: −f/ξ is rounded, and e^x magnifies that by x ≤ 40).
+TEST(Obstacles, CutOffForceStaysWithinItsBoundOfTheExactOne) {
+  ObstacleDef d;
+  d.c = 0.02;
+  d.xi = 0.01;
+  const double cap = 6.0, bound = d.c / d.xi * std::exp(-16.0);
+  for (double e = -40.0; e <= 12.0; e += 0.01) {  // e = −f/ξ, beyond reach to past the cap
+    const double f = -e * d.xi;
+    const double exact = d.c / d.xi * std::exp(std::min(e, cap));
+    const double cut = drape::detail::potential_force_scale(d, f, cap);
+    EXPECT_LE(std::abs(cut - exact), bound * (1 + 1e-12) + 1e-14 * exact) << "f " << f << " excess " << (std::abs(cut - exact) - bound) / exact;
+    EXPECT_GE(cut, 0.0) << "f " << f;
+    if (f >= 16.0 * d.xi) {
+      EXPECT_EQ(cut, 0.0) << "f " << f;
+      EXPECT_EQ(drape::detail::potential_energy(d, f, cap), 0.0) << "f " << f;
+    }
+  }
+  // the energy is continuous at the cut and its slope there is zero
+  const double r = 16.0 * d.xi, h = 1e-7;
+  EXPECT_NEAR(drape::detail::potential_energy(d, r - h, cap), 0.0, 1e-12 * d.c);
+  EXPECT_NEAR(drape::detail::potential_force_scale(d, r - h, cap), 0.0, 1e-4 * bound);
+}
+
+// The vectorised kernel against eq (9) point by point, written out here with std::exp, the
+// analytic gradient and the normal from the neighbouring points: crumpled sheets of rows
+// shorter than, equal to and longer than the kernel's chunks, single rows and columns, and
+// every shape, projected and not. Within the cut-off's bound (above) plus rounding.
+TEST(Obstacles, KernelMatchesEq9PointByPointOnCrumpledSheets) {
+  const std::pair<std::uint32_t, std::uint32_t> sizes[] = {{0, 0}, {0, 5}, {4, 0}, {3, 63}, {2, 64}, {5, 65}, {3, 130}};
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-0.8, 0.8);
+  for (ObstacleShape shape : all_shapes)
+    for (bool full : {false, true})
+      for (auto [m, n] : sizes) {
+        ObstacleDef d = shape_def(shape);
+        d.c = 0.01;
+        d.xi = 0.04;  // reach 0.64 m: most points in reach, some beyond it, some past the cap
+        d.full_gradient = full;
+        const auto o = drape::detail::make_obstacle(d);
+        drape::SheetDef sd;
+        sd.m = m;
+        sd.n = n;
+        auto sheet = drape::detail::build_sheet<double>(sd);
+        const std::size_t count = sheet.size();
+        for (std::size_t p = 0; p < count; ++p) {
+          sheet.position.x[p] = d.center.x + u(rng);
+          sheet.position.y[p] = d.center.y + u(rng);
+          sheet.position.z[p] = d.center.z + u(rng);
+        }
+        const double cap = 5.0;
+        std::vector<double> fx(count, 0.0), fy(count, 0.0), fz(count, 0.0);
+        drape::detail::obstacle_forces<double>(*sheet.topology, drape::detail::NearObstacle{.obstacle = &o, .exponent_cap = cap},
+                                               drape::detail::cptr(sheet.position), drape::detail::cptr(sheet.velocity),
+                                               sheet.inv_mass.data(), {fx.data(), fy.data(), fz.data()});
+        const auto& x = sheet.position;
+        const double bound = d.c / d.xi * std::exp(-16.0);
+        int beyond = 0, within = 0;
+        for (std::uint32_t i = 0; i <= m; ++i)
+          for (std::uint32_t j = 0; j <= n; ++j) {
+            const std::size_t p = drape::point_index(n, i, j);
+            const double q[3] = {x.x[p], x.y[p], x.z[p]};
+            const auto s = drape::detail::implicit_at(o, q);
+            const double scale = d.c / d.xi * std::exp(std::min(-s.f / d.xi, cap));
+            double F[3] = {scale * s.grad[0], scale * s.grad[1], scale * s.grad[2]};
+            if (!full) {
+              const std::size_t r = drape::point_index(n, i, std::min(j + 1, n)), l = drape::point_index(n, i, j > 0 ? j - 1 : 0);
+              const std::size_t up = drape::point_index(n, std::min(i + 1, m), j), dn = drape::point_index(n, i > 0 ? i - 1 : 0, j);
+              const double a[3] = {x.x[r] - x.x[l], x.y[r] - x.y[l], x.z[r] - x.z[l]};
+              const double b[3] = {x.x[up] - x.x[dn], x.y[up] - x.y[dn], x.z[up] - x.z[dn]};
+              const double nv[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+              const double nn = nv[0] * nv[0] + nv[1] * nv[1] + nv[2] * nv[2];
+              if (nn > 0) {
+                const double dot = (F[0] * nv[0] + F[1] * nv[1] + F[2] * nv[2]) / nn;
+                for (int k = 0; k < 3; ++k) F[k] = dot * nv[k];
+              }
+            }
+            const double got[3] = {fx[p], fy[p], fz[p]};
+            const double size = std::sqrt(F[0] * F[0] + F[1] * F[1] + F[2] * F[2]);
+            for (int k = 0; k < 3; ++k)
+              EXPECT_NEAR(got[k], F[k], bound + 1e-13 * size)
+                  << "shape " << int(shape) << " full " << full << " sheet " << m << "x" << n << " point " << i << "," << j;
+            if (s.f >= 16.0 * d.xi) {
+              ++beyond;
+              EXPECT_EQ(got[0], 0.0);
+              EXPECT_EQ(got[1], 0.0);
+              EXPECT_EQ(got[2], 0.0);
+            } else {
+              ++within;
+            }
+          }
+        if (count > 100) {
+          EXPECT_GT(within, 0) << "shape " << int(shape);
+        }
+      }
+}
+
 drape::SheetDef point_def(Vec3 at, double mass = 0.01) {
   drape::SheetDef s;
   s.m = s.n = 0;
@@ -355,20 +453,22 @@ TEST(Obstacles, ForceDeepInsideIsBoundedByCapAndByWhatTheStepResolves) {
     world.add_obstacle(plane);
     world.step();
     const double force = world.view(id).vz[0] * mass / wd.dt;
-    const double expected = std::min(plane.c / plane.xi * std::exp(plane.max_exponent), mass * plane.xi / (wd.dt * wd.dt));
+    // less the cut-off's shift (c/ξ)·e^−16 (obstacles.h)
+    const double expected = std::min(plane.c / plane.xi * std::exp(plane.max_exponent), mass * plane.xi / (wd.dt * wd.dt)) -
+                            plane.c / plane.xi * std::exp(-16.0);
     EXPECT_NEAR(force, expected, 1e-9 * expected) << "mass " << mass;
   }
 }
 
-// Only sheets whose bounding box comes within reach (30 ξ) pay for an obstacle.
+// Only sheets whose bounding box comes within reach (16 ξ) pay for an obstacle.
 TEST(Obstacles, OnlyBoxesWithinReachTouch) {
   ObstacleDef d;
   d.shape = ObstacleShape::Sphere;
   d.size = {0.5, 0, 0};
   d.xi = 0.01;
   const auto o = drape::detail::make_obstacle(d);
-  drape::detail::Aabb near{{-0.1, -0.1, 0.5 + 0.29}, {0.1, 0.1, 1.0}};
-  drape::detail::Aabb far{{-0.1, -0.1, 0.5 + 0.31}, {0.1, 0.1, 1.0}};
+  drape::detail::Aabb near{{-0.1, -0.1, 0.5 + 0.15}, {0.1, 0.1, 1.0}};
+  drape::detail::Aabb far{{-0.1, -0.1, 0.5 + 0.17}, {0.1, 0.1, 1.0}};
   EXPECT_TRUE(drape::detail::may_touch(o, near));
   EXPECT_FALSE(drape::detail::may_touch(o, far));
   ObstacleDef pd;
@@ -399,6 +499,74 @@ TEST(Obstacles, FarObstacleLeavesTheSheetBitIdentical) {
     return std::vector<double>(v.z.begin(), v.z.end());
   };
   EXPECT_EQ(run(false), run(true));
+}
+
+// Coulomb friction (obstacles.h): a 3×3 sheet lying on a plane tilted by θ, started at the
+// height where eq (9)'s force carries its weight's normal part m·g·cos θ. With tan θ < μ it
+// stays put; with tan θ > μ it slides with a = g·(sin θ − μ·cos θ). μ is the larger of the
+// sheet's and the obstacle's coefficients, whichever of them holds it.
+struct Incline {
+  double along = 0, speed = 0;  // mean displacement and velocity down the slope
+};
+
+Incline slide_down(double theta, double mu_sheet, double mu_obstacle, double seconds) {
+  const double g = 9.81, point_mass = 0.01;
+  const drape::Quat tilt = drape::quat_from_axis_angle({1, 0, 0}, theta);
+  const Vec3 normal = drape::rotate(tilt, {0, 0, 1}), down = drape::rotate(tilt, {0, -1, 0});
+  ObstacleDef plane;
+  plane.shape = ObstacleShape::Plane;
+  plane.orientation = tilt;
+  plane.c = 0.01;
+  plane.xi = 0.01;
+  plane.friction = mu_obstacle;
+  // (c/ξ)·(exp(−f/ξ) − e^−16) = m·g·cos θ
+  const double rest = -plane.xi * std::log(point_mass * g * std::cos(theta) * plane.xi / plane.c + std::exp(-16.0));
+  drape::WorldDef wd;
+  wd.dt = 1e-3;
+  drape::World world(wd);
+  drape::SheetDef s;
+  s.m = s.n = 2;
+  s.width = s.height = 0.1;
+  s.mass = 9 * point_mass;
+  s.orientation = tilt;
+  s.center = scaled(normal, rest);
+  s.friction = mu_sheet;
+  const auto id = world.add_sheet(s);
+  world.add_obstacle(plane);
+  const auto before = world.view(id);
+  std::vector<double> start;
+  for (std::size_t p = 0; p < 9; ++p) start.push_back(before.x[p] * down.x + before.y[p] * down.y + before.z[p] * down.z);
+  world.step(std::uint64_t(std::lround(seconds / wd.dt)));
+  EXPECT_TRUE(world.all_finite());
+  const auto v = world.view(id);
+  Incline r;
+  for (std::size_t p = 0; p < 9; ++p) {
+    r.along += (v.x[p] * down.x + v.y[p] * down.y + v.z[p] * down.z - start[p]) / 9;
+    r.speed += (v.vx[p] * down.x + v.vy[p] * down.y + v.vz[p] * down.z) / 9;
+  }
+  return r;
+}
+
+TEST(Obstacles, FrictionHoldsASheetOnAnInclineFlatterThanItsAngle) {
+  const double theta = 20 * std::numbers::pi / 180;  // tan θ = 0.36
+  for (auto [sheet, obstacle] : {std::pair{0.5, 0.0}, std::pair{0.0, 0.5}, std::pair{0.5, 0.3}}) {
+    const Incline r = slide_down(theta, sheet, obstacle, 1.0);
+    EXPECT_LT(std::abs(r.along), 1e-6) << "mu " << sheet << ", " << obstacle;  // less than 1 µm in 1 s
+    EXPECT_LT(std::abs(r.speed), 1e-6) << "mu " << sheet << ", " << obstacle;
+  }
+  // without friction the same sheet slides with g·sin θ (0.1 % over half a second)
+  const Incline free = slide_down(theta, 0.0, 0.0, 0.5);
+  EXPECT_NEAR(free.speed, 9.81 * std::sin(theta) * 0.5, 1e-3 * 9.81 * std::sin(theta) * 0.5);
+}
+
+TEST(Obstacles, FrictionSlowsASlidingSheetToGTimesSinMinusMuCos) {
+  const double theta = 30 * std::numbers::pi / 180, mu = 0.2, t = 0.5;  // tan θ = 0.58 > μ
+  const double a = 9.81 * (std::sin(theta) - mu * std::cos(theta));
+  for (auto [sheet, obstacle] : {std::pair{mu, 0.0}, std::pair{0.0, mu}, std::pair{mu, 0.1}}) {
+    const Incline r = slide_down(theta, sheet, obstacle, t);
+    EXPECT_NEAR(r.speed, a * t, 5e-3 * a * t) << "mu " << sheet << ", " << obstacle;
+    EXPECT_NEAR(r.along, 0.5 * a * t * t, 1e-2 * 0.5 * a * t * t) << "mu " << sheet << ", " << obstacle;
+  }
 }
 
 TEST(Obstacles, RemovedObstacleNoLongerActsAndItsIdIsStale) {

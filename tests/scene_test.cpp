@@ -109,6 +109,10 @@ TEST(SceneFile, EveryBadInputNamesFilePathAndProblem) {
        "test.json: sheets[0].anchors[0].at[0]: must be between 0 and 24 (got 99)"},
       {R"({"frames": 1, "sheets": [{)" + sheet + R"(}], "obstacles": [{"type": "sphere", "radius": 1, "xi": 0}]})",
        "test.json: obstacles[0].xi: must be positive (got 0)"},
+      {R"({"frames": 1, "sheets": [{)" + sheet + R"(, "friction": -0.2}]})",
+       "test.json: sheets[0].friction: must not be negative (got -0.2)"},
+      {R"({"frames": 1, "sheets": [{)" + sheet + R"(}], "obstacles": [{"type": "box", "half_extents": [1, 1, 1], "friction": "high"}]})",
+       "test.json: obstacles[0].friction: must be a number, got a string"},
   };
   for (const auto& c : cases) {
     const std::string message = error_of(c.text);
@@ -138,8 +142,9 @@ TEST(SceneFile, EngineKnobsReachTheWorldAndSheetDefinitions) {
   const Scene s = parse_scene(R"({"frames": 1, "cg_tolerance": 1e-9, "cg_max_iterations": 17, "adaptive": true,
     "adaptive_safety": 0.5, "guard": false, "guard_energy_growth": 3.5, "contact_thickness": 0.01,
     "contact_xi": 0.004, "contact_strength": 0, "contact_range": 4, "block_points": 1000,
-    "sheets": [{"grid": [2, 2], "size": [1, 1], "stiffness": 5, "self_collision": true},
-               {"grid": [2, 2], "size": [1, 1], "stiffness": 5, "self_collision": false}]})", "k.json");
+    "sheets": [{"grid": [2, 2], "size": [1, 1], "stiffness": 5, "self_collision": true, "friction": 0.4},
+               {"grid": [2, 2], "size": [1, 1], "stiffness": 5, "self_collision": false}],
+    "obstacles": [{"type": "plane", "friction": 0.7}]})", "k.json");
   EXPECT_EQ(s.world.cg_tolerance, 1e-9);
   EXPECT_EQ(s.world.cg_max_iterations, 17);
   EXPECT_TRUE(s.world.adaptive);
@@ -153,6 +158,9 @@ TEST(SceneFile, EngineKnobsReachTheWorldAndSheetDefinitions) {
   EXPECT_EQ(s.world.block_points, 1000u);
   EXPECT_TRUE(s.sheets[0].self_collision);
   EXPECT_FALSE(s.sheets[1].self_collision);
+  EXPECT_EQ(s.sheets[0].friction, 0.4);
+  EXPECT_EQ(s.sheets[1].friction, 0.0);
+  EXPECT_EQ(s.obstacles[0].friction, 0.7);
 }
 
 TEST(SceneFile, BadEngineKnobsNameTheirPath) {
@@ -271,7 +279,7 @@ TEST(SceneFile, SetOverrideOnAMissingPathNamesIt) {
   EXPECT_EQ(error("sheets[*].stifness"), "m.json: sheets[0].stifness: unknown key (known here: name, grid, size, "
                                          "center, orientation, velocity, mass, point_mass, stiffness, "
                                          "stiffness_regions, rest_length, damping, anchors, pins, self_collision, shear, "
-                                         "bending, air)");
+                                         "bending, air, friction)");
 }
 
 // Inputs the fuzzer (scene_fuzz) found or that are built like them: each is refused with a

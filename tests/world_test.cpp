@@ -101,51 +101,56 @@ TEST(Worlds, SheetsDroppedOneOntoTheOtherNeverCrossAndComeToRestStacked) {
   }
 }
 
+// With and without friction between the sheets: friction, like the repulsion, is equal and
+// opposite (contacts.h).
 TEST(Worlds, CollidingFreeSheetsConserveMomentum) {
-  WorldDef wd;
-  wd.dt = 2e-4;
-  wd.gravity = {0, 0, 0};
-  World w(wd);
-  SheetDef d;
-  d.m = d.n = 8;
-  d.width = d.height = 0.2;
-  d.mass = 0.05;
-  d.stiffness = 100;
-  d.center = {0, 0, 0.01};
-  d.initial_velocity = {0.1, 0, -0.4};
-  const SheetId s1 = w.add_sheet(d);
-  d.center = {0.05, 0.03, -0.01};
-  d.initial_velocity = {0, 0, 0.3};
-  d.mass = 0.08;
-  d.orientation = quat_from_axis_angle({1, 1, 0}, 0.2);
-  const SheetId s2 = w.add_sheet(d);
+  for (double friction : {0.0, 0.5}) {
+    WorldDef wd;
+    wd.dt = 2e-4;
+    wd.gravity = {0, 0, 0};
+    World w(wd);
+    SheetDef d;
+    d.friction = friction;
+    d.m = d.n = 8;
+    d.width = d.height = 0.2;
+    d.mass = 0.05;
+    d.stiffness = 100;
+    d.center = {0, 0, 0.01};
+    d.initial_velocity = {0.1, 0, -0.4};
+    const SheetId s1 = w.add_sheet(d);
+    d.center = {0.05, 0.03, -0.01};
+    d.initial_velocity = {0, 0, 0.3};
+    d.mass = 0.08;
+    d.orientation = quat_from_axis_angle({1, 1, 0}, 0.2);
+    const SheetId s2 = w.add_sheet(d);
 
-  auto momentum = [&] {
-    std::array<double, 3> p{0, 0, 0};
-    for (auto [id, m] : {std::pair{s1, 0.05}, std::pair{s2, 0.08}}) {
-      const auto v = w.view(id);
-      const double mp = m / double(v.size());
-      for (std::size_t i = 0; i < v.size(); ++i) {
-        p[0] += mp * v.vx[i];
-        p[1] += mp * v.vy[i];
-        p[2] += mp * v.vz[i];
+    auto momentum = [&] {
+      std::array<double, 3> p{0, 0, 0};
+      for (auto [id, m] : {std::pair{s1, 0.05}, std::pair{s2, 0.08}}) {
+        const auto v = w.view(id);
+        const double mp = m / double(v.size());
+        for (std::size_t i = 0; i < v.size(); ++i) {
+          p[0] += mp * v.vx[i];
+          p[1] += mp * v.vy[i];
+          p[2] += mp * v.vz[i];
+        }
       }
+      return p;
+    };
+    const auto p0 = momentum();
+    std::size_t steps_in_contact = 0;
+    for (int k = 0; k < 300; ++k) {
+      w.step();
+      steps_in_contact += w.contact_pair_count();
     }
-    return p;
-  };
-  const auto p0 = momentum();
-  std::size_t steps_in_contact = 0;
-  for (int k = 0; k < 300; ++k) {
-    w.step();
-    steps_in_contact += w.contact_pair_count();
+    ASSERT_GT(steps_in_contact, 50u);
+    const auto p1 = momentum();
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(p1[k], p0[k], 1e-14) << "axis " << k << " friction " << friction;
   }
-  ASSERT_GT(steps_in_contact, 50u);
-  const auto p1 = momentum();
-  for (int k = 0; k < 3; ++k) EXPECT_NEAR(p1[k], p0[k], 1e-14) << "axis " << k;
 }
 
 // Sheets stacked so that they touch, one large enough to be split into row blocks, one
-// folding onto itself.
+// folding onto itself, some with friction.
 void build_contact_scene(World& w, bool cloth = false) {
   SheetDef d;
   if (cloth) {
@@ -163,6 +168,7 @@ void build_contact_scene(World& w, bool cloth = false) {
     d.orientation = quat_from_axis_angle({0, 0, 1}, 0.1 * k);
     d.initial_velocity = {0, 0, -0.2 * (k % 2)};
     d.self_collision = k == 3;
+    d.friction = k % 2 == 0 ? 0.3 : 0.0;
     w.add_sheet(d);
   }
   SheetDef big;
@@ -399,6 +405,7 @@ std::vector<unsigned char> run_approach(Approach scene, int threads, std::uint32
     floor.shape = ObstacleShape::Plane;
     floor.center = {0, 0, -0.3};
     floor.c = 0.01;
+    floor.friction = 0.5;
     w.add_obstacle(floor);
     d.m = 120;  // 121 × 41 points: split into blocks at block_points 500
     d.n = 40;
@@ -416,6 +423,7 @@ std::vector<unsigned char> run_approach(Approach scene, int threads, std::uint32
   } else {
     d.m = d.n = 12;
     d.width = d.height = 0.3;
+    d.friction = 0.4;
     for (int k = 0; k < 2; ++k) {  // 0.2 m apart, closing at 2 m/s: they meet at 0.1 s
       d.center = {0.5 * k, 0, 0};
       d.initial_velocity = {k == 0 ? 1.0 : -1.0, 0, 0};

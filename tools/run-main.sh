@@ -1,11 +1,11 @@
 #!/usr/bin/env bash
 # The main job: set up a fresh Debian machine, build drape (Release), simulate every paper
 # scene (scenes/fig*.json), the many-sheet scenes (scenes/stack_sphere.json,
-# scenes/rain_torus.json) and the cloth scene (scenes/flag_wind.json) and draw one PNG per
-# scene into figures/ (git-ignored).
+# scenes/rain_torus.json), the cloth scene (scenes/flag_wind.json) and the friction scene
+# (scenes/tablecloth.json) and draw one PNG per scene into figures/ (git-ignored).
 #
 #   tools/run-main.sh          figures/figNN.png, figures/stack_sphere.png, figures/rain_torus.png,
-#                              figures/flag_wind.png
+#                              figures/flag_wind.png, figures/tablecloth.png
 #   tools/run-main.sh --docs   also the smaller copies shown in docs/figures.md (docs/img/figures/)
 #
 # Figures the paper shows as an animation get a strip of frames, left to right, all seen by
@@ -38,14 +38,16 @@ figures=(
   "fig12 0,9,11,13,16 400x400"
 )
 
-# Beyond the paper: many sheets with contacts (issue 4), a flag in the wind (issue 12). The
-# first two take tens of seconds each, so each is simulated once (drape run) and both
+# Beyond the paper: many sheets with contacts (issue 4), a flag in the wind (issue 12), a
+# tablecloth held by friction (issue 13). These take seconds to tens of seconds each, so
+# each is simulated once (drape run) and both
 # pictures are drawn from its frames.
 # scene  frames  panel size
 many=(
   "stack_sphere 0,10,20,43 400x400"
   "rain_torus   0,15,30,75 400x400"
   "flag_wind    0,15,45,91 400x400"
+  "tablecloth   0,5,10,90  400x400"
 )
 
 out=figures

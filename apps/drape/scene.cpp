@@ -231,7 +231,7 @@ std::vector<std::uint32_t> read_points(const Node& node, std::uint32_t m, std::u
 SheetDef read_sheet(const Node& node, Precision precision, std::string& name, std::size_t index) {
   node.expect_object({"name", "grid", "size", "center", "orientation", "velocity", "mass", "point_mass", "stiffness",
                       "stiffness_regions", "rest_length", "damping", "anchors", "pins", "self_collision", "shear",
-                      "bending", "air"});
+                      "bending", "air", "friction"});
   SheetDef s;
   name = node.has("name") ? node.child("name").string() : "sheet" + std::to_string(index);
   const Node grid = node.required("grid");
@@ -303,6 +303,7 @@ SheetDef read_sheet(const Node& node, Precision precision, std::string& name, st
   }
   if (node.has("pins")) s.pins = read_points(node.child("pins"), s.m, s.n);
   if (node.has("self_collision")) s.self_collision = node.child("self_collision").boolean();
+<<<<<<< HEAD
   if (node.has("shear")) {
     const Node sh = node.child("shear");
     sh.expect_object({"stiffness", "rest_length"});
@@ -321,6 +322,9 @@ SheetDef read_sheet(const Node& node, Precision precision, std::string& name, st
     if (a.has("drag")) s.air->drag = a.child("drag").non_negative();
     if (a.has("friction")) s.air->friction = a.child("friction").non_negative();
   }
+=======
+  if (node.has("friction")) s.friction = node.child("friction").non_negative();
+>>>>>>> issue13
   if (const std::string problem = validate(s); !problem.empty()) node.fail(problem);
   return s;
 }
@@ -330,25 +334,29 @@ ObstacleDef read_obstacle(const Node& node) {
   const std::string type = node.required("type").string();
   ObstacleDef d;
   if (type == "plane") {
-    node.expect_object({"type", "center", "normal", "c", "xi", "full_gradient", "max_exponent"});
+    node.expect_object({"type", "center", "normal", "c", "xi", "full_gradient", "max_exponent",
+                        "friction"});
     d.shape = ObstacleShape::Plane;
     if (node.has("normal")) d.orientation = rotation_to(node.child("normal"), node.child("normal").vec3());
   } else if (type == "sphere") {
-    node.expect_object({"type", "center", "orientation", "radius", "c", "xi", "full_gradient", "max_exponent"});
+    node.expect_object({"type", "center", "orientation", "radius", "c", "xi", "full_gradient", "max_exponent",
+                        "friction"});
     d.shape = ObstacleShape::Sphere;
     d.size = {node.required("radius").positive(), 0, 0};
   } else if (type == "ellipsoid") {
-    node.expect_object({"type", "center", "orientation", "semi_axes", "c", "xi", "full_gradient", "max_exponent"});
+    node.expect_object({"type", "center", "orientation", "semi_axes", "c", "xi", "full_gradient", "max_exponent",
+                        "friction"});
     d.shape = ObstacleShape::Ellipsoid;
     d.size = node.required("semi_axes").vec3();
     node.child("semi_axes").positives(3);
   } else if (type == "torus") {
     node.expect_object({"type", "center", "orientation", "major_radius", "minor_radius", "c", "xi", "full_gradient",
-                        "max_exponent"});
+                        "max_exponent", "friction"});
     d.shape = ObstacleShape::Torus;
     d.size = {node.required("major_radius").positive(), node.required("minor_radius").positive(), 0};
   } else if (type == "box") {
-    node.expect_object({"type", "center", "orientation", "half_extents", "c", "xi", "full_gradient", "max_exponent"});
+    node.expect_object({"type", "center", "orientation", "half_extents", "c", "xi", "full_gradient", "max_exponent",
+                        "friction"});
     d.shape = ObstacleShape::Box;
     d.size = node.required("half_extents").vec3();
     node.child("half_extents").positives(3);
@@ -361,6 +369,7 @@ ObstacleDef read_obstacle(const Node& node) {
   if (node.has("xi")) d.xi = node.child("xi").positive();
   if (node.has("full_gradient")) d.full_gradient = node.child("full_gradient").boolean();
   if (node.has("max_exponent")) d.max_exponent = node.child("max_exponent").positive();
+  if (node.has("friction")) d.friction = node.child("friction").non_negative();
   if (const std::string problem = validate(d); !problem.empty()) node.fail(problem);
   return d;
 }

@@ -116,8 +116,34 @@ void consider(V3<Real> p, std::uint32_t i0, std::uint32_t i1, std::uint32_t i2, 
 // The point against the nearest triangle: pushes the force on the point to `on_q` and the
 // three opposite shares to `on_s`.
 template <class Real>
-void repel(std::uint32_t q, V3<Real> p, const Nearest<Real>& best, const ContactParams<Real>& prm,
-           ContactForces<Real>& on_q, ContactForces<Real>& on_s) {
+V3<Real> velocity(const Sheet<Real>& s, std::uint32_t p) {
+  return {s.velocity.x[p], s.velocity.y[p], s.velocity.z[p]};
+}
+
+// Coulomb friction on point q of sheet qs against the triangle `best` of sheet ss, whose
+// repulsion on q is `force` along the unit normal d (contacts.h): returns the force to add.
+template <class Real>
+V3<Real> rub(const Sheet<Real>& qs, std::uint32_t q, const Sheet<Real>& ss, const Nearest<Real>& best, V3<Real> d,
+             Real force, const ContactParams<Real>& prm) {
+  const Real w[3] = {best.w.x, best.w.y, best.w.z};
+  V3<Real> rel = velocity(qs, q);
+  Real inv_mass = qs.inv_mass[q];
+  for (int k = 0; k < 3; ++k) {
+    const V3<Real> u = velocity(ss, best.tri[k]);
+    rel = {rel.x - w[k] * u.x, rel.y - w[k] * u.y, rel.z - w[k] * u.z};
+    inv_mass += w[k] * w[k] * ss.inv_mass[best.tri[k]];
+  }
+  const Real normal = dot(rel, d);
+  const V3<Real> slip{rel.x - normal * d.x, rel.y - normal * d.y, rel.z - normal * d.z};
+  const Real speed = std::sqrt(dot(slip, slip));
+  if (!(speed > 0) || !(inv_mass > 0)) return {0, 0, 0};
+  const Real k = std::min(prm.friction * force / speed, Real(1) / (inv_mass * prm.dt));
+  return {-k * slip.x, -k * slip.y, -k * slip.z};
+}
+
+template <class Real>
+void repel(const Sheet<Real>& qs, std::uint32_t q, V3<Real> p, const Sheet<Real>& ss, const Nearest<Real>& best,
+           const ContactParams<Real>& prm, ContactForces<Real>& on_q, ContactForces<Real>& on_s) {
   const V3<Real>* v = best.v;
   const V3<Real> c{best.w.x * v[0].x + best.w.y * v[1].x + best.w.z * v[2].x,
                    best.w.x * v[0].y + best.w.y * v[1].y + best.w.z * v[2].y,
@@ -135,7 +161,11 @@ void repel(std::uint32_t q, V3<Real> p, const Nearest<Real>& best, const Contact
   }
   // −dE/dd, shifted to reach 0 at the cut-off; d ≥ 0 bounds it by (c/ξ)·exp(h/ξ)
   const Real f = prm.strength / prm.xi * (std::exp((prm.thickness - dist) / prm.xi) - prm.tail);
-  const V3<Real> F{f * d.x, f * d.y, f * d.z};
+  V3<Real> F{f * d.x, f * d.y, f * d.z};
+  if (prm.friction > 0) {
+    const V3<Real> t = rub(qs, q, ss, best, d, f, prm);
+    F = {F.x + t.x, F.y + t.y, F.z + t.z};
+  }
   on_q.push(q, F.x, F.y, F.z);
   const Real wt[3] = {best.w.x, best.w.y, best.w.z};
   for (int k = 0; k < 3; ++k)
@@ -384,7 +414,7 @@ void points_against_cells(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb
       test(near[nearest].corner, best);
       for (std::uint32_t e = 0; e < found; ++e)
         if (e != nearest && near[e].gap2 < best.dist2) test(near[e].corner, best);
-      if (best.dist2 < R2) repel(p, x, best, prm, on_q, on_s);
+      if (best.dist2 < R2) repel(q, p, x, s, best, prm, on_q, on_s);
     }
   }
 }
@@ -407,8 +437,10 @@ void pair_contacts(const Sheet<Real>& a, const Aabb& box_a, const Sheet<Real>& b
   work.on_b.clear();
   const Aabb region = intersection(box_a.inflated(prm.range), box_b.inflated(prm.range));
   if (!overlaps(region, region)) return;
-  points_against_cells(a, b, region, prm, -1, work.on_a, work.on_b, grid);
-  points_against_cells(b, a, region, prm, -1, work.on_b, work.on_a, grid);
+  ContactParams<Real> pair = prm;
+  pair.friction = static_cast<Real>(std::max(a.friction, b.friction));
+  points_against_cells(a, b, region, pair, -1, work.on_a, work.on_b, grid);
+  points_against_cells(b, a, region, pair, -1, work.on_b, work.on_a, grid);
 }
 
 template <class Real>
@@ -424,7 +456,9 @@ void self_contacts(const Sheet<Real>& s, const Aabb& box, const ContactParams<Re
                    ContactGrid<Real>& grid) {
   work.on_a.clear();
   work.on_b.clear();
-  points_against_cells(s, s, box.inflated(prm.range), prm, int(self_contact_ring(s, prm)), work.on_a, work.on_a,
+  ContactParams<Real> own = prm;
+  own.friction = static_cast<Real>(s.friction);
+  points_against_cells(s, s, box.inflated(prm.range), own, int(self_contact_ring(s, prm)), work.on_a, work.on_a,
                        grid);
 }
 

@@ -13,6 +13,11 @@
 // but finite force, never an overflow. The force on p acts along p − q (q the closest point
 // of the nearest T; T's normal when p lies on T), and the opposite force is shared by T's three
 // vertices with q's barycentric weights, so every contact conserves momentum to rounding.
+// With friction (μ = the larger of the two sheets' SheetDef::friction), the force on p also
+// opposes p's velocity relative to q (the corners' velocities with the same weights),
+// tangential to p − q: the smaller of μ·|F| and the force that stops that slip within dt
+// for the pair's effective mass 1/(1/m_p + Σ w_k²/m_k). It joins the repulsion before the
+// reaction is shared, so it is equal and opposite too.
 //
 // Candidates come from a uniform grid over the pair's overlap region, never all points
 // against all cells. Each cell of the other sheet whose box, grown by R, meets the region is
@@ -44,6 +49,8 @@ struct ContactParams {
   Real strength;   // c, J
   Real range;      // R, m: no force beyond this distance
   Real tail;       // exp(−(R − h)/ξ): the shift that makes the force vanish at R
+  Real dt = 0;        // s, the substep (friction stops at most the slip of one)
+  Real friction = 0;  // μ of the pair, max of the two sheets' (pair_contacts sets it)
 
   static ContactParams make(double thickness, double xi, double strength, double range_in_xi);
 };

@@ -282,7 +282,7 @@ void sheet_forces_by_rows(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Rea
                 [&](std::uint32_t i) { row_terms(s, std::size_t(i) * t.cols(), t.cols(), v, f); });
     for (std::size_t a = 0; a < an.point.size(); ++a) anchor(a);
     // eq (9): only obstacles the host stage found near this sheet
-    for (const NearObstacle& o : s.near_obstacles) obstacle_forces(t, o, x, f);
+    for (const NearObstacle& o : s.near_obstacles) obstacle_forces(t, o, x, v, s.inv_mass.data(), f);
     if (sink.done) sink.done(sink.context, 0, s.size());
     return;
   }

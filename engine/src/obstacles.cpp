@@ -3,6 +3,8 @@
 #include "obstacles.h"
 
 #include <algorithm>
+#include <bit>
+#include <cstdint>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -29,6 +31,7 @@ std::string validate(const ObstacleDef& d) {
   if (!positive(d.c)) return fail("c", "must be positive and finite", d.c);
   if (!positive(d.xi)) return fail("xi", "must be positive and finite", d.xi);
   if (!positive(d.max_exponent)) return fail("max_exponent", "must be positive and finite", d.max_exponent);
+  if (!(std::isfinite(d.friction) && d.friction >= 0)) return fail("friction", "must be non-negative and finite", d.friction);
   switch (d.shape) {
     case ObstacleShape::Plane: break;
     case ObstacleShape::Sphere:
@@ -128,50 +131,182 @@ inline ImplicitSample sample(const Obstacle& o, const double p[3]) {
   return s;
 }
 
-// One loop per shape and force mode, chosen once per obstacle: no feature branch per point.
-template <LocalFn fn, bool project, class Real>
-void repel(const Topology<Real>& t, const Obstacle& o, double cap, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f) {
-  const std::uint32_t m = t.m, n = t.n, cols = t.cols();
-  for (std::uint32_t i = 0; i <= m; ++i) {
-    const std::uint32_t up = std::min(i + 1, m), down = i > 0 ? i - 1 : 0;
-    for (std::uint32_t j = 0; j <= n; ++j) {
-      const std::uint32_t p = i * cols + j;
-      const double pos[3] = {double(x.x[p]), double(x.y[p]), double(x.z[p])};
-      const ImplicitSample s = sample<fn>(o, pos);
-      const double scale = potential_force_scale(o.def, s.f, cap);  // −dE/df ≥ 0: push along +∇f
-      double F[3] = {scale * s.grad[0], scale * s.grad[1], scale * s.grad[2]};
-      if constexpr (project) {
-        // eq (9): keep only the part along the sheet's unit normal, the cross product of the
-        // central (one-sided at the border) differences along the row and the column.
-        const std::uint32_t r = i * cols + std::min(j + 1, n), l = i * cols + (j > 0 ? j - 1 : 0);
-        const std::uint32_t u = up * cols + j, d = down * cols + j;
-        const double a[3] = {double(x.x[r]) - x.x[l], double(x.y[r]) - x.y[l], double(x.z[r]) - x.z[l]};
-        const double b[3] = {double(x.x[u]) - x.x[d], double(x.y[u]) - x.y[d], double(x.z[u]) - x.z[d]};
-        const double nv[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-        const double nn = nv[0] * nv[0] + nv[1] * nv[1] + nv[2] * nv[2];
-        // A single point or a single row has no normal: it gets the full gradient.
-        if (nn > 0) {
-          const double dot = (F[0] * nv[0] + F[1] * nv[1] + F[2] * nv[2]) / nn;
-          F[0] = dot * nv[0];
-          F[1] = dot * nv[1];
-          F[2] = dot * nv[2];
-        }
-      }
-      f.x[p] += static_cast<Real>(F[0]);
-      f.y[p] += static_cast<Real>(F[1]);
-      f.z[p] += static_cast<Real>(F[2]);
+// e^x for x ≥ −700 without a call or a branch, so a loop over points vectorises (std::exp
+// does not: GCC has no vector exp without -ffast-math). x = k·ln2 + r with |r| ≤ ln2/2, e^r by
+// its Taylor series to r^13 (truncation below 2e-16 relative), 2^k put into the exponent bits.
+inline double exp_lanes(double x) {
+  x = x < -700.0 ? -700.0 : x;
+  constexpr double shifter = 0x1.8p52;  // adding it rounds to an integer held in the low bits
+  const double shifted = x * 0x1.71547652b82fep0 + shifter;
+  const std::uint64_t k = std::bit_cast<std::uint64_t>(shifted);
+  const double kd = shifted - shifter;
+  const double r = (x - kd * 0x1.62e42fefa3800p-1) - kd * 0x1.ef35793c7673p-45;  // ln2 in two parts
+  double p = 1.0 / 6227020800.0;
+  p = p * r + 1.0 / 479001600.0;
+  p = p * r + 1.0 / 39916800.0;
+  p = p * r + 1.0 / 3628800.0;
+  p = p * r + 1.0 / 362880.0;
+  p = p * r + 1.0 / 40320.0;
+  p = p * r + 1.0 / 5040.0;
+  p = p * r + 1.0 / 720.0;
+  p = p * r + 1.0 / 120.0;
+  p = p * r + 1.0 / 24.0;
+  p = p * r + 1.0 / 6.0;
+  p = p * r + 0.5;
+  p = p * r + 1.0;
+  p = p * r + 1.0;
+  return std::bit_cast<double>(std::bit_cast<std::uint64_t>(p) + (k << 52));
+}
+
+// The cut-off, shifted eq (9) for whole vectors of points: −dE/df, zero at and beyond the reach.
+struct ForceScale {
+  double c_over_xi, inv_xi, cap, tail, reach;  // tail = e^−reach_exponent
+  double operator()(double f) const {
+    const double e = std::min(-f * inv_xi, cap);
+    const double s = c_over_xi * std::max(exp_lanes(e) - tail, 0.0);  // ≥ 0 even for a cap below −reach
+    return f < reach ? s : 0.0;
+  }
+};
+
+ForceScale force_scale_of(const ObstacleDef& d, double cap) {
+  return {d.c / d.xi, 1.0 / d.xi, cap, std::exp(-reach_exponent), reach_exponent * d.xi};
+}
+
+// Points go through in chunks of a row: first f and ∇f of every point (plain loops), then,
+// only if some point of the chunk is within reach, the force scale of every point (exp_lanes,
+// zero beyond reach), then the force along the sheet's normal. Every loop runs the same
+// arithmetic on every point, so they vectorise; a chunk wholly beyond reach costs only f.
+constexpr std::uint32_t chunk_points = 64;
+
+struct Chunk {
+  alignas(64) double f[chunk_points];
+  alignas(64) double gx[chunk_points], gy[chunk_points], gz[chunk_points];
+  alignas(64) double s[chunk_points];
+};
+
+// f and ∇f per shape, local → world as in sample(); the plane's is one dot product.
+template <LocalFn fn, class Real>
+inline void implicit_chunk(const Obstacle& o, const Real* x, const Real* y, const Real* z, std::uint32_t count,
+                           Chunk& c) {
+  if constexpr (fn == &plane_f) {
+    const double nx = o.rot[0][2], ny = o.rot[1][2], nz = o.rot[2][2];
+    const double cx = o.center[0], cy = o.center[1], cz = o.center[2];
+#pragma omp simd
+    for (std::uint32_t k = 0; k < count; ++k) {
+      c.f[k] = nx * (double(x[k]) - cx) + ny * (double(y[k]) - cy) + nz * (double(z[k]) - cz);
+      c.gx[k] = nx;
+      c.gy[k] = ny;
+      c.gz[k] = nz;
+    }
+  } else {
+    for (std::uint32_t k = 0; k < count; ++k) {
+      const double p[3] = {double(x[k]), double(y[k]), double(z[k])};
+      const ImplicitSample s = sample<fn>(o, p);
+      c.f[k] = s.f;
+      c.gx[k] = s.grad[0];
+      c.gy[k] = s.grad[1];
+      c.gz[k] = s.grad[2];
     }
   }
 }
 
-template <bool project, class Real>
-void repel_shape(const Topology<Real>& t, const Obstacle& o, double cap, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f) {
+// eq (9)'s projection on the sheet's unit normal n = a × b, a and b the differences across
+// the point along its row and its column: F·n/|n|² n. A lone point or row has no normal
+// (|n| = 0) and keeps the full gradient.
+inline void project_on_normal(double ax, double ay, double az, double bx, double by, double bz, double& fx, double& fy,
+                              double& fz) {
+  const double nx = ay * bz - az * by, ny = az * bx - ax * bz, nz = ax * by - ay * bx;
+  const double nn = nx * nx + ny * ny + nz * nz;
+  const double dot = (fx * nx + fy * ny + fz * nz) / (nn > 0 ? nn : 1.0);
+  fx = nn > 0 ? dot * nx : fx;
+  fy = nn > 0 ? dot * ny : fy;
+  fz = nn > 0 ? dot * nz : fz;
+}
+
+// Coulomb friction on one point (docs/scene-format.md, Friction): N the repulsion F's part
+// along g = ∇f, v* the velocity the substep would leave the point with (its total force
+// so far, F included, and gravity), and the force against v*'s tangential part, the smaller
+// of μ·N and m·|v*_t|/dt (what stops the slip within the substep). Adds it to F.
+struct Rub {
+  double mu, dt, gravity[3];
+  void operator()(const double g[3], double F[3], const double total[3], const double v[3], double inv_mass) const {
+    const double g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
+    const double inv_g2 = g2 > 0 ? 1.0 / g2 : 0.0;
+    const double along = F[0] * g[0] + F[1] * g[1] + F[2] * g[2];
+    const double load = along > 0 ? along * std::sqrt(inv_g2) : 0.0;  // N
+    double w[3];
+    for (int k = 0; k < 3; ++k) w[k] = v[k] + dt * (inv_mass * total[k] + gravity[k]);
+    const double wn = (w[0] * g[0] + w[1] * g[1] + w[2] * g[2]) * inv_g2;
+    double slip[3];
+    for (int k = 0; k < 3; ++k) slip[k] = w[k] - wn * g[k];
+    const double speed = std::sqrt(slip[0] * slip[0] + slip[1] * slip[1] + slip[2] * slip[2]);
+    const double stop = inv_mass > 0 ? 1.0 / (inv_mass * dt) : std::numeric_limits<double>::infinity();
+    const double k = speed > 0 ? std::min(mu * load / (speed > 0 ? speed : 1.0), stop) : 0.0;
+    for (int c = 0; c < 3; ++c) F[c] -= k * slip[c];
+  }
+};
+
+// One loop per shape, force mode and friction, chosen once per obstacle: no feature branch
+// per point.
+template <LocalFn fn, bool project, bool rub, class Real>
+void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near, ConstVec3Ptr<Real> x,
+           ConstVec3Ptr<Real> v, const Real* inv_mass, Vec3Ptr<Real> f) {
+  const std::uint32_t m = t.m, n = t.n, cols = t.cols();
+  const ForceScale scale = force_scale_of(o.def, near.exponent_cap);
+  const Rub friction{near.friction, near.dt, {near.gravity[0], near.gravity[1], near.gravity[2]}};
+  Chunk c;
+  for (std::uint32_t i = 0; i <= m; ++i) {
+    const std::size_t row = std::size_t(i) * cols;
+    const std::size_t up = std::size_t(std::min(i + 1, m)) * cols, down = std::size_t(i > 0 ? i - 1 : 0) * cols;
+    for (std::uint32_t j0 = 0; j0 < cols; j0 += chunk_points) {
+      const std::uint32_t count = std::min(chunk_points, cols - j0);
+      const std::size_t p0 = row + j0;
+      implicit_chunk<fn>(o, x.x + p0, x.y + p0, x.z + p0, count, c);
+      double lowest = c.f[0];
+#pragma omp simd reduction(min : lowest)
+      for (std::uint32_t k = 0; k < count; ++k) lowest = std::min(lowest, c.f[k]);
+      if (!(lowest < scale.reach)) continue;  // the whole chunk is beyond reach
+#pragma omp simd
+      for (std::uint32_t k = 0; k < count; ++k) c.s[k] = scale(c.f[k]);
+      // the force on point j0 + k, written back into f (and projected first, for eq (9))
+      auto apply = [&](std::uint32_t k, std::uint32_t l, std::uint32_t r) {
+        const std::size_t p = p0 + k, j = j0 + k;
+        double F[3] = {c.s[k] * c.gx[k], c.s[k] * c.gy[k], c.s[k] * c.gz[k]};
+        if constexpr (project)
+          project_on_normal(double(x.x[row + r]) - x.x[row + l], double(x.y[row + r]) - x.y[row + l],
+                            double(x.z[row + r]) - x.z[row + l], double(x.x[up + j]) - x.x[down + j],
+                            double(x.y[up + j]) - x.y[down + j], double(x.z[up + j]) - x.z[down + j], F[0], F[1],
+                            F[2]);
+        if constexpr (rub) {
+          const double g[3] = {c.gx[k], c.gy[k], c.gz[k]};
+          const double total[3] = {f.x[p] + F[0], f.y[p] + F[1], f.z[p] + F[2]};
+          const double vel[3] = {double(v.x[p]), double(v.y[p]), double(v.z[p])};
+          friction(g, F, total, vel, double(inv_mass[p]));
+        }
+        f.x[p] += static_cast<Real>(F[0]);
+        f.y[p] += static_cast<Real>(F[1]);
+        f.z[p] += static_cast<Real>(F[2]);
+      };
+      // Central differences along the row inside it, one-sided at its two ends.
+      const std::uint32_t first = j0 == 0 ? 1 : 0, last = j0 + count > n ? count - 1 : count;
+      if (first > 0) apply(0, 0, std::min(1u, n));
+#pragma omp simd
+      for (std::uint32_t k = first; k < last; ++k) apply(k, j0 + k - 1, j0 + k + 1);
+      if (last < count && (first == 0 || count > 1)) apply(count - 1, n > 0 ? n - 1 : 0, n);
+    }
+  }
+}
+
+template <bool project, bool rub, class Real>
+void repel_shape(const Topology<Real>& t, const NearObstacle& near, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v,
+                 const Real* inv_mass, Vec3Ptr<Real> f) {
+  const Obstacle& o = *near.obstacle;
   switch (o.def.shape) {
-    case ObstacleShape::Plane: repel<plane_f, project>(t, o, cap, x, f); break;
-    case ObstacleShape::Sphere: repel<sphere_f, project>(t, o, cap, x, f); break;
-    case ObstacleShape::Ellipsoid: repel<ellipsoid_f, project>(t, o, cap, x, f); break;
-    case ObstacleShape::Torus: repel<torus_f, project>(t, o, cap, x, f); break;
-    case ObstacleShape::Box: repel<box_f, project>(t, o, cap, x, f); break;
+    case ObstacleShape::Plane: repel<plane_f, project, rub>(t, o, near, x, v, inv_mass, f); break;
+    case ObstacleShape::Sphere: repel<sphere_f, project, rub>(t, o, near, x, v, inv_mass, f); break;
+    case ObstacleShape::Ellipsoid: repel<ellipsoid_f, project, rub>(t, o, near, x, v, inv_mass, f); break;
+    case ObstacleShape::Torus: repel<torus_f, project, rub>(t, o, near, x, v, inv_mass, f); break;
+    case ObstacleShape::Box: repel<box_f, project, rub>(t, o, near, x, v, inv_mass, f); break;
   }
 }
 
@@ -229,14 +364,15 @@ double exponent_cap(const ObstacleDef& d, double lightest_mass, double dt) {
 }
 
 double potential_energy(const ObstacleDef& d, double f, double cap) {
-  const double e = -f / d.xi;
-  if (e <= cap) return d.c * std::exp(e);
-  return d.c * std::exp(cap) * (1.0 + (e - cap));
+  // E(f) = ∫_f^R of the force scale below: c·(e^e − t) − c·t·(r + e), e = −f/ξ, t = e^−r,
+  // continued linearly in e past the cap; zero at and beyond R = r·ξ.
+  if (!(f < reach_exponent * d.xi)) return 0.0;
+  const double t = std::exp(-reach_exponent), e = -f / d.xi;
+  if (e <= cap) return d.c * (std::exp(e) - t) - d.c * t * (reach_exponent + e);
+  return d.c * (std::exp(cap) - t) * (1.0 + (e - cap)) - d.c * t * (reach_exponent + cap);
 }
 
-double potential_force_scale(const ObstacleDef& d, double f, double cap) {
-  return d.c / d.xi * std::exp(std::min(-f / d.xi, cap));
-}
+double potential_force_scale(const ObstacleDef& d, double f, double cap) { return force_scale_of(d, cap)(f); }
 
 bool may_touch(const Obstacle& o, const Aabb& box) {
   if (o.bounded) return overlaps(o.reach, box);
@@ -250,12 +386,13 @@ bool may_touch(const Obstacle& o, const Aabb& box) {
 }
 
 template <class Real>
-void obstacle_forces(const Topology<Real>& t, const NearObstacle& near, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f) {
-  const Obstacle& o = *near.obstacle;
-  if (o.def.full_gradient)
-    repel_shape<false>(t, o, near.exponent_cap, x, f);
-  else
-    repel_shape<true>(t, o, near.exponent_cap, x, f);
+void obstacle_forces(const Topology<Real>& t, const NearObstacle& near, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v,
+                     const Real* inv_mass, Vec3Ptr<Real> f) {
+  const bool project = !near.obstacle->def.full_gradient, rub = near.friction > 0;
+  if (project && rub) repel_shape<true, true>(t, near, x, v, inv_mass, f);
+  if (project && !rub) repel_shape<true, false>(t, near, x, v, inv_mass, f);
+  if (!project && rub) repel_shape<false, true>(t, near, x, v, inv_mass, f);
+  if (!project && !rub) repel_shape<false, false>(t, near, x, v, inv_mass, f);
 }
 
 template <class Real>
@@ -268,8 +405,10 @@ double obstacle_energy(const Sheet<Real>& s, const Obstacle& o, double cap) {
   return e;
 }
 
-template void obstacle_forces<double>(const Topology<double>&, const NearObstacle&, ConstVec3Ptr<double>, Vec3Ptr<double>);
-template void obstacle_forces<float>(const Topology<float>&, const NearObstacle&, ConstVec3Ptr<float>, Vec3Ptr<float>);
+template void obstacle_forces<double>(const Topology<double>&, const NearObstacle&, ConstVec3Ptr<double>,
+                                      ConstVec3Ptr<double>, const double*, Vec3Ptr<double>);
+template void obstacle_forces<float>(const Topology<float>&, const NearObstacle&, ConstVec3Ptr<float>,
+                                     ConstVec3Ptr<float>, const float*, Vec3Ptr<float>);
 template double obstacle_energy<double>(const Sheet<double>&, const Obstacle&, double);
 template double obstacle_energy<float>(const Sheet<float>&, const Obstacle&, double);
 

@@ -21,9 +21,12 @@ struct Obstacle {
   double reach_distance = 0;
 };
 
-// Beyond f = reach_exponent·ξ the potential is below e^−30 ≈ 1e−13 of c: sheets farther
-// away than that skip the obstacle.
-inline constexpr double reach_exponent = 30.0;
+// The potential is cut off at f = R = reach_exponent·ξ and shifted so its force falls
+// continuously to zero there: −dE/df = (c/ξ)·(e^(−f/ξ) − e^(−reach_exponent)) for f < R, and 0
+// beyond, so points beyond R cost nothing but f and sheets whose box is beyond it skip the
+// obstacle. The force differs from the uncut one by at most (c/ξ)·e^−16 ≈ 1.1·10⁻⁷·c/ξ
+// anywhere (Obstacles.CutOffForceStaysWithinItsBoundOfTheExactOne).
+inline constexpr double reach_exponent = 16.0;
 
 Obstacle make_obstacle(const ObstacleDef& def);
 
@@ -42,8 +45,9 @@ ImplicitSample implicit_at(const Obstacle& o, const double p[3]);
 // throws it out with more energy than it brought.
 double exponent_cap(const ObstacleDef& def, double lightest_mass, double dt);
 
-// E(f) = c·exp(−f/ξ), continued linearly past the exponent cap, and −dE/df, the factor that
-// multiplies ∇f in the force.
+// E(f) = c·exp(−f/ξ), cut off and shifted at reach_exponent·ξ (above), continued linearly past
+// the exponent cap, and −dE/df, the factor that multiplies ∇f in the force (the kernel's own
+// arithmetic, a vectorisable exp within 2 ulp of std::exp).
 double potential_energy(const ObstacleDef& def, double f, double cap);
 double potential_force_scale(const ObstacleDef& def, double f, double cap);
 
@@ -51,9 +55,12 @@ double potential_force_scale(const ObstacleDef& def, double f, double cap);
 bool may_touch(const Obstacle& o, const Aabb& box);
 
 // eq (9): adds the obstacle's repulsion to f for every point of the sheet; projected on the
-// sheet's unit normal (from the neighbouring grid points) unless def.full_gradient.
+// sheet's unit normal (from the neighbouring grid points) unless def.full_gradient. With
+// near.friction > 0 also Coulomb friction, which reads the point's velocity v, its inverse
+// mass and the total force f holds so far (call it after every other term).
 template <class Real>
-void obstacle_forces(const Topology<Real>& topo, const NearObstacle& near, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f);
+void obstacle_forces(const Topology<Real>& topo, const NearObstacle& near, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v,
+                     const Real* inv_mass, Vec3Ptr<Real> f);
 
 template <class Real>
 double obstacle_energy(const Sheet<Real>& sheet, const Obstacle& o, double cap);

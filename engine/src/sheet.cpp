@@ -137,6 +137,7 @@ std::string validate(const SheetDef& d) {
   if (d.rest_length_v && !non_negative(*d.rest_length_v))
     return problem("rest_length_v", "must be non-negative and finite", *d.rest_length_v);
   if (!non_negative(d.damping)) return problem("damping", "must be non-negative and finite", d.damping);
+  if (!non_negative(d.friction)) return problem("friction", "must be non-negative and finite", d.friction);
   if (!d.point_damping.empty()) {
     if (d.point_damping.size() != points) return problem("point_damping", "must have one value per point; size", d.point_damping.size());
     for (std::size_t i = 0; i < d.point_damping.size(); ++i)
@@ -220,6 +221,7 @@ Sheet<Real> build_sheet(const SheetDef& d) {
     s.air->friction_coefficient = d.air->friction;
     set_wind(s, Wind{});
   }
+  s.friction = d.friction;
   for (std::uint32_t i = 0; i <= m; ++i)
     for (std::uint32_t j = 0; j <= n; ++j) {
       // eqs (2)–(3): row-major; local grid centred on the sheet's centre

@@ -16,10 +16,15 @@ namespace drape::detail {
 struct Obstacle;  // obstacles.h
 
 // An obstacle the host stage found near a sheet, with the exponent cap this sheet uses
-// (obstacles.h, exponent_cap: it depends on the sheet's lightest point and on dt).
+// (obstacles.h, exponent_cap: it depends on the sheet's lightest point and on dt), and what
+// its friction needs: μ (the larger of the sheet's and the obstacle's), the substep's
+// length and gravity (friction stops the slip the substep would otherwise produce).
 struct NearObstacle {
   const Obstacle* obstacle;
   double exponent_cap;
+  double friction = 0;
+  double dt = 0;
+  double gravity[3] = {0, 0, 0};
 };
 
 // Edge buffer of a grid (paper Fig 1). Springs are stored in a fixed order so the force
@@ -156,6 +161,7 @@ struct Sheet {
   Vec3Array<Real> contact_force;
   bool has_contacts = false;
   bool self_collision = false;
+  double friction = 0;  // μ (SheetDef::friction)
   // Obstacles whose reach overlaps this sheet's bounding box, chosen by the world's host
   // stage every substep (the world clears these lists whenever its obstacle pool changes).
   std::vector<NearObstacle> near_obstacles;

@@ -195,7 +195,11 @@ struct BasicWorld<Real>::Impl {
       for (std::uint32_t o : active_obstacles) {
         const detail::Obstacle& obstacle = *obstacle_slots[o].obstacle;
         if (detail::may_touch(obstacle, box))
-          s.near_obstacles.push_back({&obstacle, detail::exponent_cap(obstacle.def, lightest, h)});
+          s.near_obstacles.push_back({.obstacle = &obstacle,
+                                      .exponent_cap = detail::exponent_cap(obstacle.def, lightest, h),
+                                      .friction = std::max(s.friction, obstacle.def.friction),
+                                      .dt = h,
+                                      .gravity = {def.gravity.x, def.gravity.y, def.gravity.z}});
       }
     }
   }
@@ -229,15 +233,16 @@ struct BasicWorld<Real>::Impl {
   // Host stage: bounds → broad-phase → contact work per overlapping pair → which forces
   // each sheet gathers. Sheets whose boxes (grown by half the contact range each) do not
   // meet never reach the narrow phase.
-  void host_stage() {
+  void host_stage(double h) {
     const std::size_t count = active.size();
     for (std::size_t k = 0; k < count; ++k) at(k).has_contacts = false;
     if (!contacts_possible()) {
       pairs.clear();
       return;
     }
-    const auto params = detail::ContactParams<Real>::make(def.contact_thickness, def.contact_xi, def.contact_strength,
-                                                          def.contact_range);
+    auto params = detail::ContactParams<Real>::make(def.contact_thickness, def.contact_xi, def.contact_strength,
+                                                    def.contact_range);
+    params.dt = static_cast<Real>(h);  // friction stops at most the slip of one substep
     bounds.resize(count);
     grown.resize(count);
     parallel(count, [&](std::size_t k) {
@@ -361,7 +366,7 @@ struct BasicWorld<Real>::Impl {
 
   // One substep, stage by stage.
   void substep(double h) {
-    host_stage();                   // 1. bounds, broad-phase, contact forces per pair; obstacles near each sheet
+    host_stage(h);                  // 1. bounds, broad-phase, contact forces per pair; obstacles near each sheet
     assign_obstacles(h);
     integrate_sheets(step_params(h));  // 2. per sheet (or block): gather contacts, forces, integrate
     count_substeps(h, 1);

@@ -35,6 +35,9 @@ struct ObstacleDef {
   // inside, or arrives faster than the potential can stop it, is pushed out by a finite force
   // the integrator resolves, instead of one that overflows or throws it out with extra energy.
   double max_exponent = 8.0;
+  // μ, Coulomb friction of the surface (static and kinetic, ≥ 0). Against a sheet the larger
+  // of this and SheetDef::friction acts; 0 on both: frictionless (docs/scene-format.md).
+  double friction = 0.0;
 };
 
 // An empty string when the definition can be simulated; otherwise one message naming the

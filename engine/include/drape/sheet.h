@@ -95,6 +95,10 @@ struct SheetDef {
   // Contacts of the sheet with itself (folding), with the world's contact parameters
   // (WorldDef::contact_*). Off by default: it costs a grid over the whole sheet per substep.
   bool self_collision = false;
+
+  // μ, Coulomb friction of the sheet (static and kinetic, ≥ 0) against obstacles and other
+  // sheets; the larger of the two sides' coefficients acts (docs/scene-format.md).
+  double friction = 0.0;
 };
 
 constexpr std::uint32_t point_index(std::uint32_t n, std::uint32_t i, std::uint32_t j) {

@@ -67,7 +67,7 @@ struct Energies {
   double bending = 0;  // ½ k_b Σ |x_a − 2x_b + x_c|² (SheetDef::bending)
   double gravity = 0;  // −Σ m g·x (zero at the origin)
   double anchor = 0;   // ½ Σ k |x − p0|², eq (8)
-  double obstacle = 0; // Σ c·exp(−f/ξ) over points and obstacles, eq (9) (linear past the cap)
+  double obstacle = 0; // Σ c·exp(−f/ξ) over points and obstacles, eq (9) (cut off at 16ξ, linear past the cap)
   double total() const { return kinetic + spring + bending + gravity + anchor + obstacle; }
 };
 
