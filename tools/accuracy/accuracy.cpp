@@ -260,7 +260,7 @@ const char* precision_name() {
 template <class World>
 void oscillator_runs(std::vector<Row>& rows, const std::vector<double>& steps) {
   const Oscillator o;
-  for (Integrator i : drape::integrators)
+  for (Integrator i : drape::integrators())
     for (double dt : steps) {
       auto wd = world_def(i, dt);
       wd.gravity = {0, 0, 0};
@@ -280,7 +280,7 @@ void oscillator_runs(std::vector<Row>& rows, const std::vector<double>& steps) {
 
 template <class World>
 void rope_runs(std::vector<Row>& rows, const std::vector<double>& steps, const Rope& rope, const Positions& ref) {
-  for (Integrator i : drape::integrators)
+  for (Integrator i : drape::integrators())
     for (double dt : steps) {
       double err = 0;
       const Run run = fastest([&] {
@@ -296,7 +296,7 @@ void rope_runs(std::vector<Row>& rows, const std::vector<double>& steps, const R
 
 template <class World>
 void fig5_runs(std::vector<Row>& rows, const std::vector<double>& steps, const Positions& ref) {
-  for (Integrator i : drape::integrators)
+  for (Integrator i : drape::integrators())
     for (double dt : steps) {
       double err = 0;
       const Run run = fastest([&] {
@@ -361,7 +361,7 @@ std::pair<Run, int> frame_cost(Integrator integrator, double k, double largest_s
 
 template <class World>
 void stability_region(std::ofstream& out, const std::vector<double>& stiffnesses) {
-  for (Integrator i : drape::integrators)
+  for (Integrator i : drape::integrators())
     for (double k : stiffnesses) {
       double estimate;
       {
