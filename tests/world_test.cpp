@@ -336,9 +336,9 @@ void expect_frames_change_no_bit() {
 TEST(Worlds, FramesOfSubstepsChangeNoBit) { expect_frames_change_no_bit<World>(); }
 TEST(Worlds, FramesOfSubstepsChangeNoBitInFloat) { expect_frames_change_no_bit<WorldF>(); }
 
-// The implicit integrators solve within a sheet in parallel (local/global's three axes) and
-// keep memory between substeps (implicit Euler's guess): one and two threads, and frames
-// against single substeps, give the same bits.
+// The implicit integrators keep memory between substeps (implicit Euler's guess,
+// local/global's factor): one and two threads, and frames against single substeps, give
+// the same bits.
 template <class W>
 void expect_implicit_runs_change_no_bit() {
   for (Integrator integrator : {Integrator::ImplicitEuler, Integrator::LocalGlobal}) {

@@ -1,7 +1,7 @@
 // Local/global backward Euler (Liu et al. 2013): see local_global.h for the iteration.
 #include "local_global.h"
 
-#include <tbb/parallel_invoke.h>
+#include <Eigen/SparseCholesky>
 
 #include <algorithm>
 #include <cmath>
@@ -57,7 +57,17 @@ void build_factor(LocalGlobalScratch& sc, const Sheet<Real>& s, double dt) {
   for (std::size_t p = 0; p < count; ++p) entries.emplace_back(int(p), int(p), sc.pinned[p] ? 1.0 : diagonal[p]);
   LocalGlobalScratch::Matrix system(static_cast<Eigen::Index>(count), static_cast<Eigen::Index>(count));
   system.setFromTriplets(entries.begin(), entries.end());
-  sc.factor.compute(system);  // SPD: positive masses on the diagonal, a weighted Laplacian added
+  // SPD: positive masses on the diagonal, a weighted Laplacian added
+  Eigen::SimplicialLLT<LocalGlobalScratch::Matrix, Eigen::Lower, Eigen::AMDOrdering<int>> factor(system);
+  const auto& l = factor.matrixL().nestedExpression();
+  sc.column_start.assign(l.outerIndexPtr(), l.outerIndexPtr() + count + 1);
+  sc.row_index.assign(l.innerIndexPtr(), l.innerIndexPtr() + l.nonZeros());
+  sc.value.assign(l.valuePtr(), l.valuePtr() + l.nonZeros());
+  sc.inverse_diagonal.resize(count);
+  for (std::size_t j = 0; j < count; ++j) sc.inverse_diagonal[j] = 1.0 / sc.value[std::size_t(sc.column_start[j])];
+  const auto& indices = factor.permutationP().indices();
+  sc.permutation.assign(indices.data(), indices.data() + count);
+  sc.work.resize(3 * count);
   for (int r = 0; r < 3; ++r) {
     sc.inertia[r].resize(Eigen::Index(count));
     sc.rhs[r].resize(Eigen::Index(count));
@@ -91,6 +101,56 @@ void local_step(LocalGlobalScratch& sc, const std::vector<std::uint32_t>& ea, co
         sc.spring_force[r][b] -= f;
       }
     }
+  }
+}
+
+// The global step for all three axes: sc.rhs → sc.solution through L Lᵀ (permuted). The
+// axes run interleaved, so each entry of L is read once for three values: measured on this
+// machine, one pass for three axes took half the time of three passes, which beats even
+// three passes on two cores.
+void global_solve(LocalGlobalScratch& sc) {
+  const std::size_t count = sc.inverse_diagonal.size();
+  double* w = sc.work.data();
+  const int* start = sc.column_start.data();
+  const int* row = sc.row_index.data();
+  const double* l = sc.value.data();
+  for (std::size_t p = 0; p < count; ++p) {
+    double* q = w + 3 * std::size_t(sc.permutation[p]);
+    q[0] = sc.rhs[0][Eigen::Index(p)];
+    q[1] = sc.rhs[1][Eigen::Index(p)];
+    q[2] = sc.rhs[2][Eigen::Index(p)];
+  }
+  for (std::size_t j = 0; j < count; ++j) {  // L y = b, column by column
+    const double inv = sc.inverse_diagonal[j];
+    const double a0 = w[3 * j] * inv, a1 = w[3 * j + 1] * inv, a2 = w[3 * j + 2] * inv;
+    w[3 * j] = a0;
+    w[3 * j + 1] = a1;
+    w[3 * j + 2] = a2;
+    for (int k = start[j] + 1; k < start[j + 1]; ++k) {
+      double* q = w + 3 * std::size_t(row[k]);
+      q[0] -= l[k] * a0;
+      q[1] -= l[k] * a1;
+      q[2] -= l[k] * a2;
+    }
+  }
+  for (std::size_t j = count; j-- > 0;) {  // Lᵀ x = y, a dot product per column
+    double s0 = w[3 * j], s1 = w[3 * j + 1], s2 = w[3 * j + 2];
+    for (int k = start[j] + 1; k < start[j + 1]; ++k) {
+      const double* q = w + 3 * std::size_t(row[k]);
+      s0 -= l[k] * q[0];
+      s1 -= l[k] * q[1];
+      s2 -= l[k] * q[2];
+    }
+    const double inv = sc.inverse_diagonal[j];
+    w[3 * j] = s0 * inv;
+    w[3 * j + 1] = s1 * inv;
+    w[3 * j + 2] = s2 * inv;
+  }
+  for (std::size_t p = 0; p < count; ++p) {
+    const double* q = w + 3 * std::size_t(sc.permutation[p]);
+    sc.solution[0][Eigen::Index(p)] = q[0];
+    sc.solution[1][Eigen::Index(p)] = q[1];
+    sc.solution[2][Eigen::Index(p)] = q[2];
   }
 }
 
@@ -176,10 +236,7 @@ void local_global_step(Sheet<Real>& s, const StepParams<Real>& p) {
         if (!sc.pinned[t.b[e]]) rhs[t.b[e]] -= w;
       }
     }
-    // The three axes share the factor and are independent: one task each, the same
-    // arithmetic on any number of threads.
-    auto solve = [&sc](int r) { sc.solution[r] = sc.factor.solve(sc.rhs[r]); };
-    tbb::parallel_invoke([&] { solve(0); }, [&] { solve(1); }, [&] { solve(2); });
+    global_solve(sc);
   }
 
   // Residual of the backward-Euler equations at the result, over the free points:

@@ -13,7 +13,6 @@
 // backward Euler would, never unstable (each iteration lowers the energy above).
 #pragma once
 
-#include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 #include <memory>
 #include <vector>
@@ -31,7 +30,12 @@ struct LocalGlobalScratch {
   std::vector<double> mass, damping, anchor_stiffness;
   std::vector<std::uint32_t> anchor_point, pin_point;
 
-  Eigen::SimplicialLLT<Matrix, Eigen::Lower, Eigen::AMDOrdering<int>> factor;
+  // The Cholesky factor L (compressed columns, diagonal entry first in each column) and its
+  // fill-reducing permutation, copied out of Eigen so the three axes share one pass over L.
+  std::vector<int> column_start, row_index, permutation;  // permutation: point → factor row
+  std::vector<double> value, inverse_diagonal;
+  std::vector<double> work;            // 3 per factor row: x, y, z interleaved
+
   std::vector<char> pinned;            // per point
   Eigen::VectorXd inertia[3];          // M̃ x̂ + dt²·(anchor targets and pinned neighbours) per axis
   Eigen::VectorXd rhs[3], solution[3];
