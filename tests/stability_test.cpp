@@ -191,8 +191,8 @@ INSTANTIATE_TEST_SUITE_P(Stability, Extremes, ::testing::ValuesIn(drape::integra
 
 // A million points, two steps of each integrator (the solve capped at a few iterations:
 // the claim is finiteness, not convergence). Local/global is left out: its first step
-// factors a million-point sparse matrix (about a minute and a gigabyte here), a price
-// docs/integrators.md states; its finiteness is held by the sweeps above.
+// factors a million-point sparse matrix (with it this test took over a minute here), a
+// price docs/integrators.md states; its finiteness is held by the sweeps above.
 TEST(Stability, MillionPointSheetTakesTwoStepsOfEveryIntegrator) {
   for (Integrator i : drape::integrators()) {
     if (i == Integrator::LocalGlobal) continue;
