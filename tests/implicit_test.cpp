@@ -107,25 +107,40 @@ Forces forces_of(const drape::World& world, drape::SheetId id, const drape::Shee
   return f;
 }
 
+// One step of `wd` on small_sheet(stiffness), ruffled: the states around it, the sheet's
+// forces written out, and the engine's report of the solve.
+struct OneStep {
+  Forces forces;
+  State before, after;
+  drape::World::SolverStats stats;
+};
+
+OneStep step_once(const drape::WorldDef& wd, double stiffness) {
+  const drape::SheetDef d = small_sheet(stiffness);
+  drape::World world(wd);
+  const auto id = world.add_sheet(d);
+  OneStep s{forces_of(world, id, d), {}, {}, {}};
+  ruffle(world, id);
+  s.before = read(world, id);
+  EXPECT_TRUE(world.step(1).ok());
+  s.after = read(world, id);
+  s.stats = world.solver_stats(id);
+  return s;
+}
+
 // One implicit Euler step of the engine against Baraff & Witkin's system solved densely:
 //   (M + h·C − h²·K) Δv = h·(f + M g − C v + h·K·v),  K = ∂f/∂x by central differences,
 // with the pinned point's rows and columns removed (its Δv is zero).
 TEST(ImplicitEuler, StepSolvesTheLinearisedSystemLikeADenseSolve) {
-  const drape::SheetDef d = small_sheet(800.0);
   drape::WorldDef wd;
   wd.integrator = Integrator::ImplicitEuler;
   wd.dt = 1.0 / 60;
   wd.cg_tolerance = 1e-13;
   wd.cg_max_iterations = 10000;
-  drape::World world(wd);
-  const auto id = world.add_sheet(d);
-  const Forces forces = forces_of(world, id, d);
-  ruffle(world, id);
-  const State before = read(world, id);
-  ASSERT_TRUE(world.step(1).ok());
-  const State after = read(world, id);
-  EXPECT_TRUE(world.solver_stats(id).converged);
-  EXPECT_LE(world.solver_stats(id).relative_residual, 1e-13);
+  const auto [forces, before, after, stats] = step_once(wd, 800.0);
+  const drape::SheetDef& d = forces.d;
+  EXPECT_TRUE(stats.converged);
+  EXPECT_LE(stats.relative_residual, 1e-13);
 
   const std::size_t n3 = 3 * forces.points();
   const double h = wd.dt, m = forces.mass(), c = d.damping;
@@ -165,19 +180,13 @@ TEST(ImplicitEuler, StepSolvesTheLinearisedSystemLikeADenseSolve) {
 // written out independently, to rounding; and it says so in solver_stats.
 TEST(LocalGlobal, EnoughIterationsSolveTheBackwardEulerEquations) {
   for (double stiffness : {50.0, 5e3}) {
-    const drape::SheetDef d = small_sheet(stiffness);
     drape::WorldDef wd;
     wd.integrator = Integrator::LocalGlobal;
     wd.dt = 1.0 / 60;
     wd.local_global_iterations = 30000;
     wd.cg_tolerance = 1e-10;
-    drape::World world(wd);
-    const auto id = world.add_sheet(d);
-    const Forces forces = forces_of(world, id, d);
-    ruffle(world, id);
-    const State before = read(world, id);
-    ASSERT_TRUE(world.step(1).ok());
-    const State after = read(world, id);
+    const auto [forces, before, after, stats] = step_once(wd, stiffness);
+    const drape::SheetDef& d = forces.d;
     const double h = wd.dt, m = forces.mass(), c = d.damping;
     const std::vector<double> f = forces.elastic(after.x);
     double worst = 0, scale = 0;
@@ -189,7 +198,6 @@ TEST(LocalGlobal, EnoughIterationsSolveTheBackwardEulerEquations) {
       EXPECT_NEAR(after.x[q], before.x[q] + h * after.v[q], 1e-12);
     }
     EXPECT_LT(worst, 1e-8 * scale) << "k = " << stiffness << ", largest momentum change " << scale;
-    const auto stats = world.solver_stats(id);
     EXPECT_TRUE(stats.converged) << stats.relative_residual;
     EXPECT_EQ(stats.iterations, wd.local_global_iterations);
   }
