@@ -78,16 +78,11 @@ void step_frames(benchmark::State& state, W& world, double points) {
   set_point_rate(state, points, frame_substeps);
 }
 
-// Every integrator the engine has: the enum is walked until integrator_name stops knowing
-// a value, so a new integrator is benchmarked as soon as it has a name.
+// Every integrator the engine has, from its table: a new integrator is benchmarked as
+// soon as it has a row.
 inline std::vector<Integrator> all_integrators() {
-  std::vector<Integrator> all;
-  for (int i = 0; i < 64; ++i) {
-    const auto integrator = static_cast<Integrator>(i);
-    if (integrator_name(integrator) == "unknown") break;
-    all.push_back(integrator);
-  }
-  return all;
+  const auto all = drape::integrators();
+  return {all.begin(), all.end()};
 }
 
 }  // namespace drape::bench

@@ -1,4 +1,4 @@
-// The five integrators against things they cannot tune themselves to: the analytic
+// The integrators against things they cannot tune themselves to: the analytic
 // two-point oscillator (observed order of convergence), conservation of linear momentum,
 // implicit Euler far past the explicit stability limit, and float against double.
 #include <drape/drape.h>
@@ -69,17 +69,32 @@ INSTANTIATE_TEST_SUITE_P(Integrators, ConvergenceOrder,
                                            OrderCase{Integrator::SemiImplicitEuler, 2e-4},
                                            OrderCase{Integrator::VelocityVerlet, 2e-3},
                                            OrderCase{Integrator::RK4, 2e-2},
-                                           OrderCase{Integrator::ImplicitEuler, 2e-4}),
+                                           OrderCase{Integrator::ImplicitEuler, 2e-4},
+                                           OrderCase{Integrator::LocalGlobal, 2e-4}),
                          [](const auto& info) { return std::string(drape::integrator_name(info.param.integrator)); });
 
-TEST(Integrators, TheOrderTableIsOneOneTwoFourOne) {
+TEST(Integrators, TheOrderTableIsOneOneTwoFourOneOne) {
   std::vector<int> orders;
-  for (Integrator i : drape::integrators) orders.push_back(drape::integrator_order(i));
-  EXPECT_EQ(orders, (std::vector<int>{1, 1, 2, 4, 1}));
+  for (Integrator i : drape::integrators()) orders.push_back(drape::integrator_order(i));
+  EXPECT_EQ(orders, (std::vector<int>{1, 1, 2, 4, 1, 1}));
+}
+
+// The table is the one description: every row is found by its value and its name, and an
+// implicit row is exactly one with no step limit.
+TEST(Integrators, TableRowsAgreeWithTheLookups) {
+  ASSERT_EQ(drape::integrator_table().size(), drape::integrators().size());
+  for (const drape::IntegratorInfo& row : drape::integrator_table()) {
+    EXPECT_EQ(&drape::integrator_info(row.integrator), &row);
+    EXPECT_EQ(drape::integrator_from_name(row.name), row.integrator);
+    EXPECT_FALSE(row.stability.empty()) << row.name;
+    EXPECT_EQ(std::isinf(drape::integrator_critical_step(row.integrator, 100.0)), !row.is_explicit) << row.name;
+  }
+  EXPECT_EQ(drape::integrator_name(static_cast<Integrator>(99)), "unknown");
+  EXPECT_THROW(drape::integrator_info(static_cast<Integrator>(99)), std::out_of_range);
 }
 
 TEST(Integrators, NamesRoundTrip) {
-  for (Integrator i : drape::integrators) EXPECT_EQ(drape::integrator_from_name(drape::integrator_name(i)), i);
+  for (Integrator i : drape::integrators()) EXPECT_EQ(drape::integrator_from_name(drape::integrator_name(i)), i);
   EXPECT_FALSE(drape::integrator_from_name("leapfrog").has_value());
 }
 
@@ -136,17 +151,17 @@ void check_momentum(Integrator integrator, double tolerance) {
 }
 
 TEST(Integrators, EveryIntegratorConservesMomentumWithoutExternalForceDouble) {
-  for (Integrator i : drape::integrators) check_momentum<drape::World>(i, 1e-10);
+  for (Integrator i : drape::integrators()) check_momentum<drape::World>(i, 1e-10);
 }
 
 TEST(Integrators, EveryIntegratorConservesMomentumWithoutExternalForceFloat) {
-  for (Integrator i : drape::integrators) check_momentum<drape::WorldF>(i, 1e-4);
+  for (Integrator i : drape::integrators()) check_momentum<drape::WorldF>(i, 1e-4);
 }
 
 // A stiff sheet with a bump, corners pinned: 10× the explicit critical step. The explicit
 // integrators blow up there (checked, so the step really is past their limit); implicit
-// Euler stays finite and only loses energy.
-TEST(Integrators, ImplicitEulerIsStableAtTenTimesTheExplicitCriticalStep) {
+// Euler and local/global stay finite and only lose energy.
+TEST(Integrators, ImplicitMethodsAreStableAtTenTimesTheExplicitCriticalStep) {
   auto run = [](Integrator integrator) {
     drape::WorldDef wd;
     wd.integrator = integrator;
@@ -167,9 +182,11 @@ TEST(Integrators, ImplicitEulerIsStableAtTenTimesTheExplicitCriticalStep) {
     for (int frame = 0; frame < 12 && report.ok(); ++frame) report = world.step(10);
     return std::pair{report, world.all_finite() ? world.energies().total() / e0 : INFINITY};
   };
-  const auto [implicit_report, implicit_energy] = run(Integrator::ImplicitEuler);
-  EXPECT_TRUE(implicit_report.ok()) << drape::describe(implicit_report);
-  EXPECT_LE(implicit_energy, 1.0);
+  for (Integrator implicit : {Integrator::ImplicitEuler, Integrator::LocalGlobal}) {
+    const auto [implicit_report, implicit_energy] = run(implicit);
+    EXPECT_TRUE(implicit_report.ok()) << drape::describe(implicit_report);
+    EXPECT_LE(implicit_energy, 1.0) << drape::integrator_name(implicit);
+  }
   for (Integrator explicit_one : {Integrator::SemiImplicitEuler, Integrator::VelocityVerlet, Integrator::RK4}) {
     const auto [report, energy] = run(explicit_one);
     EXPECT_FALSE(report.ok()) << drape::integrator_name(explicit_one) << " should not be stable at this step";
@@ -222,7 +239,7 @@ Agreement float_against_double(Integrator integrator, double seconds) {
 // Relative to how far the sheet moved: the strict measure.
 TEST(Integrators, FloatAndDoubleAgreeOnTheFig5SheetToOnePartIn1e4) {
   for (Integrator i : {Integrator::SemiImplicitEuler, Integrator::VelocityVerlet, Integrator::RK4,
-                       Integrator::ImplicitEuler}) {
+                       Integrator::ImplicitEuler, Integrator::LocalGlobal}) {
     const Agreement a = float_against_double(i, 0.05);
     ASSERT_GT(a.max_displacement, 0.005) << "the sheet must have fallen";
     EXPECT_LT(a.max_difference / a.max_displacement, 1e-4) << drape::integrator_name(i);

@@ -18,6 +18,10 @@ struct Case {
   double dt = 1e-3;
   double rest_scale = 1.0;  // ℓ = rest_scale·h (prestress)
   bool coincident = false;  // every point starts at the same place
+  double mass_ratio = 1.0;       // every other point (checkerboard) is this much heavier
+  double stiffness_ratio = 1.0;  // springs in the left half of the grid are this much stiffer (§5.1)
+  bool crumpled = false;         // points start scattered in a 1 cm ball (a crumpled sheet)
+  bool inverted = false;         // the sheet starts folded through itself: the right half mirrored onto the left
   int substeps = 20;
   int cg_max_iterations = 200;
 };
@@ -25,7 +29,9 @@ struct Case {
 std::string label(const Case& c, Integrator i) {
   return std::string(drape::integrator_name(i)) + " grid " + std::to_string(c.m + 1) + "x" + std::to_string(c.n + 1) +
          " k=" + std::to_string(c.stiffness) + " m=" + std::to_string(c.point_mass) + " dt=" + std::to_string(c.dt) +
-         " rest*" + std::to_string(c.rest_scale) + (c.coincident ? " coincident" : "");
+         " rest*" + std::to_string(c.rest_scale) + (c.coincident ? " coincident" : "") +
+         " mass ratio " + std::to_string(c.mass_ratio) + " stiffness ratio " + std::to_string(c.stiffness_ratio) +
+         (c.crumpled ? " crumpled" : "") + (c.inverted ? " inverted" : "");
 }
 
 // Runs a case in frames of 5 substeps and checks the engine's promise: implicit Euler stays
@@ -50,11 +56,24 @@ bool run_case(const Case& c, Integrator integrator) {
     d.rest_length_h = c.rest_scale * d.width / std::max(c.n, 1u);
     d.rest_length_v = c.rest_scale * d.height / std::max(c.m, 1u);
   }
+  if (c.mass_ratio != 1.0) {
+    d.point_masses.assign(drape::point_count(c.m, c.n), c.point_mass);
+    for (std::uint32_t i = 0; i <= c.m; ++i)
+      for (std::uint32_t j = 0; j <= c.n; ++j)
+        if ((i + j) % 2 == 1) d.point_masses[drape::point_index(c.n, i, j)] = c.point_mass * c.mass_ratio;
+  }
+  if (c.stiffness_ratio != 1.0) d.stiffness_regions = {{0, c.m, 0, c.n / 2, c.stiffness * c.stiffness_ratio}};
   d.pins = {0, drape::point_index(c.n, c.m, c.n)};  // two opposite corners (a rope's two ends)
   const auto id = world.add_sheet(d);
-  if (c.coincident) {
-    auto st = world.state(id);
-    for (std::size_t i = 0; i < st.size(); ++i) st.x[i] = st.y[i] = st.z[i] = Real(0.25);
+  auto st = world.state(id);
+  for (std::size_t i = 0; i < st.size(); ++i) {
+    if (c.coincident) st.x[i] = st.y[i] = st.z[i] = Real(0.25);
+    if (c.crumpled) {  // a fixed scatter, the same on every run
+      st.x[i] = Real(0.01 * std::sin(12.9898 * double(i)));
+      st.y[i] = Real(0.01 * std::sin(78.233 * double(i)));
+      st.z[i] = Real(0.01 * std::sin(37.719 * double(i)));
+    }
+    if (c.inverted && st.x[i] > 0) st.x[i] = -st.x[i];
   }
   drape::StabilityReport report;
   int taken = 0;
@@ -65,7 +84,7 @@ bool run_case(const Case& c, Integrator integrator) {
   }
   const bool finite = world.all_finite();
   const std::string what = label(c, integrator) + ": " + drape::describe(report);
-  if (integrator == Integrator::ImplicitEuler) {
+  if (!drape::integrator_is_explicit(integrator)) {  // implicit methods never produce NaN
     EXPECT_TRUE(finite) << what;
     EXPECT_NE(report.status, drape::StabilityStatus::NonFinite) << what;
   }
@@ -130,22 +149,59 @@ void sweep_shapes(Integrator integrator) {
   }
 }
 
+// The issue 16 extremes: mass ratios of 1e6 between neighbours, stiffness ratios of 1e8
+// between regions, steps from 1e-6 to 1/30 s, sheets started crumpled or folded through
+// themselves: finite state, or the guard's message; implicit methods never NaN.
+template <class World>
+void sweep_ratios(Integrator integrator) {
+  for (double dt : {1e-6, 1e-3, 1.0 / 30}) {
+    Case masses;
+    masses.mass_ratio = 1e6;
+    Case stiffnesses;
+    stiffnesses.stiffness = 1.0;
+    stiffnesses.stiffness_ratio = 1e8;
+    Case crumpled;
+    crumpled.stiffness = 1e4;
+    crumpled.crumpled = true;
+    Case inverted;
+    inverted.stiffness = 1e4;
+    inverted.inverted = true;
+    Case everything = crumpled;
+    everything.mass_ratio = 1e6;
+    everything.stiffness_ratio = 1e4;
+    for (Case c : {masses, stiffnesses, crumpled, inverted, everything}) {
+      c.dt = dt;
+      run_case<World>(c, integrator);
+    }
+  }
+}
+
+TEST_P(Extremes, MassAndStiffnessRatiosAndCrumpledStartsStayFiniteOrAreReportedDouble) {
+  sweep_ratios<drape::World>(GetParam());
+}
+TEST_P(Extremes, MassAndStiffnessRatiosAndCrumpledStartsStayFiniteOrAreReportedFloat) {
+  sweep_ratios<drape::WorldF>(GetParam());
+}
+
 TEST_P(Extremes, DegenerateShapesAndPrestressStayFiniteOrAreReportedDouble) { sweep_shapes<drape::World>(GetParam()); }
 TEST_P(Extremes, DegenerateShapesAndPrestressStayFiniteOrAreReportedFloat) { sweep_shapes<drape::WorldF>(GetParam()); }
 
-INSTANTIATE_TEST_SUITE_P(Stability, Extremes, ::testing::ValuesIn(drape::integrators),
+INSTANTIATE_TEST_SUITE_P(Stability, Extremes, ::testing::ValuesIn(drape::integrators()),
                          [](const auto& info) { return std::string(drape::integrator_name(info.param)); });
 
 // A million points, two steps of each integrator (the solve capped at a few iterations:
-// the claim is finiteness, not convergence).
+// the claim is finiteness, not convergence). Local/global is left out: its first step
+// factors a million-point sparse matrix (with it this test took over a minute here), a
+// price docs/integrators.md states; its finiteness is held by the sweeps above.
 TEST(Stability, MillionPointSheetTakesTwoStepsOfEveryIntegrator) {
-  for (Integrator i : drape::integrators) {
+  for (Integrator i : drape::integrators()) {
+    if (i == Integrator::LocalGlobal) continue;
     Case c;
     c.m = c.n = 999;
     c.point_mass = 1e-3;
     c.substeps = 2;
     c.cg_max_iterations = 5;
-    EXPECT_TRUE(run_case<drape::WorldF>(c, i) || i != Integrator::ImplicitEuler);
+    EXPECT_TRUE(run_case<drape::WorldF>(c, i) || drape::integrator_is_explicit(i));
   }
 }
 
@@ -179,7 +235,7 @@ TEST(Guard, ReportedStableStepIsStable) {
 // No false alarms: every integrator at half its critical step on the damped Fig 5 sheet
 // for one simulated second (forward Euler at half its bounded-growth step).
 TEST(Guard, StableRunsAreNotFlagged) {
-  for (Integrator i : drape::integrators) {
+  for (Integrator i : drape::integrators()) {
     drape::WorldDef wd;
     wd.integrator = i;
     drape::World world(wd);
@@ -189,7 +245,7 @@ TEST(Guard, StableRunsAreNotFlagged) {
     d.damping = 0.01;
     d.anchors = drape::anchors_at(drape::corner_points(d.m, d.n), 500.0);
     world.add_sheet(d);
-    world.set_dt(i == Integrator::ImplicitEuler ? 1e-2 : 0.5 * world.critical_step(i));
+    world.set_dt(!drape::integrator_is_explicit(i) ? 1e-2 : 0.5 * world.critical_step(i));
     drape::StabilityReport report;
     for (int frame = 0; frame < 30 && report.ok(); ++frame) report = world.advance(1.0 / 30);
     EXPECT_TRUE(report.ok()) << drape::describe(report);
@@ -281,6 +337,9 @@ TEST(WorldDefValidation, NamesTheBadKnob) {
   wd = {};
   wd.cg_max_iterations = 0;
   EXPECT_THROW(drape::World{wd}, std::invalid_argument);
+  wd = {};
+  wd.local_global_iterations = 0;
+  EXPECT_NE(drape::validate(wd).find("local_global_iterations"), std::string::npos);
   EXPECT_EQ(drape::validate(drape::WorldDef{}), "");
 }
 

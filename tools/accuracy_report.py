@@ -23,6 +23,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 INTEGRATORS = ["forward_euler", "semi_implicit_euler", "velocity_verlet", "rk4", "implicit_euler"]
 THEORY = {"forward_euler": 1, "semi_implicit_euler": 1, "velocity_verlet": 2, "rk4": 4, "implicit_euler": 1}
+EXPLICIT = {"forward_euler": True, "semi_implicit_euler": True, "velocity_verlet": True, "rk4": True,
+            "implicit_euler": False}
 COLORS = {"forward_euler": "tab:red", "semi_implicit_euler": "tab:blue", "velocity_verlet": "tab:green",
           "rk4": "tab:purple", "implicit_euler": "tab:orange"}
 MARKERS = {"float64": "o", "float32": "^"}
@@ -72,6 +74,71 @@ def pareto(points):
     return front
 
 
+def stepping_name(r):
+    it = f", {r['iterations']} iterations" if r["integrator"] == "local_global" else ""
+    return f"{r['integrator']} at dt = {fmt(num(r, 'dt'))} s{it}"
+
+
+def stiff_section(w, stiff, meta):
+    seconds = meta.get("stiff_seconds", "?")
+    ks = sorted({num(r, "k") for r in stiff})
+    w("## Stiff sheets\n")
+    w(f"A 128×128-point sheet (16,384 points), 1 m square, 1 kg, corners pinned, falling from flat for {seconds} s, "
+      f"with k from {fmt(ks[0])} to {fmt(ks[-1])} N/m. The reference at each k is RK4 in float64 at half its "
+      "critical step; error = largest point distance from it at the end ÷ sheet width. Explicit integrators run "
+      "at 0.8× their critical step (`critical_step`), the implicit ones at the steps listed; cost = wall seconds "
+      "per simulated second on one core (float64). Each cell: error [cost]; — = not stable. "
+      "The stretch column of the CSV (`docs/data/accuracy_stiff.csv`) holds the largest spring stretch at the end.\n")
+    keys = []
+    for r in stiff:
+        key = (r["integrator"], r["iterations"] if r["integrator"] == "local_global" else "",
+               "explicit" if EXPLICIT.get(r["integrator"], True) else r["dt"])
+        if key not in keys:
+            keys.append(key)
+    w("| stepping | " + " | ".join(f"k = {fmt(k)}" for k in ks) + " |")
+    w("|---|" + "---|" * len(ks))
+    for key in keys:
+        cells, label = [], None
+        for k in ks:
+            r = next((r for r in stiff if num(r, "k") == k and (r["integrator"],
+                      r["iterations"] if r["integrator"] == "local_global" else "",
+                      "explicit" if EXPLICIT.get(r["integrator"], True) else r["dt"]) == key), None)
+            if r is None:
+                cells.append("")
+                continue
+            if label is None:
+                label = (f"{r['integrator']} at 0.8× critical" if key[2] == "explicit" else stepping_name(r))
+            if r["stable"] != "1":
+                cells.append("—")
+                continue
+            unconverged = int(float(r.get("unconverged_solves") or 0))
+            flag = "*" if unconverged > 0 and r["integrator"] == "implicit_euler" else ""
+            cells.append(f"{fmt(num(r, 'error'), 2)} [{fmt(num(r, 'wall_per_simulated_s'), 2)}]{flag}")
+        w(f"| {label} | " + " | ".join(cells) + " |")
+    w("\n\\* implicit Euler's PCG stopped at its iteration cap in some steps (not the backward-Euler step).\n")
+    w("**Cheapest stepping per error budget** (wall seconds per simulated second, one core; real time is 1):\n")
+    budgets = [1e-1, 1e-2, 1e-3]
+    w("| k (N/m) | " + " | ".join(f"error ≤ {fmt(b)}" for b in budgets) + " |")
+    w("|---|" + "---|" * len(budgets))
+    winners = {}
+    for k in ks:
+        cells = []
+        for b in budgets:
+            ok = [r for r in stiff if num(r, "k") == k and r["stable"] == "1" and num(r, "error") <= b]
+            if not ok:
+                cells.append("none")
+                continue
+            best = min(ok, key=lambda r: num(r, "wall_per_simulated_s"))
+            winners.setdefault(best["integrator"], []).append((k, b))
+            cells.append(f"**{stepping_name(best)}**: {fmt(num(best, 'wall_per_simulated_s'), 2)} s/s, "
+                         f"error {fmt(num(best, 'error'), 2)}")
+        w(f"| {fmt(k)} | " + " | ".join(cells) + " |")
+    w("")
+    for integ, wins in winners.items():
+        w(f"- **{integ}** is the cheapest for " + ", ".join(f"k = {fmt(k)} at error ≤ {fmt(b)}" for k, b in wins) + ".")
+    w("")
+
+
 def main():
     if len(sys.argv) != 3:
         sys.exit("usage: accuracy_report.py DATA_DIR DOCS_DIR")
@@ -79,6 +146,17 @@ def main():
     runs = read_csv(os.path.join(data, "accuracy_runs.csv"))
     region = read_csv(os.path.join(data, "accuracy_stability.csv"))
     meta = {r["key"]: r["value"] for r in read_csv(os.path.join(data, "accuracy_meta.csv"))}
+    stiff_path = os.path.join(data, "accuracy_stiff.csv")
+    stiff = read_csv(stiff_path) if os.path.exists(stiff_path) else []
+    # The integrators as the engine's table lists them (drape-accuracy writes it into the meta file).
+    global INTEGRATORS, THEORY, EXPLICIT, COLORS
+    table = [(k.split(":", 1)[1], v.split(":")) for k, v in meta.items() if k.startswith("integrator:")]
+    if table:
+        INTEGRATORS = [name for name, _ in table]
+        THEORY = {name: int(v[0]) for name, v in table}
+        EXPLICIT = {name: v[1] == "1" for name, v in table}
+    palette = ["tab:red", "tab:blue", "tab:green", "tab:purple", "tab:orange", "tab:brown", "tab:pink", "tab:gray"]
+    COLORS = {name: COLORS.get(name, palette[i % len(palette)]) for i, name in enumerate(INTEGRATORS)}
     img = os.path.join(docs, "img")
     os.makedirs(img, exist_ok=True)
     out = []
@@ -93,7 +171,8 @@ def main():
     w(f"- Threads: {meta.get('threads', '?')} (wall times are single-core; a run under 0.3 s is repeated up to "
       "5 times and its fastest time kept, so other load on the machine shows less)")
     w(f"- Implicit Euler's CG: relative residual {meta.get('cg_tolerance', '?')}, at most "
-      f"{meta.get('cg_max_iterations', '?')} iterations (Jacobi preconditioner)")
+      f"{meta.get('cg_max_iterations', '?')} iterations (3×3 block-Jacobi preconditioner)")
+    w(f"- Local/global: {meta.get('local_global_iterations', '?')} iterations per step unless a table says otherwise")
     w(f"- Date: {datetime.datetime.now(datetime.timezone.utc).strftime('%Y-%m-%d %H:%M UTC')}\n")
     w("Reference problems (answers independent of the engine):\n")
     w("- **oscillator**: two points (1 kg, 3 kg) and one spring (k = 100 N/m), released from a 0.2 m "
@@ -310,7 +389,7 @@ def main():
           + (" and its time saving matters" if median < 1 else "; otherwise float64 costs nothing extra") + ".")
     # Rule 4: implicit against explicit, from the measured per-second costs of the
     # stability-region sheet at each one's largest stable step (capped at one frame).
-    w("\n**Implicit Euler (the stiffness-matrix route) against explicit steps.** The cheapest integrator per "
+    w("\n**Implicit integrators (implicit Euler, local/global) against explicit steps.** The cheapest integrator per "
       "simulated second on the 16×16 sheet, each at its own largest stable step (capped at one 60 fps frame), "
       "from the table in the stability section:\n")
     implicit_wins = []
@@ -320,20 +399,20 @@ def main():
         if not costs:
             continue
         best_cost, best = min(costs)
-        explicit = [(c, i) for c, i in costs if i != "implicit_euler"]
+        explicit = [(c, i) for c, i in costs if EXPLICIT.get(i, True)]
         line = f"- k = {fmt(k)} N/m: **{best}** ({fmt(best_cost, 2)} s per simulated second)"
-        if explicit and best == "implicit_euler":
+        if explicit and not EXPLICIT.get(best, True):
             c, i = min(explicit)
             line += f", {fmt(c / best_cost, 2)}× cheaper than the best explicit one ({i})"
             implicit_wins.append(k)
-        elif best != "implicit_euler" and ("implicit_euler", k) in reg64:
+        elif EXPLICIT.get(best, True) and ("implicit_euler", k) in reg64:
             c = num(reg64[("implicit_euler", k)], "frame_run_wall_per_simulated_s")
             line += f"; implicit Euler costs {fmt(c / best_cost, 2)}× as much"
         w(line + ".")
     if implicit_wins:
-        capped = [k for k in implicit_wins if reg64[("implicit_euler", k)]["frame_run_cg_iterations"]
-                  == meta.get("cg_max_iterations")]
-        w(f"\nImplicit Euler wins from k = {fmt(min(implicit_wins))} N/m on this 256-point sheet: there the "
+        capped = [k for k in implicit_wins if ("implicit_euler", k) in reg64
+                  and reg64[("implicit_euler", k)]["frame_run_cg_iterations"] == meta.get("cg_max_iterations")]
+        w(f"\nAn implicit integrator wins from k = {fmt(min(implicit_wins))} N/m on this 256-point sheet: there the "
           "explicit integrators need so many substeps per frame that one sparse solve per frame is cheaper.")
         if capped:
             w(f"At k = {', '.join(fmt(k) for k in capped)} N/m its solve stopped at the iteration cap "
@@ -355,6 +434,10 @@ def main():
     w(f"\n**Forward Euler** passed the guard in {len(fe_stable)} of {len(fe_total)} rope and Fig 5 runs and was "
       + ("recommended above for some budget." if fe_best else "never the cheapest choice above: ")
       + "semi-implicit Euler costs the same per step and is stable up to ω·dt = 2.")
+
+    # ---- stiff sheets ---------------------------------------------------------------------
+    if stiff:
+        stiff_section(w, stiff, meta)
 
     with open(os.path.join(docs, "accuracy.md"), "w") as f:
         f.write("\n".join(out) + "\n")

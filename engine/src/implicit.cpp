@@ -58,6 +58,70 @@ void build_pattern(ImplicitScratch<Real>& sc, const Sheet<Real>& s) {
   sc.pin_count = s.pins.point.size();
 }
 
+struct SolveResult {
+  int iterations;
+  double relative_residual;
+};
+
+// Conjugate gradient on sc.system·dv = sc.rhs from the guess in sc.dv, preconditioned by
+// the inverse 3×3 diagonal blocks: a point's own coupling of its three axes (a spring's
+// u uᵀ) is solved exactly, which a scalar diagonal cannot do. Stops at |r| ≤ tol·|b|.
+template <class Real>
+SolveResult block_jacobi_cg(ImplicitScratch<Real>& sc, double tolerance, int max_iterations) {
+  using Vector = typename ImplicitScratch<Real>::Vector;
+  const Eigen::Index n3 = sc.rhs.size();
+  const std::size_t count = std::size_t(n3 / 3);
+  const Real* a = sc.system.valuePtr();
+  sc.block_inverse.resize(9 * count);
+  for (std::size_t q = 0; q < count; ++q) {
+    Eigen::Matrix<Real, 3, 3> block;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) block(r, c) = a[sc.diagonal[3 * q + r] + c];
+    Eigen::Map<Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(sc.block_inverse.data() + 9 * q) = block.inverse();
+  }
+  auto precondition = [&](const Vector& in, Vector& out) {
+    for (std::size_t q = 0; q < count; ++q) {
+      const Real* m = sc.block_inverse.data() + 9 * q;
+      const Real* v = in.data() + 3 * q;
+      Real* o = out.data() + 3 * q;
+      for (int r = 0; r < 3; ++r) o[r] = m[3 * r] * v[0] + m[3 * r + 1] * v[1] + m[3 * r + 2] * v[2];
+    }
+  };
+  Vector& x = sc.dv;
+  Vector& r = sc.residual;
+  Vector& d = sc.direction;
+  Vector& z = sc.preconditioned;
+  Vector& ad = sc.product;
+  z.resize(n3);
+  ad.resize(n3);
+  const double b_norm = static_cast<double>(sc.rhs.norm());
+  if (b_norm == 0) {
+    x.setZero();
+    return {0, 0};
+  }
+  r.noalias() = sc.rhs - sc.system * x;
+  double residual = static_cast<double>(r.norm()) / b_norm;
+  int it = 0;
+  if (residual <= tolerance) return {0, residual};
+  precondition(r, z);
+  d = z;
+  Real rz = r.dot(z);
+  while (it < max_iterations) {
+    ad.noalias() = sc.system * d;
+    const Real alpha = rz / d.dot(ad);
+    x += alpha * d;
+    r -= alpha * ad;
+    ++it;
+    residual = static_cast<double>(r.norm()) / b_norm;
+    if (!(residual > tolerance)) break;  // converged, or NaN: stop either way
+    precondition(r, z);
+    const Real rz_next = r.dot(z);
+    d = z + (rz_next / rz) * d;
+    rz = rz_next;
+  }
+  return {it, residual};
+}
+
 }  // namespace
 
 template <class Real>
@@ -150,18 +214,15 @@ void implicit_euler_step(Sheet<Real>& s, const StepParams<Real>& p) {
   for (std::uint32_t q : s.pins.point)
     for (int r = 0; r < 3; ++r) b[3 * q + r] = Real(0);
 
-  sc.cg.setTolerance(static_cast<Real>(p.cg_tolerance));
-  sc.cg.setMaxIterations(p.cg_max_iterations);
-  sc.cg.compute(sc.system);
   // The previous Δv is the initial guess. It lives in integrator_scratch, the integrator
   // memory a checkpoint saves, so a resumed run repeats the same solves bit for bit.
   const Eigen::Index n3 = sc.rhs.size();
   if (s.integrator_scratch.size() != std::size_t(n3)) s.integrator_scratch.assign(std::size_t(n3), Real(0));
   Eigen::Map<typename ImplicitScratch<Real>::Vector> guess(s.integrator_scratch.data(), n3);
-  sc.dv = sc.cg.solveWithGuess(sc.rhs, guess);
+  sc.dv = guess;
+  const SolveResult result = block_jacobi_cg(sc, p.cg_tolerance, p.cg_max_iterations);
   guess = sc.dv;
-  sc.iterations = static_cast<int>(sc.cg.iterations());
-  sc.error = static_cast<double>(sc.cg.error());
+  record_solve(s.last_solve, result.iterations, result.relative_residual, result.relative_residual <= p.cg_tolerance);
 
   const Real* dvp = sc.dv.data();
   Real* vel[3] = {s.velocity.x.data(), s.velocity.y.data(), s.velocity.z.data()};
@@ -173,14 +234,6 @@ void implicit_euler_step(Sheet<Real>& s, const StepParams<Real>& p) {
     }
 }
 
-template <class Real>
-SolveStats implicit_solve_stats(const Sheet<Real>& s) {
-  if (!s.implicit_scratch) return {};
-  return {s.implicit_scratch->iterations, s.implicit_scratch->error};
-}
-
-template SolveStats implicit_solve_stats<double>(const Sheet<double>&);
-template SolveStats implicit_solve_stats<float>(const Sheet<float>&);
 template void implicit_euler_step<double>(Sheet<double>&, const StepParams<double>&);
 template void implicit_euler_step<float>(Sheet<float>&, const StepParams<float>&);
 

@@ -3,10 +3,11 @@
 //   M Δv = dt·f(x + dt(v + Δv), v + Δv)
 // with f expanded to first order, i.e. the symmetric system
 //   (M − dt·∂f/∂v − dt²·∂f/∂x) Δv = dt·(f + dt·∂f/∂x·v),
-// assembled as an Eigen sparse matrix and solved by conjugate gradient.
+// assembled as an Eigen sparse matrix and solved by conjugate gradient preconditioned with
+// the inverses of its 3×3 diagonal blocks (one per point).
 #pragma once
 
-#include <Eigen/IterativeLinearSolvers>
+#include <Eigen/LU>
 #include <Eigen/SparseCore>
 #include <vector>
 
@@ -28,10 +29,8 @@ struct ImplicitScratch {
   std::vector<int> upper, lower;  // per spring e and r: offsets of (3a+r, 3b) and (3b+r, 3a)
   std::vector<Real> free;         // per point: 1, or 0 for a pinned point (its rows and columns are dropped)
   Vector rhs, dv;                 // dv: the solution (its copy in Sheet::integrator_scratch is the next guess)
-  Eigen::ConjugateGradient<Matrix, Eigen::Lower | Eigen::Upper, Eigen::DiagonalPreconditioner<Real>> cg;
-
-  int iterations = 0;  // of the last solve
-  double error = 0;    // relative residual of the last solve
+  Vector residual, direction, preconditioned, product;  // the solve's work vectors
+  std::vector<Real> block_inverse;  // per point: the inverse of its 3×3 diagonal block, row-major
 };
 
 template <class Real>

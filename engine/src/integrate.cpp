@@ -1,12 +1,19 @@
 // Explicit integrators for M ẍ + C ẋ = f(x) − f_spr(x) (eq 4), M and C diagonal, so every
-// update is per point and linear in the number of points (paper §4). Implicit Euler lives
-// in implicit.cpp.
+// update is per point and linear in the number of points (paper §4), and the integrator
+// table that describes every integrator. Implicit Euler lives in implicit.cpp,
+// local/global in local_global.cpp.
 #include "integrate.h"
 
 #include "forces.h"
 #include "implicit.h"
+#include "local_global.h"
 
+#include <array>
 #include <cstdint>
+#include <limits>
+#include <numbers>
+#include <stdexcept>
+#include <type_traits>
 
 namespace drape::detail {
 
@@ -193,22 +200,92 @@ void rk4_step(Sheet<Real>& s, const StepParams<Real>& p) {
   }
 }
 
+// Per-point first-order updates as whole-sheet steps, for the table.
+template <class Real>
+void forward_euler_step(Sheet<Real>& s, const StepParams<Real>& p) { first_order_step(s, p, first_order_update<Real, false>); }
+template <class Real>
+void semi_implicit_euler_step(Sheet<Real>& s, const StepParams<Real>& p) {
+  first_order_step(s, p, first_order_update<Real, true>);
+}
+
+double forward_euler_limit(double omega) { return std::numbers::ln2 / (omega * omega); }
+double interval_two(double omega) { return 2.0 / omega; }
+double rk4_limit(double omega) { return 2.0 * std::numbers::sqrt2 / omega; }
+double unconditional(double) { return std::numeric_limits<double>::infinity(); }
+
+// One row per integrator: what a caller reads (IntegratorInfo), then what the engine runs.
+struct IntegratorRow {
+  IntegratorInfo info;
+  bool per_point;                        // updates_per_point(): forces once, then each point alone
+  double (*critical_step)(double omega);  // integrator_critical_step() for ω_max > 0
+  StepFunction<double> step_double;
+  StepFunction<float> step_float;
+};
+
+#define DRAPE_STEP(f) &f<double>, &f<float>
+constexpr IntegratorRow table[] = {
+    {{Integrator::ForwardEuler, "forward_euler", 1, true, "no step without damping (amplification √(1 + ω²dt²))", ""},
+     true, forward_euler_limit, DRAPE_STEP(forward_euler_step)},
+    {{Integrator::SemiImplicitEuler, "semi_implicit_euler", 1, true, "ω·dt < 2", ""},
+     true, interval_two, DRAPE_STEP(semi_implicit_euler_step)},
+    {{Integrator::VelocityVerlet, "velocity_verlet", 2, true, "ω·dt < 2", ""},
+     false, interval_two, DRAPE_STEP(velocity_verlet_step)},
+    {{Integrator::RK4, "rk4", 4, true, "ω·dt < 2√2", ""}, false, rk4_limit, DRAPE_STEP(rk4_step)},
+    {{Integrator::ImplicitEuler, "implicit_euler", 1, false, "any step", "cg_tolerance, cg_max_iterations"},
+     false, unconditional, DRAPE_STEP(implicit_euler_step)},
+    {{Integrator::LocalGlobal, "local_global", 1, false, "any step", "local_global_iterations (cg_tolerance: converged)"},
+     false, unconditional, DRAPE_STEP(local_global_step)},
+};
+#undef DRAPE_STEP
+
+constexpr bool table_in_enum_order() {
+  for (std::size_t k = 0; k < std::size(table); ++k)
+    if (static_cast<std::size_t>(table[k].info.integrator) != k) return false;
+  return true;
+}
+static_assert(table_in_enum_order(), "the integrator table has one row per Integrator, in the enum's order");
+
+constexpr auto infos = [] {
+  std::array<IntegratorInfo, std::size(table)> out{};
+  for (std::size_t k = 0; k < std::size(table); ++k) out[k] = table[k].info;
+  return out;
+}();
+constexpr auto values = [] {
+  std::array<Integrator, std::size(table)> out{};
+  for (std::size_t k = 0; k < std::size(table); ++k) out[k] = table[k].info.integrator;
+  return out;
+}();
+
+const IntegratorRow* find_row(Integrator integrator) {
+  const auto k = static_cast<std::size_t>(integrator);
+  return k < std::size(table) ? &table[k] : nullptr;
+}
+
+const IntegratorRow& row_of(Integrator integrator) {
+  const IntegratorRow* row = find_row(integrator);
+  if (!row) throw std::out_of_range("drape: not an integrator");
+  return *row;
+}
+
 }  // namespace
 
 template <class Real>
 void integrate(Integrator integrator, Sheet<Real>& s, const StepParams<Real>& p) {
-  switch (integrator) {
-    case Integrator::ForwardEuler: first_order_step(s, p, first_order_update<Real, false>); break;
-    case Integrator::SemiImplicitEuler: first_order_step(s, p, first_order_update<Real, true>); break;
-    case Integrator::VelocityVerlet: velocity_verlet_step(s, p); break;
-    case Integrator::RK4: rk4_step(s, p); break;
-    case Integrator::ImplicitEuler: implicit_euler_step(s, p); break;
-  }
+  const IntegratorRow& row = row_of(integrator);
+  if constexpr (std::is_same_v<Real, double>)
+    row.step_double(s, p);
+  else
+    row.step_float(s, p);
   apply_pins(s);
 }
 
-bool updates_per_point(Integrator integrator) {
-  return integrator == Integrator::ForwardEuler || integrator == Integrator::SemiImplicitEuler;
+bool updates_per_point(Integrator integrator) { return row_of(integrator).per_point; }
+
+void record_solve(SolveStats& stats, int iterations, double relative_residual, bool converged) {
+  stats.iterations = iterations;
+  stats.relative_residual = relative_residual;
+  stats.converged = converged;
+  if (!converged) ++stats.unconverged_solves;
 }
 
 template <class Real>
@@ -260,3 +337,35 @@ template void integrate<double>(Integrator, Sheet<double>&, const StepParams<dou
 template void integrate<float>(Integrator, Sheet<float>&, const StepParams<float>&);
 
 }  // namespace drape::detail
+
+namespace drape {
+
+using detail::find_row;
+using detail::row_of;
+
+std::span<const IntegratorInfo> integrator_table() { return detail::infos; }
+std::span<const Integrator> integrators() { return detail::values; }
+const IntegratorInfo& integrator_info(Integrator integrator) {
+  return detail::infos[static_cast<std::size_t>(row_of(integrator).info.integrator)];
+}
+
+std::string_view integrator_name(Integrator integrator) {
+  const auto* row = find_row(integrator);
+  return row ? row->info.name : std::string_view("unknown");
+}
+
+std::optional<Integrator> integrator_from_name(std::string_view name) {
+  for (const IntegratorInfo& info : detail::infos)
+    if (info.name == name) return info.integrator;
+  return std::nullopt;
+}
+
+int integrator_order(Integrator integrator) { return row_of(integrator).info.order; }
+bool integrator_is_explicit(Integrator integrator) { return row_of(integrator).info.is_explicit; }
+
+double integrator_critical_step(Integrator integrator, double omega_max) {
+  if (!(omega_max > 0)) return std::numeric_limits<double>::infinity();
+  return row_of(integrator).critical_step(omega_max);
+}
+
+}  // namespace drape

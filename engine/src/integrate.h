@@ -1,6 +1,7 @@
-// Time integrators of one sheet. Each is one function over the sheet's SoA buffers;
-// integrate() dispatches once per sheet and substep, never per point. Every force
-// evaluation goes through sheet_forces(), so a term added there works with every integrator.
+// Time integrators of one sheet. Each is one step function over the sheet's SoA buffers,
+// named in the integrator table (integrate.cpp) with its metadata; integrate() looks the
+// row up once per sheet and substep, never per point. Every force evaluation goes through
+// sheet_forces(), so a term added there works with every integrator.
 #pragma once
 
 #include "forces.h"
@@ -15,23 +16,23 @@ struct StepParams {
   // implicit Euler only: conjugate gradient's relative residual target and iteration cap
   double cg_tolerance = 1e-6;
   int cg_max_iterations = 200;
+  // local/global only: iterations per step
+  int local_global_iterations = 10;
 };
+
+// One integrator's step of a whole sheet, pins included.
+template <class Real>
+using StepFunction = void (*)(Sheet<Real>& sheet, const StepParams<Real>& params);
 
 template <class Real>
 void integrate(Integrator integrator, Sheet<Real>& sheet, const StepParams<Real>& params);
 
-// Implicit Euler's last conjugate-gradient solve on this sheet: iterations and relative
-// residual; {0, 0} before its first implicit step.
-struct SolveStats {
-  int iterations = 0;
-  double relative_residual = 0;
-};
-template <class Real>
-SolveStats implicit_solve_stats(const Sheet<Real>& sheet);
+// An implicit integrator's solve, into Sheet::last_solve.
+void record_solve(SolveStats& stats, int iterations, double relative_residual, bool converged);
 
 // Integrators that evaluate the forces once per substep and then update each point from
-// its own force alone. Only these let the world split a large sheet into row blocks:
-// forces of every block first, then update_points per block.
+// its own force alone (the table's per-point column). Only these let the world split a
+// large sheet into row blocks: forces of every block first, then update_points per block.
 bool updates_per_point(Integrator integrator);
 
 // Points [begin, end) of such an integrator's update from sheet.force, then the pins among

@@ -24,46 +24,6 @@ Vec3 rotate(const Quat& q, Vec3 v) {
           v.z + q.w * t.z + (u.x * t.y - u.y * t.x)};
 }
 
-std::string_view integrator_name(Integrator integrator) {
-  switch (integrator) {
-    case Integrator::ForwardEuler: return "forward_euler";
-    case Integrator::SemiImplicitEuler: return "semi_implicit_euler";
-    case Integrator::VelocityVerlet: return "velocity_verlet";
-    case Integrator::RK4: return "rk4";
-    case Integrator::ImplicitEuler: return "implicit_euler";
-  }
-  return "unknown";
-}
-
-std::optional<Integrator> integrator_from_name(std::string_view name) {
-  for (Integrator i : integrators) {
-    if (integrator_name(i) == name) return i;
-  }
-  return std::nullopt;
-}
-
-int integrator_order(Integrator integrator) {
-  switch (integrator) {
-    case Integrator::VelocityVerlet: return 2;
-    case Integrator::RK4: return 4;
-    default: return 1;
-  }
-}
-
-bool integrator_is_explicit(Integrator integrator) { return integrator != Integrator::ImplicitEuler; }
-
-double integrator_critical_step(Integrator integrator, double omega_max) {
-  if (!(omega_max > 0)) return std::numeric_limits<double>::infinity();
-  switch (integrator) {
-    case Integrator::ForwardEuler: return std::numbers::ln2 / (omega_max * omega_max);
-    case Integrator::SemiImplicitEuler:
-    case Integrator::VelocityVerlet: return 2.0 / omega_max;
-    case Integrator::RK4: return 2.0 * std::numbers::sqrt2 / omega_max;
-    case Integrator::ImplicitEuler: break;
-  }
-  return std::numeric_limits<double>::infinity();
-}
-
 std::vector<std::uint32_t> corner_points(std::uint32_t m, std::uint32_t n) {
   std::vector<std::uint32_t> corners{point_index(n, 0, 0), point_index(n, 0, n), point_index(n, m, 0),
                                      point_index(n, m, n)};

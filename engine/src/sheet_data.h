@@ -140,6 +140,18 @@ struct Vec3Array {
 // implicit step and reused by every later one.
 template <class Real>
 struct ImplicitScratch;
+// Local/global's factored system (local_global.h), rebuilt only when what it depends on changes.
+struct LocalGlobalScratch;
+
+// The last solve of an implicit integrator on a sheet: iterations, relative residual,
+// whether it reached its tolerance, and how many of the sheet's solves so far did not.
+// All zero (and converged) before the first implicit step.
+struct SolveStats {
+  int iterations = 0;
+  double relative_residual = 0;
+  bool converged = true;
+  std::uint64_t unconverged_solves = 0;
+};
 
 template <class Real>
 struct Sheet {
@@ -156,6 +168,8 @@ struct Sheet {
   // Shared between copies of a sheet only until one of them steps implicitly again: the
   // integrator replaces a scratch it does not own alone (implicit.cpp).
   std::shared_ptr<ImplicitScratch<Real>> implicit_scratch;
+  std::shared_ptr<LocalGlobalScratch> local_global_scratch;  // the same sharing rule
+  SolveStats last_solve;
   // Contact forces of this substep, gathered by the host stage in fixed pair order;
   // sheet_forces adds them only when has_contacts (a per-sheet, not per-point, choice).
   Vec3Array<Real> contact_force;

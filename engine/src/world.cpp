@@ -42,6 +42,8 @@ std::string validate(const WorldDef& d) {
   if (d.threads < 0) return problem("threads", "must be 0 (all cores) or positive", d.threads);
   if (!(d.cg_tolerance > 0) || !finite(d.cg_tolerance)) return problem("cg_tolerance", "must be positive and finite", d.cg_tolerance);
   if (d.cg_max_iterations < 1) return problem("cg_max_iterations", "must be at least 1", d.cg_max_iterations);
+  if (d.local_global_iterations < 1)
+    return problem("local_global_iterations", "must be at least 1", d.local_global_iterations);
   if (!(d.adaptive_safety > 0 && d.adaptive_safety <= 1)) return problem("adaptive_safety", "must be in (0, 1]", d.adaptive_safety);
   if (!(d.guard_energy_growth > 1) || std::isnan(d.guard_energy_growth))
     return problem("guard_energy_growth", "must be greater than 1", d.guard_energy_growth);
@@ -61,6 +63,7 @@ std::string describe(const StabilityReport& r) {
   out.precision(3);
   if (r.ok()) {
     out << "stable at step " << r.step << " (t = " << r.time << " s), energy growth " << r.energy_growth;
+    if (r.unconverged_solves > 0) out << "; " << r.unconverged_solves << " implicit solves stopped before their tolerance";
     return out.str();
   }
   out << "sheet " << r.sheet.index << ": ";
@@ -73,6 +76,7 @@ std::string describe(const StabilityReport& r) {
   if (std::isfinite(r.stable_dt) && r.stable_dt > 0)
     out << "stable below dt ~ " << r.stable_dt << " s (estimate), or ";
   out << "use " << integrator_name(r.stable_integrator) << " at this dt";
+  if (r.unconverged_solves > 0) out << " (" << r.unconverged_solves << " implicit solves stopped before their tolerance)";
   return out.str();
 }
 
@@ -510,7 +514,7 @@ struct BasicWorld<Real>::Impl {
 
   detail::StepParams<Real> step_params(double h) const {
     return {static_cast<Real>(h), static_cast<Real>(def.gravity.x), static_cast<Real>(def.gravity.y),
-            static_cast<Real>(def.gravity.z), def.cg_tolerance, def.cg_max_iterations};
+            static_cast<Real>(def.gravity.z), def.cg_tolerance, def.cg_max_iterations, def.local_global_iterations};
   }
 
   void count_substeps(double h, std::uint64_t count) {
@@ -624,6 +628,7 @@ struct BasicWorld<Real>::Impl {
       const std::uint32_t index = active[k];
       const Slot& slot = slots[index];
       const Energies& energy = energies[k];
+      report.unconverged_solves += slot.sheet->last_solve.unconverged_solves;
       StabilityStatus status = StabilityStatus::Stable;
       double growth = 1;
       if (!finite[k] || !std::isfinite(energy.total())) {
@@ -666,6 +671,7 @@ struct BasicWorld<Real>::Impl {
       report.time = time();
       report.integrator = def.integrator;
       report.dt = current_h;
+      for (std::uint32_t index : active) report.unconverged_solves += slots[index].sheet->last_solve.unconverged_solves;
       return report;
     }
     StabilityReport report = check();
@@ -877,8 +883,8 @@ void BasicWorld<Real>::set_cg(double tolerance, int max_iterations) {
 
 template <class Real>
 typename BasicWorld<Real>::SolverStats BasicWorld<Real>::solver_stats(SheetId id) const {
-  const detail::SolveStats stats = detail::implicit_solve_stats(impl_->sheet(id));
-  return {stats.iterations, stats.relative_residual};
+  const detail::SolveStats& stats = impl_->sheet(id).last_solve;
+  return {stats.iterations, stats.relative_residual, stats.converged, stats.unconverged_solves};
 }
 
 template <class Real>

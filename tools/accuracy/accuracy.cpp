@@ -12,6 +12,10 @@
 //   fig5        the paper's Fig 5 set-up, a 31×31-point (961) square sheet anchored at its
 //               corners (eq 8), falling under gravity; reference: RK4 in double at 1e-5 s.
 //               error: max point distance at t = 1 s / sheet width.
+//   stiff       a 128×128-point sheet, 1 m square, 1 kg, corners pinned, k from 1e2 to 1e7
+//               N/m, falling from flat for 0.2 s; reference: RK4 in double at half its
+//               critical step. error: max point distance at t = 0.2 s / sheet width. For the
+//               "stiff sheets" section: per k and error budget, the cheapest integrator and step.
 #include <drape/drape.h>
 
 #include <Eigen/Dense>
@@ -260,7 +264,7 @@ const char* precision_name() {
 template <class World>
 void oscillator_runs(std::vector<Row>& rows, const std::vector<double>& steps) {
   const Oscillator o;
-  for (Integrator i : drape::integrators)
+  for (Integrator i : drape::integrators())
     for (double dt : steps) {
       auto wd = world_def(i, dt);
       wd.gravity = {0, 0, 0};
@@ -280,7 +284,7 @@ void oscillator_runs(std::vector<Row>& rows, const std::vector<double>& steps) {
 
 template <class World>
 void rope_runs(std::vector<Row>& rows, const std::vector<double>& steps, const Rope& rope, const Positions& ref) {
-  for (Integrator i : drape::integrators)
+  for (Integrator i : drape::integrators())
     for (double dt : steps) {
       double err = 0;
       const Run run = fastest([&] {
@@ -296,7 +300,7 @@ void rope_runs(std::vector<Row>& rows, const std::vector<double>& steps, const R
 
 template <class World>
 void fig5_runs(std::vector<Row>& rows, const std::vector<double>& steps, const Positions& ref) {
-  for (Integrator i : drape::integrators)
+  for (Integrator i : drape::integrators())
     for (double dt : steps) {
       double err = 0;
       const Run run = fastest([&] {
@@ -308,6 +312,71 @@ void fig5_runs(std::vector<Row>& rows, const std::vector<double>& steps, const P
       });
       rows.push_back({"fig5", std::string(drape::integrator_name(i)), precision_name<World>(), dt, run, err});
     }
+}
+
+// ---- stiff sheets ----------------------------------------------------------------------
+
+constexpr double stiff_seconds = 0.2;
+
+drape::SheetDef stiff_sheet(double k) {
+  drape::SheetDef d;
+  d.m = d.n = 127;
+  d.mass = 1.0;
+  d.stiffness = k;
+  d.pins = drape::corner_points(d.m, d.n);
+  return d;
+}
+
+// Every stepping tried on the stiff sheet: explicit ones just inside their limit, the
+// implicit ones at frame-sized steps and below; local/global at several budgets.
+struct Stepping {
+  Integrator integrator;
+  double dt;       // > 0: s; ≤ 0: −dt × the integrator's critical step on the sheet
+  int iterations;  // local_global_iterations
+};
+
+void stiff_runs(std::ofstream& out, const std::vector<double>& ks, bool quick) {
+  for (double k : ks) {
+    Positions ref;
+    {
+      drape::World world(world_def(Integrator::RK4, 1e-3));
+      const auto id = world.add_sheet(stiff_sheet(k));
+      const double h = 0.5 * world.critical_step(Integrator::RK4);
+      const long steps = std::lround(std::ceil(stiff_seconds / h));
+      world.set_dt(stiff_seconds / double(steps));
+      world.step(int(steps));
+      ref = positions(world, id);
+    }
+    std::vector<Stepping> steppings = {{Integrator::SemiImplicitEuler, -0.8, 1}, {Integrator::RK4, -0.8, 1}};
+    for (double dt : {1.0 / 60, 1.0 / 240}) steppings.push_back({Integrator::ImplicitEuler, dt, 1});
+    for (double dt : {1.0 / 60, 1.0 / 240, 1.0 / 960})
+      for (int it : {2, 10, 50})
+        if (!(dt < 1.0 / 500 && it > 10)) steppings.push_back({Integrator::LocalGlobal, dt, it});
+    if (quick) steppings.resize(4);
+    for (const Stepping& s : steppings) {
+      auto wd = world_def(s.integrator, 1e-3);
+      wd.local_global_iterations = s.iterations;
+      double err = 0, stretch = 0;
+      std::uint64_t unconverged = 0;
+      double dt = s.dt;
+      const Run run = fastest([&] {
+        drape::World world(wd);
+        const auto id = world.add_sheet(stiff_sheet(k));
+        if (dt <= 0) dt = -s.dt * world.critical_step(s.integrator);
+        dt = stiff_seconds / std::ceil(stiff_seconds / dt);  // land on the reference's time
+        world.set_dt(dt);
+        const Run r = timed_run(world, stiff_seconds);
+        err = max_distance(positions(world, id), ref) / 1.0;
+        stretch = world.diagnostics(id).max_strain;
+        unconverged = world.solver_stats(id).unconverged_solves;
+        return r;
+      });
+      out << k << ',' << drape::integrator_name(s.integrator) << ',' << dt << ',' << s.iterations << ',' << run.steps
+          << ',' << run.wall / run.simulated << ',' << (run.stable ? 1 : 0) << ',' << (run.stable ? err : kNaN) << ','
+          << stretch << ',' << unconverged << '\n';
+      out.flush();
+    }
+  }
 }
 
 // The sheet of the stability region: 16×16 points, 1 kg, springs and corner anchors of
@@ -361,7 +430,7 @@ std::pair<Run, int> frame_cost(Integrator integrator, double k, double largest_s
 
 template <class World>
 void stability_region(std::ofstream& out, const std::vector<double>& stiffnesses) {
-  for (Integrator i : drape::integrators)
+  for (Integrator i : drape::integrators())
     for (double k : stiffnesses) {
       double estimate;
       {
@@ -411,6 +480,11 @@ int main(int argc, char** argv) {
     const drape::WorldDef defaults = world_def(Integrator::ImplicitEuler, 1e-3);
     probe << "cg_tolerance," << defaults.cg_tolerance << "\n";
     probe << "cg_max_iterations," << defaults.cg_max_iterations << "\n";
+    probe << "local_global_iterations," << defaults.local_global_iterations << "\n";
+    // the integrator table, so the report names, orders and classes them as the engine does
+    for (const drape::IntegratorInfo& row : drape::integrator_table())
+      probe << "integrator:" << row.name << ',' << row.order << ':' << (row.is_explicit ? 1 : 0) << "\n";
+    probe << "stiff_seconds," << stiff_seconds << "\n";
   }
 
   std::vector<Row> rows;
@@ -444,6 +518,14 @@ int main(int argc, char** argv) {
   fig5_runs<drape::World>(rows, fig5_steps, fig5_ref);
   fig5_runs<drape::WorldF>(rows, fig5_steps, fig5_ref);
   write_runs(dir + "/accuracy_runs.csv", rows);
+
+  std::cerr << "stiff sheets...\n";
+  {
+    std::ofstream stiff(dir + "/accuracy_stiff.csv");
+    stiff << "k,integrator,dt,iterations,steps,wall_per_simulated_s,stable,error,max_stretch,unconverged_solves\n";
+    stiff.precision(6);
+    stiff_runs(stiff, quick ? std::vector<double>{1e2, 1e5} : std::vector<double>{1e2, 1e3, 1e4, 1e5, 1e6, 1e7}, quick);
+  }
 
   std::cerr << "stability region...\n";
   std::ofstream out(dir + "/accuracy_stability.csv");

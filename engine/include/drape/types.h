@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <limits>
 #include <optional>
+#include <span>
 #include <string_view>
 
 namespace drape {
@@ -48,25 +49,37 @@ struct ObstacleId {
   friend constexpr bool operator==(ObstacleId, ObstacleId) = default;
 };
 
-// Time integrators. Adding one: a value here, its entry in `integrators` and in
-// integrator_name(), its stability factor in integrator_critical_step(), a function in
-// integrate.cpp.
+// Time integrators. Each is described by one row of the integrator table
+// (engine/src/integrate.cpp: name, order, explicit or not, stability, knobs, step function);
+// adding one is a value here, its step function in a file of its own, and its row.
 enum class Integrator {
   ForwardEuler,       // x += dt·v, v += dt·a (both from the old state): the paper's literal reading. Order 1.
   SemiImplicitEuler,  // v += dt·a, then x += dt·v_new: symplectic, the default. Order 1.
   VelocityVerlet,     // half kick, drift, half kick; two force evaluations per step. Order 2.
   RK4,                // classical Runge–Kutta on (x, v); four force evaluations per step. Order 4.
-  ImplicitEuler,      // backward Euler linearised once per step (Baraff & Witkin 1998), CG solve. Order 1.
+  ImplicitEuler,      // backward Euler linearised once per step (Baraff & Witkin 1998), PCG solve. Order 1.
+  LocalGlobal,        // backward Euler by local/global iterations (Liu et al. 2013), fixed budget. Order 1.
 };
 
-inline constexpr Integrator integrators[] = {Integrator::ForwardEuler, Integrator::SemiImplicitEuler,
-                                             Integrator::VelocityVerlet, Integrator::RK4,
-                                             Integrator::ImplicitEuler};
+// One integrator's row of the table, as a caller may read it.
+struct IntegratorInfo {
+  Integrator integrator;
+  std::string_view name;       // the scene files' and the CLI's name
+  int order;                   // global order of the positions at a fixed time
+  bool is_explicit;            // explicit: stable only below integrator_critical_step
+  std::string_view stability;  // the stability limit, in words
+  std::string_view knobs;      // the WorldDef fields it reads beyond dt and gravity
+};
 
-std::string_view integrator_name(Integrator integrator);
+// Every integrator, in the enum's order.
+std::span<const IntegratorInfo> integrator_table();
+std::span<const Integrator> integrators();
+const IntegratorInfo& integrator_info(Integrator integrator);  // throws std::out_of_range for a value not in the table
+
+std::string_view integrator_name(Integrator integrator);  // "unknown" for a value not in the table
 std::optional<Integrator> integrator_from_name(std::string_view name);
 
-// Global order of accuracy of the integrator's positions at a fixed time (1, 1, 2, 4, 1).
+// Global order of accuracy of the integrator's positions at a fixed time (1, 1, 2, 4, 1, 1).
 int integrator_order(Integrator integrator);
 bool integrator_is_explicit(Integrator integrator);
 
@@ -77,7 +90,7 @@ bool integrator_is_explicit(Integrator integrator);
 //   forward Euler: no step is stable without damping (the amplification is √(1 + ω²dt²) > 1);
 //     it returns the step at which the stiffest mode's energy at most doubles per simulated
 //     second, ln 2 / ω² (from (1 + ω²dt²)^(1/dt) ≈ exp(ω²dt));
-//   implicit Euler: +inf (unconditionally stable).
+//   implicit Euler and local/global: +inf (unconditionally stable).
 double integrator_critical_step(Integrator integrator, double omega_max);
 
 }  // namespace drape

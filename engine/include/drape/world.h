@@ -24,10 +24,17 @@ struct WorldDef {
   Wind wind;                           // for sheets with SheetDef::air only
   int threads = 0;                     // worker threads for step(); 0: all cores
 
-  // Implicit Euler's conjugate-gradient solve: stop at relative residual |r|/|b| below
-  // cg_tolerance or after cg_max_iterations iterations, whichever comes first.
+  // Implicit Euler's conjugate-gradient solve (3×3 block Jacobi preconditioner): stop at
+  // relative residual |r|/|b| below cg_tolerance or after cg_max_iterations iterations,
+  // whichever comes first. A solve stopped by the cap is counted in solver_stats() and in
+  // the StabilityReport.
   double cg_tolerance = 1e-6;
   int cg_max_iterations = 200;
+
+  // Local/global (Integrator::LocalGlobal): iterations per step, the method's one knob
+  // (more: stiffer springs, closer to the converged backward-Euler step; cost linear in it).
+  // Its solve counts as converged when the step's backward-Euler residual is below cg_tolerance.
+  int local_global_iterations = 10;
 
   // Adaptive stepping ("stable, as fast as possible"): an explicit integrator takes each
   // substep as adaptive_safety × its critical step (integrator_critical_step() on the
@@ -127,6 +134,9 @@ struct StabilityReport {
   // RK4, else implicit Euler; forward Euler is never suggested).
   double stable_dt = 0;
   Integrator stable_integrator = Integrator::ImplicitEuler;
+  // Implicit integrators: solves, over all sheets since they were added, that stopped
+  // before reaching their tolerance (solver_stats() has each sheet's last one).
+  std::uint64_t unconverged_solves = 0;
   bool ok() const { return status == StabilityStatus::Stable; }
 };
 
@@ -206,10 +216,15 @@ class BasicWorld {
   void set_adaptive(bool adaptive, double safety = 0.8);
   void set_cg(double tolerance, int max_iterations);
 
-  // Implicit Euler's last conjugate-gradient solve on this sheet (0, 0 before the first).
+  // The last solve of an implicit integrator on this sheet (all zero before the first):
+  // implicit Euler's conjugate gradient, or local/global's iterations with the residual of
+  // the backward-Euler equations they leave. converged: the residual reached cg_tolerance;
+  // unconverged_solves: how many of this sheet's solves so far did not.
   struct SolverStats {
     int iterations = 0;
     double relative_residual = 0;
+    bool converged = true;
+    std::uint64_t unconverged_solves = 0;
   };
   SolverStats solver_stats(SheetId id) const;
   // s, simulated: step_count()·dt while the substep never changed (runs of equal substeps

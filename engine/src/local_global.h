@@ -1,0 +1,50 @@
+// Backward Euler by local/global iterations, after Liu, Bargteil, O'Brien and Kavan, "Fast
+// Simulation of Mass-Spring Systems" (SIGGRAPH Asia 2013). The step's positions x minimise
+//   ½ (x − x̂)ᵀ M̃ (x − x̂) + dt²·Σ_e ½ k_e (|x_a − x_b| − ℓ_e)² + dt²·(anchor energy, eq 8)
+// (M̃ = M + dt·C, x̂ the inertial prediction with every other force held at the start of the
+// step), whose minimiser is exactly the backward-Euler step. Each iteration:
+//   local:  every spring's direction, d_e = ℓ_e (x_a − x_b)/|x_a − x_b| (the nearest vector of
+//           its rest length to the present one);
+//   global: (M̃ + dt²·L + dt²·K_anchor) x = M̃ x̂ + dt²·J d + dt²·K_anchor p0, with L the grid's
+//           Laplacian weighted by k. That matrix depends only on the grid, the masses, the
+//           damping, the anchors, the pins and dt: it is factored once (sparse Cholesky) and
+//           refactored only when one of those changes, and it is the same for x, y and z.
+// The iteration count is fixed (the knob); fewer iterations leave the springs softer than
+// backward Euler would, never unstable (each iteration lowers the energy above).
+#pragma once
+
+#include <Eigen/SparseCore>
+#include <memory>
+#include <vector>
+
+#include "integrate.h"
+
+namespace drape::detail {
+
+struct LocalGlobalScratch {
+  using Matrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
+
+  // What the factored matrix was built from; any change rebuilds it.
+  std::shared_ptr<const void> topology;  // held, so a freed topology's address cannot come back
+  double dt = 0;
+  std::vector<double> mass, damping, anchor_stiffness;
+  std::vector<std::uint32_t> anchor_point, pin_point;
+
+  // The Cholesky factor L (compressed columns, diagonal entry first in each column) and its
+  // fill-reducing permutation, copied out of Eigen so the three axes share one pass over L.
+  std::vector<int> column_start, row_index, permutation;  // permutation: point → factor row
+  std::vector<double> value, inverse_diagonal;
+  std::vector<double> work;            // 3 per factor row: x, y, z interleaved
+
+  std::vector<char> pinned;            // per point
+  Eigen::VectorXd inertia[3];          // M̃ x̂ + dt²·(anchor targets and pinned neighbours) per axis
+  Eigen::VectorXd rhs[3], solution[3];
+  std::vector<double> start[3];        // x at the start of the step
+  std::vector<double> spring_force[3], other_force[3];
+  std::vector<double> direction[3];    // per spring: d_e
+};
+
+template <class Real>
+void local_global_step(Sheet<Real>& sheet, const StepParams<Real>& params);
+
+}  // namespace drape::detail
