@@ -29,6 +29,8 @@ std::string validate(const ObstacleDef& d) {
   if (!positive(d.c)) return fail("c", "must be positive and finite", d.c);
   if (!positive(d.xi)) return fail("xi", "must be positive and finite", d.xi);
   if (!positive(d.max_exponent)) return fail("max_exponent", "must be positive and finite", d.max_exponent);
+  if (d.motion)
+    if (std::string problem = validate(*d.motion); !problem.empty()) return "motion." + problem;
   switch (d.shape) {
     case ObstacleShape::Plane: break;
     case ObstacleShape::Sphere:

@@ -4,8 +4,10 @@
 // An ObstacleDef is a plain value; the world copies it when the obstacle is added.
 #pragma once
 
+#include <drape/motion.h>
 #include <drape/types.h>
 
+#include <optional>
 #include <string>
 
 namespace drape {
@@ -35,6 +37,11 @@ struct ObstacleDef {
   // inside, or arrives faster than the potential can stop it, is pushed out by a finite force
   // the integrator resolves, instead of one that overflows or throws it out with extra energy.
   double max_exponent = 8.0;
+  // A rigid part that moves: at time t the obstacle is turned and moved by pose_at(*motion, t)
+  // from the pose above (center, orientation); sheets near it feel it where it is at the
+  // start of each substep. Points attached to it: a Frame constraint with this obstacle as
+  // its carrier (constraint.h).
+  std::optional<Motion> motion;
 };
 
 // An empty string when the definition can be simulated; otherwise one message naming the
