@@ -93,6 +93,16 @@ std::string validate(const ConstraintDef& d, const ConstraintContext& world) {
   return "kind is not a kind of constraint";
 }
 
+ObstacleDef obstacle_at(const ObstacleDef& def, double time) {
+  ObstacleDef placed = def;
+  if (!def.motion) return placed;
+  placed.motion.reset();
+  const Pose pose = pose_at(*def.motion, time);
+  placed.center = apply(pose, def.center);
+  placed.orientation = multiply(pose.rotation, def.orientation);
+  return placed;
+}
+
 namespace detail {
 
 namespace {
@@ -144,20 +154,7 @@ Pose frame_pose(const ConstraintDef& d, double time, const Access& world) {
 
 }  // namespace
 
-Obstacle still_obstacle(const ObstacleDef& def, double time) {
-  Obstacle o = make_obstacle(def);
-  o.def.motion.reset();
-  if (def.motion) place_obstacle(o, def, time);
-  return o;
-}
-
-void place_obstacle(Obstacle& o, const ObstacleDef& def, double time) {
-  ObstacleDef placed = o.def;  // no motion: copying it allocates nothing
-  const Pose pose = pose_at(*def.motion, time);
-  placed.center = apply(pose, def.center);
-  placed.orientation = multiply(pose.rotation, def.orientation);
-  o = make_obstacle(placed);
-}
+void place_obstacle(Obstacle& o, const ObstacleDef& def, double time) { o = make_obstacle(obstacle_at(def, time)); }
 
 template <class Real>
 ConstraintId ConstraintPool<Real>::add(const ConstraintDef& def, double time, const Access& world) {

@@ -17,10 +17,7 @@
 
 namespace drape::detail {
 
-// The obstacle as the step uses it, without its motion (the world keeps the caller's
-// definition); with a motion, at its pose at `time`.
-Obstacle still_obstacle(const ObstacleDef& def, double time);
-// Moves `o` (made by still_obstacle from `def`) to the pose of def.motion at `time`.
+// Moves `o` to where def's motion has it at `time` (the world keeps the caller's `def`).
 void place_obstacle(Obstacle& o, const ObstacleDef& def, double time);
 
 template <class Real>

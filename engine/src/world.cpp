@@ -784,7 +784,7 @@ ObstacleId BasicWorld<Real>::add_obstacle(const ObstacleDef& def) {
   impl_->forget_near_obstacles();
   auto& slot = impl_->obstacle_slots[index];
   slot.def = def;
-  slot.obstacle = detail::still_obstacle(def, impl_->time());
+  slot.obstacle = detail::make_obstacle(obstacle_at(def, impl_->time()));
   impl_->active_obstacles.push_back(index);
   impl_->constraints_changed();  // a moving obstacle drives every sheet
   return {index, slot.generation};

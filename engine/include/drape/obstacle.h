@@ -44,6 +44,10 @@ struct ObstacleDef {
   std::optional<Motion> motion;
 };
 
+// The obstacle where its motion has it at `time` (s): center and orientation posed, no motion.
+// Without a motion, the definition itself.
+ObstacleDef obstacle_at(const ObstacleDef& def, double time);
+
 // An empty string when the definition can be simulated; otherwise one message naming the
 // field and the problem, e.g. "xi must be positive and finite (got 0)".
 std::string validate(const ObstacleDef& def);
