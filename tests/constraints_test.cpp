@@ -396,6 +396,61 @@ TEST(Constraints, PointToPointJoinsConserveMomentum) {
   for (int c = 0; c < 3; ++c) EXPECT_NEAR(after[c], before[c], 1e-13) << "axis " << c;
 }
 
+// The energy of a join is its spring's, ½k(|d| − ℓ)², counted once though it acts at both
+// ends; computed here from the positions, by hand.
+TEST(Constraints, AJoinsEnergyIsItsSpringCountedOnce) {
+  World w;
+  SheetDef d;
+  d.m = d.n = 2;
+  d.width = d.height = 0.2;
+  const SheetId a = w.add_sheet(d);
+  d.center = {0.3, 0.1, 0.05};
+  const SheetId b = w.add_sheet(d);
+  const double before = w.energies().anchor;
+  ConstraintDef join;
+  join.stiffness = 250;
+  join.rest_length = 0.07;
+  join.sheet = a;
+  join.other_sheet = b;
+  join.points = {2, 8};
+  join.other_points = {0, 6};
+  w.add_constraint(join);
+  const auto va = w.view(a), vb = w.view(b);
+  double expected = 0;
+  for (std::size_t k = 0; k < 2; ++k) {
+    const auto p = join.points[k], q = join.other_points[k];
+    const double len = std::hypot(va.x[p] - vb.x[q], va.y[p] - vb.y[q], va.z[p] - vb.z[q]);
+    expected += 0.5 * join.stiffness * (len - join.rest_length) * (len - join.rest_length);
+  }
+  EXPECT_EQ(before, 0.0);
+  EXPECT_NEAR(w.energies().anchor, expected, 1e-12 * expected);
+}
+
+// A path does work on the sheet it drags: the guard does not take the energy it pumps in for
+// a blow-up, but still halts a state that is not finite.
+TEST(Constraints, GuardLetsADrivenSheetGainEnergyButNotGoNonFinite) {
+  WorldDef wd;
+  wd.gravity = {0, 0, 0};
+  World w(wd);
+  SheetDef d;
+  d.m = d.n = 3;
+  d.mass = 0.01;
+  const SheetId id = w.add_sheet(d);
+  ConstraintDef whirl;
+  whirl.kind = ConstraintKind::Path;
+  whirl.stiffness = 50;
+  whirl.sheet = id;
+  whirl.points = {0, 1, 2, 3};
+  whirl.motion.kind = Motion::Kind::Circle;
+  whirl.motion.circle = {{0, 0, 0}, {0, 0, 1}, {0.5, 0, 0}, 0.5};
+  w.add_constraint(whirl);
+  const StabilityReport report = w.step(2000);
+  EXPECT_TRUE(report.ok()) << describe(report);
+  EXPECT_GT(report.energy_growth, wd.guard_energy_growth) << "the whirl pumped energy in";
+  w.state(id).x[5] = std::nan("");
+  EXPECT_EQ(w.step(1).status, StabilityStatus::NonFinite);
+}
+
 // A frame turns a quarter turn about z over one second and then holds: the sheet's edge it
 // carries ends turned by 90° about the pivot, within the sag its own weight gives the springs.
 TEST(Constraints, FrameTurnsTheEdgeItCarries) {

@@ -329,6 +329,29 @@ void ConstraintPool<Real>::set_targets(double time, const Access& world) {
 }
 
 template <class Real>
+double ConstraintPool<Real>::join_energy_excess(SheetId id, const Sheet<Real>& s) const {
+  const Anchors<Real>& an = s.anchors;
+  auto half = [&](std::size_t base, std::size_t count) {
+    double e = 0;
+    for (std::size_t a = base; a < base + count; ++a) {
+      const std::uint32_t p = an.point[a];
+      const double dx = double(an.tx[a]) - s.position.x[p], dy = double(an.ty[a]) - s.position.y[p],
+                   dz = double(an.tz[a]) - s.position.z[p];
+      e += 0.25 * double(an.stiffness[a]) * (dx * dx + dy * dy + dz * dz);
+    }
+    return e;
+  };
+  double excess = 0;
+  for (std::uint32_t index : active_) {
+    const Entry& e = *slots_[index].entry;
+    if (e.def.kind != ConstraintKind::PointToPoint) continue;
+    if (e.def.sheet == id) excess += half(e.base, e.def.points.size());
+    if (e.def.other_sheet == id) excess += half(e.other_base, e.def.other_points.size());
+  }
+  return excess;
+}
+
+template <class Real>
 std::vector<SheetId> ConstraintPool<Real>::driven_sheets() const {
   std::vector<SheetId> driven;
   auto has = [&](SheetId id) { return std::find(driven.begin(), driven.end(), id) != driven.end(); };

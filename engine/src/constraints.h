@@ -49,6 +49,11 @@ class ConstraintPool {
   // they were added, so the targets do not depend on threads or on how sheets are split.
   void set_targets(double time, const Access& world);
 
+  // A join's spring is two anchors, one at each end, each of energy ½k(|d| − ℓ)² at the
+  // substep's start: the sheet's anchor energy counts it twice. This is the half to take
+  // off from `sheet` (½ · ½k|target − x|² of each join anchor it holds, at its positions now).
+  double join_energy_excess(SheetId id, const Sheet<Real>& sheet) const;
+
   // Sheets that a path or frame constraint moves, and every sheet joined to one of them
   // point-to-point (directly or through others): prescribed motion does work on them, so
   // their energy may grow without any instability.

@@ -602,6 +602,8 @@ struct BasicWorld<Real>::Impl {
   // diagnostics(): not only the near ones, so the value does not depend on the broad-phase).
   Energies guard_energy(const Slot& slot) const {
     Energies e = detail::sheet_energies(*slot.sheet, def.gravity);
+    if (!constraints.empty())
+      e.anchor -= constraints.join_energy_excess({std::uint32_t(&slot - slots.data()), slot.generation}, *slot.sheet);
     for (std::uint32_t o : active_obstacles) {
       const detail::Obstacle& obstacle = *obstacle_slots[o].obstacle;
       e.obstacle += detail::obstacle_energy(*slot.sheet, obstacle, detail::exponent_cap(obstacle.def, slot.lightest_point, def.dt));
@@ -994,6 +996,7 @@ template <class Real>
 SheetDiagnostics BasicWorld<Real>::diagnostics(SheetId id) const {
   const auto& sheet = impl_->sheet(id);
   SheetDiagnostics d = detail::sheet_diagnostics(sheet, impl_->def.gravity);
+  d.energy.anchor -= impl_->constraints.join_energy_excess(id, sheet);  // a join's spring counted once
   // every obstacle, not only the near ones: the energy must not depend on the broad-phase
   const double lightest = impl_->slots[id.index].lightest_point;
   for (std::uint32_t o : impl_->active_obstacles) {
