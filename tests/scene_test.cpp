@@ -7,6 +7,7 @@
 #include <string>
 #include <utility>
 
+#include "run.h"
 #include "scene.h"
 
 namespace {
@@ -301,18 +302,106 @@ TEST(SceneFile, FuzzRegressionInputsAreRefusedOrReadCleanly) {
   EXPECT_GT(count, 0u);
 }
 
+// --- constraints and moving obstacles (issue 14) -----------------------------------------
+
+const char* two_sheets = R"("sheets": [{"name": "left", "grid": [2, 2], "size": [1, 1], "stiffness": 50},
+                                         {"name": "right", "grid": [2, 3], "size": [1, 1], "stiffness": 50}])";
+
+TEST(SceneFile, ConstraintsAndMovingObstaclesAreRead) {
+  const Scene s = parse_scene(std::string(R"({"frames": 1, )") + two_sheets + R"(,
+    "obstacles": [{"type": "sphere", "radius": 0.2, "motion": {"pivot": [0, 0, 1], "repeat": true,
+                   "keyframes": [{"time": 0}, {"time": 2, "translation": [1, 0, 0],
+                                                  "rotation": {"axis": [0, 0, 1], "degrees": 90}}]}}],
+    "constraints": [
+      {"type": "point_to_point", "sheet": "left", "points": {"column": 2}, "other_sheet": 1,
+       "other_points": {"column": 0}, "stiffness": 400, "rest_length": 0.01},
+      {"type": "path", "sheet": "right", "points": {"row": 0}, "stiffness": 10,
+       "motion": {"circle": {"center": [0, 0, 0], "start": [1, 0, 0], "period": 3}}},
+      {"type": "frame", "sheet": 0, "points": [[2, 2]], "stiffness": 20, "obstacle": 0},
+      {"type": "rail", "sheet": "left", "points": "corners", "stiffness": 30, "rail": [[0, 0, 0], [1, 0, 0]]}]})",
+                              "c.json");
+  ASSERT_TRUE(s.obstacles.at(0).motion.has_value());
+  const drape::Motion& m = *s.obstacles[0].motion;
+  EXPECT_TRUE(m.repeat);
+  ASSERT_EQ(m.keyframes.size(), 2u);
+  EXPECT_EQ(m.keyframes[1].translation, (drape::Vec3{1, 0, 0}));
+  EXPECT_NEAR(m.keyframes[1].rotation.w, std::sqrt(0.5), 1e-15);
+  ASSERT_EQ(s.constraints.size(), 4u);
+  const auto& join = s.constraints[0];
+  EXPECT_EQ(join.kind, drape::ConstraintKind::PointToPoint);
+  EXPECT_EQ(join.sheet.index, 0u);
+  EXPECT_EQ(join.other_sheet.index, 1u);
+  EXPECT_EQ(join.points, (std::vector<std::uint32_t>{2, 5, 8}));        // column 2 of a 3x3 grid
+  EXPECT_EQ(join.other_points, (std::vector<std::uint32_t>{0, 4, 8}));  // column 0 of a 3x4 grid
+  EXPECT_EQ(join.rest_length, 0.01);
+  EXPECT_EQ(join.stiffness, 400);
+  EXPECT_EQ(s.constraints[1].points, (std::vector<std::uint32_t>{0, 1, 2, 3}));
+  EXPECT_EQ(s.constraints[1].motion.kind, drape::Motion::Kind::Circle);
+  EXPECT_EQ(s.constraints[1].motion.circle.period, 3);
+  ASSERT_TRUE(s.constraints[2].carrier.has_value());
+  EXPECT_EQ(s.constraints[2].carrier->index, 0u);
+  EXPECT_EQ(s.constraints[3].rail.size(), 2u);
+  // and the world takes them
+  std::vector<drape::SheetId> ids;
+  const auto world = drape::app::build_world<double>(s, 1, ids);
+  EXPECT_EQ(world.constraint_count(), 4u);
+}
+
+TEST(SceneFile, BadConstraintsNameTheirPath) {
+  struct Case {
+    std::string constraint, expected;
+  };
+  const std::string p2p = R"("type": "point_to_point", "stiffness": 5, )";
+  const Case cases[] = {
+      {p2p + R"("sheet": "middle", "points": [0], "other_sheet": 1, "other_points": [0])",
+       "test.json: constraints[0].sheet: no sheet is named \"middle\""},
+      {p2p + R"("sheet": 2, "points": [0], "other_sheet": 1, "other_points": [0])",
+       "test.json: constraints[0].sheet: must be between 0 and 1 (got 2)"},
+      {p2p + R"("sheet": 0, "points": [0, 9], "other_sheet": 1, "other_points": [0, 1])",
+       "test.json: constraints[0].points[1]: must be between 0 and 8 (got 9)"},
+      {p2p + R"("sheet": 0, "points": [[0, 3]], "other_sheet": 1, "other_points": [0])",
+       "test.json: constraints[0].points[0][1]: must be between 0 and 2 (got 3)"},
+      {p2p + R"("sheet": 0, "points": [4, 3], "other_sheet": "left", "other_points": [1, 3])",
+       "test.json: constraints[0]: other_points[1] is points[1] (3) of the same sheet"},
+      {p2p + R"("sheet": 0, "points": [4, 3], "other_sheet": 1, "other_points": [1])",
+       "test.json: constraints[0]: other_points must pair with points one to one (got 1 for 2)"},
+      {R"("type": "rail", "sheet": 0, "points": [0], "stiffness": 5, "rail": [[0, 0, 0]])",
+       "test.json: constraints[0]: rail must have at least two knots (got 1)"},
+      {R"("type": "path", "sheet": 0, "points": [0], "stiffness": 5, "motion": {"keyframes": [{"time": 0}]})",
+       "test.json: constraints[0].motion: keyframes must have at least two knots (got 1)"},
+      {R"("type": "path", "sheet": 0, "points": [0], "stiffness": 5,
+          "motion": {"keyframes": [{"time": 1}, {"time": 0.5}]})",
+       "test.json: constraints[0].motion: keyframes[1].time must be later than keyframes[0].time"},
+      {R"("type": "frame", "sheet": 0, "points": [0], "stiffness": 5, "obstacle": 0)",
+       "test.json: constraints[0].obstacle: the scene has no obstacles"},
+      {R"("type": "hinge", "sheet": 0, "points": [0], "stiffness": 5)",
+       "test.json: constraints[0].type: unknown constraint type \"hinge\""},
+      {R"("type": "path", "sheet": 0, "points": [0], "stiffness": 0, "motion": {"keyframes": []})",
+       "test.json: constraints[0].stiffness: must be positive (got 0)"},
+  };
+  for (const auto& c : cases) {
+    const std::string text = std::string(R"({"frames": 1, )") + two_sheets + R"(, "constraints": [{)" + c.constraint + "}]}";
+    const std::string message = error_of(text);
+    EXPECT_EQ(message.rfind(c.expected, 0), 0u) << "input: " << text << "\nmessage: " << message;
+    EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+  }
+  EXPECT_EQ(error_of(std::string(R"({"frames": 1, )") + two_sheets +
+                     R"(, "obstacles": [{"type": "sphere", "radius": 1, "motion": {"circle": {"center": [0, 0, 0],
+                         "start": [0, 0, 1], "period": 1}}}]})")
+                .rfind("test.json: obstacles[0].motion: circle.start must not lie on the circle's axis", 0),
+            0u);
+}
+
 // --- the paper's figures ----------------------------------------------------------------
 
 template <class Real = double>
 struct Loaded {
   Scene scene;
+  std::vector<drape::SheetId> ids;  // before world: build_world fills it
   drape::BasicWorld<Real> world;
-  std::vector<drape::SheetId> ids;
   explicit Loaded(const std::string& name)
-      : scene(drape::app::load_scene(std::string(DRAPE_SCENES_DIR) + "/" + name)), world(scene.world) {
-    for (const auto& s : scene.sheets) ids.push_back(world.add_sheet(s));
-    for (const auto& o : scene.obstacles) world.add_obstacle(o);
-  }
+      : scene(drape::app::load_scene(std::string(DRAPE_SCENES_DIR) + "/" + name)),
+        world(drape::app::build_world<Real>(scene, 0, ids)) {}
   void run() { world.step(scene.frames * scene.substeps); }
 };
 
@@ -390,6 +479,62 @@ TEST(PaperScenes, Float32PrecisionRunsTheSameScene) {
   const auto va = a.world.view(a.ids[0]);
   const auto vb = b.world.view(b.ids[0]);
   for (std::size_t p = 0; p < va.size(); p += 37) EXPECT_NEAR(va.z[p], vb.z[p], 1e-4);
+}
+
+// --- the constraint scenes (issue 14) ------------------------------------------------------
+
+// The sewn cover: its eight seams stay closed (within 1 cm, a tenth of a panel's cell is
+// 5 cm) while it drops over the box, and it ends resting on the box, not inside it.
+TEST(ConstraintScenes, SewnBoxSeamsStayClosedAndTheCoverRestsOnTheBox) {
+  Loaded<> l("sewn_box.json");
+  double widest = 0;
+  for (int f = 0; f < l.scene.frames; ++f) {
+    ASSERT_TRUE(l.world.step(l.scene.substeps).ok()) << "frame " << f;
+    for (const drape::ConstraintDef& c : l.scene.constraints) {
+      const auto a = l.world.view(l.ids[c.sheet.index]), b = l.world.view(l.ids[c.other_sheet.index]);
+      for (std::size_t k = 0; k < c.points.size(); ++k) {
+        const auto p = c.points[k], q = c.other_points[k];
+        widest = std::max(widest, std::hypot(a.x[p] - b.x[q], a.y[p] - b.y[q], a.z[p] - b.z[q]));
+      }
+    }
+  }
+  EXPECT_LT(widest, 0.01);
+  const auto& box = l.scene.obstacles.at(0);
+  const auto lid = l.world.view(l.ids[0]);
+  const double top = box.center.z + box.size.z;
+  const double centre = lid.z[drape::center_point(8, 8)];
+  EXPECT_GT(centre, top);
+  EXPECT_LT(centre, top + 0.02);
+}
+
+// The curtain: every point of its top row stays within 1 cm of the rail, and the pulled
+// corner ends where the path leaves it, round the corner at (1.2, 0.7, 2.0).
+TEST(ConstraintScenes, CurtainStaysOnItsRailAndFollowsThePull) {
+  Loaded<> l("curtain_rail.json");
+  const drape::ConstraintDef& rail = l.scene.constraints.at(0);
+  auto distance_to_rail = [&](double x, double y, double z) {
+    double best = 1e9;
+    for (std::size_t k = 0; k + 1 < rail.rail.size(); ++k) {
+      const auto a = rail.rail[k], b = rail.rail[k + 1];
+      const double ab[3] = {b.x - a.x, b.y - a.y, b.z - a.z}, ap[3] = {x - a.x, y - a.y, z - a.z};
+      const double t = std::clamp((ab[0] * ap[0] + ab[1] * ap[1] + ab[2] * ap[2]) /
+                                      (ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2]), 0.0, 1.0);
+      best = std::min(best, std::hypot(ap[0] - t * ab[0], ap[1] - t * ab[1], ap[2] - t * ab[2]));
+    }
+    return best;
+  };
+  double farthest = 0;
+  for (int f = 0; f < l.scene.frames; ++f) {
+    ASSERT_TRUE(l.world.step(l.scene.substeps).ok()) << "frame " << f;
+    const auto v = l.world.view(l.ids[0]);
+    for (std::uint32_t p : rail.points) farthest = std::max(farthest, distance_to_rail(v.x[p], v.y[p], v.z[p]));
+  }
+  EXPECT_LT(farthest, 0.01);
+  const auto v = l.world.view(l.ids[0]);
+  const std::uint32_t corner = drape::point_index(20, 20, 20);
+  EXPECT_NEAR(v.x[corner], 1.2, 0.02);
+  EXPECT_NEAR(v.y[corner], 0.7, 0.02);
+  EXPECT_NEAR(v.z[corner], 2.0, 0.02);
 }
 
 }  // namespace

@@ -559,3 +559,105 @@ TEST(Worlds, BadContactSettingsAreRejectedByName) {
 
 }  // namespace
 }  // namespace drape
+
+namespace drape {
+namespace {
+
+// Every kind of constraint and a moving obstacle in one world, with a sheet large enough to
+// be split into row blocks and sheets close enough to touch.
+template <class W>
+void build_constrained_scene(W& w) {
+  ObstacleDef ball;
+  ball.shape = ObstacleShape::Sphere;
+  ball.size = {0.1, 0, 0};
+  ball.center = {0, 0, -0.6};  // beyond the big sheet's reach: it is split into row blocks
+  Motion sway;
+  sway.pivot = {0, 0, -0.9};
+  sway.repeat = true;
+  sway.keyframes = {{0, {}, {}}, {0.01, {0.02, 0, 0}, quat_from_axis_angle({0, 1, 0}, 0.3)}, {0.02, {}, {}}};
+  ball.motion = sway;
+  const ObstacleId carrier = w.add_obstacle(ball);
+  SheetDef d;
+  d.m = d.n = 8;
+  d.width = d.height = 0.2;
+  d.mass = 0.05;
+  d.stiffness = 60;
+  d.damping = 0.001;
+  d.anchors = anchors_at(std::vector<std::uint32_t>{40}, 5.0);
+  const SheetId a = w.add_sheet(d);
+  d.center = {0.21, 0, 0.003};
+  const SheetId b = w.add_sheet(d);
+  SheetDef big;
+  big.m = 40;
+  big.n = 30;
+  big.width = big.height = 0.6;
+  big.center = {0, 0, -0.05};
+  const SheetId c = w.add_sheet(big);
+
+  ConstraintDef join;  // a's right edge to b's left edge, with a rest length
+  join.stiffness = 400;
+  join.rest_length = 0.01;
+  join.sheet = a;
+  join.other_sheet = b;
+  for (std::uint32_t i = 0; i <= 8; ++i) {
+    join.points.push_back(point_index(8, i, 8));
+    join.other_points.push_back(point_index(8, i, 0));
+  }
+  w.add_constraint(join);
+  ConstraintDef stitch = join;  // within one sheet: opposite corners of b
+  stitch.sheet = stitch.other_sheet = b;
+  stitch.points = {0};
+  stitch.other_points = {80};
+  w.add_constraint(stitch);
+  ConstraintDef drag;
+  drag.kind = ConstraintKind::Path;
+  drag.stiffness = 300;
+  drag.sheet = c;
+  drag.points = {0, 30};
+  drag.motion.kind = Motion::Kind::Circle;
+  drag.motion.circle = {{-0.3, -0.2, -0.05}, {0, 0, 1}, {-0.3, -0.3, -0.05}, 0.5};
+  w.add_constraint(drag);
+  ConstraintDef ride;
+  ride.kind = ConstraintKind::Frame;
+  ride.stiffness = 500;
+  ride.sheet = c;
+  ride.points = {1240, 1200, 1230};  // not in point order
+  ride.carrier = carrier;
+  w.add_constraint(ride);
+  ConstraintDef rail;
+  rail.kind = ConstraintKind::Rail;
+  rail.stiffness = 800;
+  rail.sheet = a;
+  rail.points = {0, 1, 2};
+  rail.rail = {{-0.2, -0.1, 0}, {0, -0.1, 0.01}, {0.3, -0.1, 0}};
+  w.add_constraint(rail);
+}
+
+template <class W>
+std::vector<unsigned char> run_constrained_scene(int threads, std::uint32_t block_points, int calls, int substeps) {
+  WorldDef wd;
+  wd.dt = 2e-4;
+  wd.threads = threads;
+  wd.block_points = block_points;
+  W w(wd);
+  build_constrained_scene(w);
+  for (int k = 0; k < calls; ++k) EXPECT_TRUE(w.step(substeps).ok());
+  return state_bytes(w);
+}
+
+template <class W>
+void expect_constraints_change_no_bit() {
+  const auto one = run_constrained_scene<W>(1, 256, 60, 1);
+  EXPECT_EQ(one, run_constrained_scene<W>(2, 256, 60, 1)) << "1 and 2 threads";
+  EXPECT_EQ(one, run_constrained_scene<W>(2, 1u << 30, 60, 1)) << "whole and split";
+  EXPECT_EQ(one, run_constrained_scene<W>(2, 256, 3, 20)) << "frames of 20 and single substeps";
+  EXPECT_EQ(one, run_constrained_scene<W>(1, 256, 1, 60)) << "one frame of 60 and single substeps";
+}
+
+TEST(Worlds, ConstraintsAndMovingObstaclesChangeNoBitAcrossThreadsSplitsAndFrames) {
+  expect_constraints_change_no_bit<World>();
+}
+TEST(Worlds, ConstraintsAndMovingObstaclesChangeNoBitInFloat) { expect_constraints_change_no_bit<WorldF>(); }
+
+}  // namespace
+}  // namespace drape

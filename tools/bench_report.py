@@ -539,6 +539,40 @@ class Report:
             self.out(f"| {n} | {1e9 * per:.2f}{cv_text(r)} | {1e9 * (per - base):+.2f} | {per / base:.2f} |")
         self.out("")
 
+    def constraints(self):
+        # bench/bench_constraints.cpp: each kind of constraint on the feature scene, priced
+        # against the same scene without it, stepped the same way (a substep or a frame per call).
+        meaning = {
+            "none": "48 sheets of 64×64, one thread, contacts off: the base",
+            "joins": "+ 7 point-to-point joins per row of 8 sheets, 64 points each (an edge to the next sheet's edge)",
+            "paths": "+ the 4 corners of every sheet on a circle path",
+            "rails": "+ the top row (64 points) of every sheet on a straight rail",
+            "moving_obstacle": "+ a floor under every sheet that moves (keyframes), acting on all points",
+            "none_frames": "the base, a frame of substeps per `step()` call (runs in cache)",
+            "joins_frames": "+ joins, a frame per call: a world with constraints steps substep by substep",
+        }
+        base_of = {"joins_frames": "none_frames"}
+        found = {}
+        for name in self.runs:
+            m = re.fullmatch(r"BM_Constraint_(\w+)", name)
+            if m:
+                found[m.group(1)] = self.get(name)
+        if "none" not in found:
+            return
+        self.out("## Constraint prices (issue 14)", "",
+                 "The feature scene (48 sheets of 64×64 on one thread, CPU time) with one kind of constraint on every "
+                 "sheet. Price = extra time per substep relative to the base stepped the same way "
+                 "(`bench/bench_constraints.cpp`).", "",
+                 "| scene | what it adds | µs per substep | M point-steps/s | price |", "|---|---|---|---|---|")
+        per_substep = {n: r.step_seconds for n, r in found.items()}
+        for n in [k for k in meaning if k in found] + sorted(k for k in found if k not in meaning):
+            r = found[n]
+            base = base_of.get(n, "none")
+            price = "–" if n in ("none", "none_frames") or base not in per_substep else \
+                f"{100 * (per_substep[n] / per_substep[base] - 1):+.1f} %"
+            self.out(f"| {n} | {meaning.get(n, '')} | {us(per_substep[n])}{cv_text(r)} | {mrate(r.rate)} | {price} |")
+        self.out("")
+
     def broad_phase(self):
         what = "Broad-phase for 10,000 sheets, share of the world step"
         goal = f"< {pct(TARGET_BROADPHASE_SHARE)}"
@@ -750,6 +784,7 @@ class Report:
         self.precision()
         self.features()
         self.cloth_terms()
+        self.constraints()
         self.broad_phase()
         self.stiff()
         self.notes()

@@ -8,6 +8,9 @@
 #                              figures/flag_wind.png, figures/tablecloth.png
 #   tools/run-main.sh --docs   also the smaller copies shown in docs/figures.md (docs/img/figures/)
 #
+# Constraints (issue 14): scenes/flag_pole.json, cape_sphere.json, curtain_rail.json and
+# sewn_box.json, each a strip of frames.
+#
 # Figures the paper shows as an animation get a strip of frames, left to right, all seen by
 # the scene's camera; the frames are chosen where the motion shows (30 frames per second).
 set -euo pipefail
@@ -36,6 +39,10 @@ figures=(
   "fig10 0,8,14,91    440x380"
   "fig11 0,8,14,91    440x380"
   "fig12 0,9,11,13,16 400x400"
+  "flag_pole    0,8,15,30,45  400x400"
+  "cape_sphere  0,15,30,45,90 400x400"
+  "curtain_rail 0,20,45,68,90 400x400"
+  "sewn_box     0,8,16,30,60  400x400"
 )
 
 # Beyond the paper: many sheets with contacts (issue 4), a flag in the wind (issue 12), a

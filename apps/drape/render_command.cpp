@@ -217,7 +217,9 @@ int render_or_throw(const RenderArgs& args, std::ostream& log) {
   try {
     render::Image strip(width * panels, height, options.background);
     for (int p = 0; p < panels; ++p) {
-      const render::Image image = render::render_wireframe(meshes[p], scene.obstacles, camera, width, height, options);
+      std::vector<ObstacleDef> obstacles;  // moving ones where they are at the panel's frame
+      for (const ObstacleDef& o : scene.obstacles) obstacles.push_back(obstacle_at(o, wanted[p] * scene.frame_time()));
+      const render::Image image = render::render_wireframe(meshes[p], obstacles, camera, width, height, options);
       for (int y = 0; y < height; ++y)
         std::copy_n(image.rgb.begin() + std::ptrdiff_t(y) * width * 3, width * 3,
                     strip.rgb.begin() + (std::ptrdiff_t(y) * width * panels + std::ptrdiff_t(p) * width) * 3);

@@ -20,7 +20,14 @@ BasicWorld<Real> build_world(const Scene& scene, int threads, std::vector<SheetI
   def.threads = threads;
   BasicWorld<Real> world(def);
   for (const auto& s : scene.sheets) ids.push_back(world.add_sheet(s));
-  for (const auto& o : scene.obstacles) world.add_obstacle(o);
+  std::vector<ObstacleId> obstacles;
+  for (const auto& o : scene.obstacles) obstacles.push_back(world.add_obstacle(o));
+  for (ConstraintDef c : scene.constraints) {  // the file's indices to the world's ids
+    c.sheet = ids[c.sheet.index];
+    if (c.kind == ConstraintKind::PointToPoint) c.other_sheet = ids[c.other_sheet.index];
+    if (c.carrier) c.carrier = obstacles[c.carrier->index];
+    world.add_constraint(c);
+  }
   return world;
 }
 template BasicWorld<double> build_world<double>(const Scene&, int, std::vector<SheetId>&);
@@ -225,6 +232,39 @@ void describe_world(const Scene& scene, std::ostream& out) {
         << (st.forward_euler == 0 ? " (undamped: unstable at any step)" : "")
         << (s.self_collision ? "; collides with itself" : "") << '\n';
   }
+  auto motion_text = [](const Motion& m) {
+    std::ostringstream text;
+    if (m.kind == Motion::Kind::Circle)
+      text << "a circle (period " << m.circle.period << " s)";
+    else
+      text << "keyframes (" << m.keyframes.size() << " knots" << (m.repeat ? ", repeating" : "") << ")";
+    return text.str();
+  };
+  for (std::size_t k = 0; k < scene.obstacles.size(); ++k)
+    if (scene.obstacles[k].motion) out << "obstacles[" << k << "] moves: " << motion_text(*scene.obstacles[k].motion) << '\n';
+  auto sheet_text = [&](SheetId id) { return "sheets[" + std::to_string(id.index) + "] " + scene.sheet_names[id.index]; };
+  for (std::size_t k = 0; k < scene.constraints.size(); ++k) {
+    const ConstraintDef& c = scene.constraints[k];
+    out << "constraints[" << k << "] " << constraint_kind_name(c.kind) << ": " << c.points.size() << " point(s) of "
+        << sheet_text(c.sheet);
+    switch (c.kind) {
+      case ConstraintKind::PointToPoint:
+        out << " joined to " << sheet_text(c.other_sheet) << ", rest length " << c.rest_length << " m";
+        break;
+      case ConstraintKind::Path: out << " following " << motion_text(c.motion); break;
+      case ConstraintKind::Frame:
+        if (c.carrier)
+          out << " carried by obstacles[" << c.carrier->index << "]";
+        else
+          out << " carried by " << motion_text(c.motion);
+        break;
+      case ConstraintKind::Rail: out << " sliding on a rail of " << c.rail.size() << " knots"; break;
+    }
+    out << ", stiffness " << c.stiffness << " N/m\n";
+  }
+  if (!scene.constraints.empty() ||
+      std::any_of(scene.obstacles.begin(), scene.obstacles.end(), [](const ObstacleDef& o) { return o.motion.has_value(); }))
+    out << "constraints or moving obstacles: stepped substep by substep (targets and poses set at every substep)\n";
   out << "total: " << points << " points, " << springs << " springs, about " << estimated_bytes(scene) / 1024.0
       << " KiB\n";
 }

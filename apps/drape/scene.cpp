@@ -204,8 +204,22 @@ Quat rotation_to(const Node& node, Vec3 normal) {
   return quat_from_axis_angle(axis, std::atan2(s, n.z));
 }
 
-// A set of grid points: "corners", "center"/"centre", or a list of point indices or [i, j] pairs.
+// A set of grid points: "corners", "center"/"centre", {"row": i} or {"column": j} (the
+// whole row or column, in grid order), or a list of point indices or [i, j] pairs.
 std::vector<std::uint32_t> read_points(const Node& node, std::uint32_t m, std::uint32_t n) {
+  if (node.value().is_object()) {
+    std::vector<std::uint32_t> out;
+    if (node.has("row")) {
+      node.expect_object({"row"});
+      const auto i = std::uint32_t(node.child("row").whole(0, m));
+      for (std::uint32_t j = 0; j <= n; ++j) out.push_back(point_index(n, i, j));
+    } else {
+      node.expect_object({"column"});
+      const auto j = std::uint32_t(node.required("column").whole(0, n));
+      for (std::uint32_t i = 0; i <= m; ++i) out.push_back(point_index(n, i, j));
+    }
+    return out;
+  }
   if (node.value().is_string()) {
     const std::string s = node.string();
     if (s == "corners") return corner_points(m, n);
@@ -303,7 +317,6 @@ SheetDef read_sheet(const Node& node, Precision precision, std::string& name, st
   }
   if (node.has("pins")) s.pins = read_points(node.child("pins"), s.m, s.n);
   if (node.has("self_collision")) s.self_collision = node.child("self_collision").boolean();
-<<<<<<< HEAD
   if (node.has("shear")) {
     const Node sh = node.child("shear");
     sh.expect_object({"stiffness", "rest_length"});
@@ -322,11 +335,41 @@ SheetDef read_sheet(const Node& node, Precision precision, std::string& name, st
     if (a.has("drag")) s.air->drag = a.child("drag").non_negative();
     if (a.has("friction")) s.air->friction = a.child("friction").non_negative();
   }
-=======
   if (node.has("friction")) s.friction = node.child("friction").non_negative();
->>>>>>> issue13
   if (const std::string problem = validate(s); !problem.empty()) node.fail(problem);
   return s;
+}
+
+// A prescribed motion: {"keyframes": [{"time", "translation", "rotation"}, ...], "pivot",
+// "repeat"} or {"circle": {"center", "axis", "start", "period"}}.
+Motion read_motion(const Node& node) {
+  Motion m;
+  if (node.value().is_object() && node.has("circle")) {
+    node.expect_object({"circle"});
+    const Node c = node.child("circle");
+    c.expect_object({"center", "axis", "start", "period"});
+    m.kind = Motion::Kind::Circle;
+    m.circle.center = c.required("center").vec3();
+    if (c.has("axis")) m.circle.axis = c.child("axis").vec3();
+    m.circle.start = c.required("start").vec3();
+    m.circle.period = c.required("period").positive();
+  } else {
+    node.expect_object({"keyframes", "pivot", "repeat"});
+    if (node.has("pivot")) m.pivot = node.child("pivot").vec3();
+    if (node.has("repeat")) m.repeat = node.child("repeat").boolean();
+    const Node keys = node.required("keyframes");
+    for (std::size_t k = 0, count = keys.array(); k < count; ++k) {
+      const Node key = keys.at(k);
+      key.expect_object({"time", "translation", "rotation"});
+      Keyframe f;
+      f.time = key.required("time").number();
+      if (key.has("translation")) f.translation = key.child("translation").vec3();
+      if (key.has("rotation")) f.rotation = read_orientation(key.child("rotation"));
+      m.keyframes.push_back(f);
+    }
+  }
+  if (const std::string problem = validate(m); !problem.empty()) node.fail(problem);
+  return m;
 }
 
 ObstacleDef read_obstacle(const Node& node) {
@@ -335,28 +378,28 @@ ObstacleDef read_obstacle(const Node& node) {
   ObstacleDef d;
   if (type == "plane") {
     node.expect_object({"type", "center", "normal", "c", "xi", "full_gradient", "max_exponent",
-                        "friction"});
+                        "friction", "motion"});
     d.shape = ObstacleShape::Plane;
     if (node.has("normal")) d.orientation = rotation_to(node.child("normal"), node.child("normal").vec3());
   } else if (type == "sphere") {
     node.expect_object({"type", "center", "orientation", "radius", "c", "xi", "full_gradient", "max_exponent",
-                        "friction"});
+                        "friction", "motion"});
     d.shape = ObstacleShape::Sphere;
     d.size = {node.required("radius").positive(), 0, 0};
   } else if (type == "ellipsoid") {
     node.expect_object({"type", "center", "orientation", "semi_axes", "c", "xi", "full_gradient", "max_exponent",
-                        "friction"});
+                        "friction", "motion"});
     d.shape = ObstacleShape::Ellipsoid;
     d.size = node.required("semi_axes").vec3();
     node.child("semi_axes").positives(3);
   } else if (type == "torus") {
     node.expect_object({"type", "center", "orientation", "major_radius", "minor_radius", "c", "xi", "full_gradient",
-                        "max_exponent", "friction"});
+                        "max_exponent", "friction", "motion"});
     d.shape = ObstacleShape::Torus;
     d.size = {node.required("major_radius").positive(), node.required("minor_radius").positive(), 0};
   } else if (type == "box") {
     node.expect_object({"type", "center", "orientation", "half_extents", "c", "xi", "full_gradient", "max_exponent",
-                        "friction"});
+                        "friction", "motion"});
     d.shape = ObstacleShape::Box;
     d.size = node.required("half_extents").vec3();
     node.child("half_extents").positives(3);
@@ -370,8 +413,79 @@ ObstacleDef read_obstacle(const Node& node) {
   if (node.has("full_gradient")) d.full_gradient = node.child("full_gradient").boolean();
   if (node.has("max_exponent")) d.max_exponent = node.child("max_exponent").positive();
   if (node.has("friction")) d.friction = node.child("friction").non_negative();
+  if (node.has("motion")) d.motion = read_motion(node.child("motion"));
   if (const std::string problem = validate(d); !problem.empty()) node.fail(problem);
   return d;
+}
+
+// A sheet named by its "name" or its index in "sheets"; the SheetId's index is that index.
+SheetId read_sheet_ref(const Node& node, const Scene& scene) {
+  if (node.value().is_string()) {
+    const std::string name = node.string();
+    const auto it = std::find(scene.sheet_names.begin(), scene.sheet_names.end(), name);
+    if (it == scene.sheet_names.end()) node.fail("no sheet is named \"" + name + "\"");
+    return {std::uint32_t(it - scene.sheet_names.begin()), 0};
+  }
+  return {std::uint32_t(node.whole(0, scene.sheets.size() - 1)), 0};
+}
+
+ConstraintDef read_constraint(const Node& node, const Scene& scene) {
+  if (!node.value().is_object()) node.fail("must be an object, got " + type_name(node.value()));
+  const std::string type = node.required("type").string();
+  ConstraintDef c;
+  if (type == "point_to_point") {
+    node.expect_object({"type", "sheet", "points", "stiffness", "other_sheet", "other_points", "rest_length"});
+    c.kind = ConstraintKind::PointToPoint;
+  } else if (type == "path") {
+    node.expect_object({"type", "sheet", "points", "stiffness", "motion"});
+    c.kind = ConstraintKind::Path;
+  } else if (type == "frame") {
+    node.expect_object({"type", "sheet", "points", "stiffness", "motion", "obstacle"});
+    c.kind = ConstraintKind::Frame;
+  } else if (type == "rail") {
+    node.expect_object({"type", "sheet", "points", "stiffness", "rail"});
+    c.kind = ConstraintKind::Rail;
+  } else {
+    node.child("type").fail("unknown constraint type \"" + type + "\" (known: point_to_point, path, frame, rail)");
+  }
+  auto points_of = [&](const char* key, SheetId sheet) {
+    const SheetDef& s = scene.sheets[sheet.index];
+    return read_points(node.required(key), s.m, s.n);
+  };
+  c.sheet = read_sheet_ref(node.required("sheet"), scene);
+  c.points = points_of("points", c.sheet);
+  c.stiffness = node.required("stiffness").positive();
+  switch (c.kind) {
+    case ConstraintKind::PointToPoint:
+      c.other_sheet = read_sheet_ref(node.required("other_sheet"), scene);
+      c.other_points = points_of("other_points", c.other_sheet);
+      if (node.has("rest_length")) c.rest_length = node.child("rest_length").non_negative();
+      break;
+    case ConstraintKind::Path: c.motion = read_motion(node.required("motion")); break;
+    case ConstraintKind::Frame:
+      if (node.has("obstacle") == node.has("motion")) node.fail("give either motion or obstacle (the carrier)");
+      if (node.has("obstacle")) {
+        const Node o = node.child("obstacle");
+        if (scene.obstacles.empty()) o.fail("the scene has no obstacles");
+        c.carrier = ObstacleId{std::uint32_t(o.whole(0, scene.obstacles.size() - 1)), 0};
+      } else {
+        c.motion = read_motion(node.child("motion"));
+      }
+      break;
+    case ConstraintKind::Rail: {
+      const Node rail = node.required("rail");
+      for (std::size_t k = 0, count = rail.array(); k < count; ++k) c.rail.push_back(rail.at(k).vec3());
+      break;
+    }
+  }
+  const ConstraintContext context{[&](SheetId id) -> std::uint64_t {
+                                    return id.index < scene.sheets.size()
+                                               ? point_count(scene.sheets[id.index].m, scene.sheets[id.index].n)
+                                               : 0;
+                                  },
+                                  [&](ObstacleId id) { return id.index < scene.obstacles.size(); }};
+  if (const std::string problem = validate(c, context); !problem.empty()) node.fail(problem);
+  return c;
 }
 
 // "line L, column C" of a byte offset, for syntax errors.
@@ -519,7 +633,7 @@ Scene parse_scene(std::string_view text, const std::string& file, std::span<cons
   top.expect_object({"description", "dt", "substeps", "fps", "frames", "duration", "integrator", "precision",
                      "gravity", "cg_tolerance", "cg_max_iterations", "local_global_iterations", "adaptive", "adaptive_safety", "guard",
                      "guard_energy_growth", "contact_thickness", "contact_xi", "contact_strength", "contact_range",
-                     "block_points", "wind", "sheets", "obstacles", "output", "camera"});
+                     "block_points", "wind", "sheets", "obstacles", "constraints", "output", "camera"});
   Scene scene;
   scene.file = file;
   scene.source = std::string(text);
@@ -582,6 +696,11 @@ Scene parse_scene(std::string_view text, const std::string& file, std::span<cons
     const Node obstacles = top.child("obstacles");
     for (std::size_t k = 0, count = obstacles.array(); k < count; ++k)
       scene.obstacles.push_back(read_obstacle(obstacles.at(k)));
+  }
+  if (top.has("constraints")) {
+    const Node constraints = top.child("constraints");
+    for (std::size_t k = 0, count = constraints.array(); k < count; ++k)
+      scene.constraints.push_back(read_constraint(constraints.at(k), scene));
   }
   if (top.has("output")) {
     const Node out = top.child("output");

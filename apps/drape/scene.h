@@ -49,6 +49,10 @@ struct Scene {
   std::vector<std::string> sheet_names;  // one per sheet, "sheet0", … unless named
   std::vector<SheetDef> sheets;
   std::vector<ObstacleDef> obstacles;
+  // Constraints with sheets and carriers named by their position in the file: sheet
+  // (and other_sheet) .index is the sheet's index in `sheets`, carrier->index the obstacle's
+  // in `obstacles` (build_world maps them to the world's ids).
+  std::vector<ConstraintDef> constraints;
   OutputSettings output;
   std::optional<Camera> camera;
   std::string source;      // the file's text as read; `drape run` keeps a copy with the frames

@@ -22,12 +22,10 @@ namespace {
 template <class Real>
 SweepOutcome simulate_in(const Scene& scene, int frames) {
   const auto start = std::chrono::steady_clock::now();
-  WorldDef def = scene.world;
-  def.threads = 1;  // the sweep is parallel over runs; a run's result never depends on threads
-  BasicWorld<Real> world(def);
   std::vector<SheetId> ids;
-  for (const auto& s : scene.sheets) ids.push_back(world.add_sheet(s));
-  for (const auto& o : scene.obstacles) world.add_obstacle(o);
+  // one thread: the sweep is parallel over runs; a run's result never depends on threads
+  BasicWorld<Real> world = build_world<Real>(scene, 1, ids);
+  const WorldDef& def = world.def();
   std::vector<std::vector<Real>> initial_z;
   for (SheetId id : ids) {
     const auto z = world.view(id).z;

@@ -32,6 +32,8 @@ std::string validate(const ObstacleDef& d) {
   if (!positive(d.xi)) return fail("xi", "must be positive and finite", d.xi);
   if (!positive(d.max_exponent)) return fail("max_exponent", "must be positive and finite", d.max_exponent);
   if (!(std::isfinite(d.friction) && d.friction >= 0)) return fail("friction", "must be non-negative and finite", d.friction);
+  if (d.motion)
+    if (std::string problem = validate(*d.motion); !problem.empty()) return "motion." + problem;
   switch (d.shape) {
     case ObstacleShape::Plane: break;
     case ObstacleShape::Sphere:

@@ -16,6 +16,7 @@
 
 #include "bounds.h"
 #include "broad_phase.h"
+#include "constraints.h"
 #include "contacts.h"
 #include "diagnostics.h"
 #include "forces.h"
@@ -99,6 +100,9 @@ struct BasicWorld<Real>::Impl {
     double omega_max = 0;  // rad/s, Gershgorin bound; fixed by masses and stiffnesses
     Guard guard;
     double lightest_point = 0;  // kg, for the obstacle force bound (obstacles.h, exponent_cap)
+    // Moved by a prescribed motion (a path or frame constraint, a moving obstacle): its
+    // energy may grow, so the guard halts it only for a state that is not finite.
+    bool driven = false;
     // The sheet's box after its last integration, taken while its positions were still in
     // cache; stale after add_sheet, state() or a step that split the sheet into blocks.
     detail::Aabb bounds;
@@ -145,12 +149,46 @@ struct BasicWorld<Real>::Impl {
     arena = std::make_unique<tbb::task_arena>(concurrency);
   }
   struct ObstacleSlot {
-    std::optional<detail::Obstacle> obstacle;
+    std::optional<detail::Obstacle> obstacle;  // without its motion; at its pose for this substep
+    ObstacleDef def;                           // the caller's definition
     std::uint32_t generation = 0;
   };
   std::vector<ObstacleSlot> obstacle_slots;
   std::vector<std::uint32_t> free_obstacle_slots;
   std::vector<std::uint32_t> active_obstacles;  // live slots in the order obstacles were added
+
+  detail::ConstraintPool<Real> constraints;
+  typename detail::ConstraintPool<Real>::Access access() {
+    return {[this](SheetId id) { return contains(id) ? &sheet(id) : nullptr; },
+            [this](ObstacleId id) { return contains(id) ? &obstacle_slots[id.index].def : nullptr; }};
+  }
+  // Constraints add anchors (eq 8) to their sheets: the stable step and the guard's
+  // energies change with them.
+  void constraints_changed() {
+    const std::vector<SheetId> moved = constraints.driven_sheets();
+    const bool moving = obstacles_move();
+    for (std::uint32_t index : active) {
+      Slot& slot = slots[index];
+      slot.omega_max = 2.0 / detail::sheet_stable_step(*slot.sheet);
+      slot.guard.has_reference = false;
+      slot.driven = moving || std::find(moved.begin(), moved.end(), SheetId{index, slot.generation}) != moved.end();
+    }
+  }
+  bool obstacles_move() const {
+    return std::any_of(active_obstacles.begin(), active_obstacles.end(),
+                       [&](auto o) { return obstacle_slots[o].def.motion.has_value(); });
+  }
+  // Whether anything moves by itself or couples sheets outside the contact stage: then
+  // every substep needs the host stage (no runs of substeps, no contact-free frames).
+  bool driven() const { return !constraints.empty() || obstacles_move(); }
+  // Host stage, first: moving obstacles to their pose at the substep's start, and every
+  // constrained point's target from the positions at that start.
+  void move_rigid_parts() {
+    const double t = time();
+    for (std::uint32_t o : active_obstacles)
+      if (obstacle_slots[o].def.motion) detail::place_obstacle(*obstacle_slots[o].obstacle, obstacle_slots[o].def, t);
+    if (!constraints.empty()) constraints.set_targets(t, access());
+  }
 
 
   Sheet<Real>& sheet(SheetId id) {
@@ -370,6 +408,7 @@ struct BasicWorld<Real>::Impl {
 
   // One substep, stage by stage.
   void substep(double h) {
+    move_rigid_parts();             // 0. moving obstacles posed, constraint targets set
     host_stage(h);                  // 1. bounds, broad-phase, contact forces per pair; obstacles near each sheet
     assign_obstacles(h);
     integrate_sheets(step_params(h));  // 2. per sheet (or block): gather contacts, forces, integrate
@@ -529,7 +568,7 @@ struct BasicWorld<Real>::Impl {
   // `count` substeps of h: in runs when the sheets are independent, or when a try shows
   // they stayed apart; else one by one.
   void substeps(double h, std::uint64_t count) {
-    if (count > 1) {
+    if (count > 1 && !driven()) {
       bool ran = false;
       if (sheets_independent()) {
         integrate_runs(h, count);
@@ -576,6 +615,8 @@ struct BasicWorld<Real>::Impl {
   // diagnostics(): not only the near ones, so the value does not depend on the broad-phase).
   Energies guard_energy(const Slot& slot) const {
     Energies e = detail::sheet_energies(*slot.sheet, def.gravity);
+    if (!constraints.empty())
+      e.anchor -= constraints.join_energy_excess({std::uint32_t(&slot - slots.data()), slot.generation}, *slot.sheet);
     for (std::uint32_t o : active_obstacles) {
       const detail::Obstacle& obstacle = *obstacle_slots[o].obstacle;
       e.obstacle += detail::obstacle_energy(*slot.sheet, obstacle, detail::exponent_cap(obstacle.def, slot.lightest_point, def.dt));
@@ -640,7 +681,7 @@ struct BasicWorld<Real>::Impl {
         // energy for a step when a point moves a sizeable part of a spring in one step (the
         // linearisation misses the geometric stiffening), which its damping then removes.
         // That is reported in energy_growth but does not halt it.
-        if (growth > def.guard_energy_growth && integrator_is_explicit(def.integrator))
+        if (growth > def.guard_energy_growth && integrator_is_explicit(def.integrator) && !slot.driven)
           status = StabilityStatus::EnergyGrowth;
       }
       if (status == StabilityStatus::Stable) {
@@ -712,6 +753,7 @@ SheetId BasicWorld<Real>::add_sheet(const SheetDef& def) {
   slot.sheet = std::move(sheet);
   slot.omega_max = 2.0 / detail::sheet_stable_step(*slot.sheet);
   slot.guard = {};
+  slot.driven = impl_->obstacles_move();  // constraints come after the sheet
   impl_->take_reference(slot);
   slot.bounds_fresh = false;
   impl_->active.push_back(index);
@@ -723,11 +765,13 @@ SheetId BasicWorld<Real>::add_sheet(const SheetDef& def) {
 template <class Real>
 void BasicWorld<Real>::remove_sheet(SheetId id) {
   impl_->sheet(id);  // throws on a stale id
+  impl_->constraints.forget(id, impl_->access());
   auto& slot = impl_->slots[id.index];
   slot.sheet.reset();
   ++slot.generation;
   impl_->free_slots.push_back(id.index);
   std::erase(impl_->active, id.index);
+  impl_->constraints_changed();
   impl_->broad_phase.reset();
   impl_->swept_broad_phase.reset();
 }
@@ -757,8 +801,10 @@ ObstacleId BasicWorld<Real>::add_obstacle(const ObstacleDef& def) {
   }
   impl_->forget_near_obstacles();
   auto& slot = impl_->obstacle_slots[index];
-  slot.obstacle = detail::make_obstacle(def);
+  slot.def = def;
+  slot.obstacle = detail::make_obstacle(obstacle_at(def, impl_->time()));
   impl_->active_obstacles.push_back(index);
+  impl_->constraints_changed();  // a moving obstacle drives every sheet
   return {index, slot.generation};
 }
 
@@ -766,11 +812,14 @@ template <class Real>
 void BasicWorld<Real>::remove_obstacle(ObstacleId id) {
   impl_->obstacle(id);  // throws on a stale id
   impl_->forget_near_obstacles();
+  impl_->constraints.forget(id, impl_->access());
   auto& slot = impl_->obstacle_slots[id.index];
   slot.obstacle.reset();
+  slot.def = {};
   ++slot.generation;
   impl_->free_obstacle_slots.push_back(id.index);
   std::erase(impl_->active_obstacles, id.index);
+  impl_->constraints_changed();
 }
 
 template <class Real>
@@ -787,8 +836,31 @@ std::vector<ObstacleId> BasicWorld<Real>::obstacles() const {
 
 template <class Real>
 const ObstacleDef& BasicWorld<Real>::obstacle(ObstacleId id) const {
-  return const_cast<Impl&>(*impl_).obstacle(id).def;
+  const_cast<Impl&>(*impl_).obstacle(id);  // throws on a stale id
+  return impl_->obstacle_slots[id.index].def;
 }
+
+template <class Real>
+ConstraintId BasicWorld<Real>::add_constraint(const ConstraintDef& def) {
+  const ConstraintId id = impl_->constraints.add(def, impl_->time(), impl_->access());
+  impl_->constraints_changed();
+  return id;
+}
+
+template <class Real>
+void BasicWorld<Real>::remove_constraint(ConstraintId id) {
+  impl_->constraints.remove(id, impl_->access());
+  impl_->constraints_changed();
+}
+
+template <class Real>
+bool BasicWorld<Real>::contains(ConstraintId id) const { return impl_->constraints.contains(id); }
+template <class Real>
+std::size_t BasicWorld<Real>::constraint_count() const { return impl_->constraints.size(); }
+template <class Real>
+std::vector<ConstraintId> BasicWorld<Real>::constraints() const { return impl_->constraints.ids(); }
+template <class Real>
+const ConstraintDef& BasicWorld<Real>::constraint(ConstraintId id) const { return impl_->constraints.def(id); }
 
 template <class Real>
 SheetView<Real> BasicWorld<Real>::view(SheetId id) const {
@@ -943,6 +1015,7 @@ template <class Real>
 SheetDiagnostics BasicWorld<Real>::diagnostics(SheetId id) const {
   const auto& sheet = impl_->sheet(id);
   SheetDiagnostics d = detail::sheet_diagnostics(sheet, impl_->def.gravity);
+  d.energy.anchor -= impl_->constraints.join_energy_excess(id, sheet);  // a join's spring counted once
   // every obstacle, not only the near ones: the energy must not depend on the broad-phase
   const double lightest = impl_->slots[id.index].lightest_point;
   for (std::uint32_t o : impl_->active_obstacles) {

@@ -4,8 +4,10 @@
 // An ObstacleDef is a plain value; the world copies it when the obstacle is added.
 #pragma once
 
+#include <drape/motion.h>
 #include <drape/types.h>
 
+#include <optional>
 #include <string>
 
 namespace drape {
@@ -38,7 +40,16 @@ struct ObstacleDef {
   // μ, Coulomb friction of the surface (static and kinetic, ≥ 0). Against a sheet the larger
   // of this and SheetDef::friction acts; 0 on both: frictionless (docs/scene-format.md).
   double friction = 0.0;
+  // A rigid part that moves: at time t the obstacle is turned and moved by pose_at(*motion, t)
+  // from the pose above (center, orientation); sheets near it feel it where it is at the
+  // start of each substep. Points attached to it: a Frame constraint with this obstacle as
+  // its carrier (constraint.h).
+  std::optional<Motion> motion;
 };
+
+// The obstacle where its motion has it at `time` (s): center and orientation posed, no motion.
+// Without a motion, the definition itself.
+ObstacleDef obstacle_at(const ObstacleDef& def, double time);
 
 // An empty string when the definition can be simulated; otherwise one message naming the
 // field and the problem, e.g. "xi must be positive and finite (got 0)".

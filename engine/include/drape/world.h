@@ -4,6 +4,7 @@
 // Real is the storage and arithmetic type of the hot loops (double or float).
 #pragma once
 
+#include <drape/constraint.h>
 #include <drape/obstacle.h>
 #include <drape/sheet.h>
 #include <drape/types.h>
@@ -171,6 +172,20 @@ class BasicWorld {
   std::size_t obstacle_count() const;
   std::vector<ObstacleId> obstacles() const;  // in the order they were added
   const ObstacleDef& obstacle(ObstacleId id) const;
+
+  // Constraints (paper §5.2, constraint.h). Throws std::invalid_argument with validate()'s
+  // message for a bad definition. A path or frame constraint keeps its points' offsets from
+  // the motion's pose at time() when it is added. Removing a sheet removes the constraints on
+  // it; removing an obstacle removes the frame constraints it carries. A world with a
+  // constraint or a moving obstacle steps substep by substep (its host stage writes every
+  // constrained point's target at the start of each substep); the result still does not
+  // depend on the thread count, and step(n) still equals n calls of step(1).
+  ConstraintId add_constraint(const ConstraintDef& def);
+  void remove_constraint(ConstraintId id);
+  bool contains(ConstraintId id) const;
+  std::size_t constraint_count() const;
+  std::vector<ConstraintId> constraints() const;  // in the order they were added
+  const ConstraintDef& constraint(ConstraintId id) const;
 
   SheetView<Real> view(SheetId id) const;
   SheetState<Real> state(SheetId id);
