@@ -237,3 +237,26 @@ def test_definitions_take_keywords_and_tuples():
     assert world.definition.dt == 2e-3 and world.definition.threads == 1
     scene = drape.parse_scene('{"frames": 2, "dt": 0.002, "sheets": [{"grid": [3, 5], "size": [1, 2], "stiffness": 10, "mass": 1}]}', overrides={"dt": 0.004})
     assert scene.world.dt == 0.004 and scene.sheets[0].m == 3 and scene.precision == "float64"
+
+
+def test_run_frames_calls_back_per_frame_and_stops_on_false():
+    world, sheet = hanging_world()
+    seen = []
+
+    def on_frame(frame):
+        seen.append((frame, world.step_count, float(world.view(sheet).z[3, 4])))
+        return frame < 3
+
+    assert world.run_frames(10, 25, on_frame) == 3
+    assert [(f, s) for f, s, _ in seen] == [(1, 25), (2, 50), (3, 75)]
+    # the same states as stepping a frame at a time
+    again, other = hanging_world()
+    for f, _, z in seen:
+        again.step(25)
+        assert float(again.view(other).z[3, 4]) == z
+
+    def broken(frame):
+        raise RuntimeError("callback failed")
+
+    with pytest.raises(RuntimeError, match="callback failed"):
+        world.run_frames(2, 1, broken)
