@@ -100,4 +100,24 @@ TEST_F(Mpi, TwoRanksWriteTheBatchOfOneProcess) {
             without_column(Cli::slurp(dir / "two" / "batch.csv"), "wall_time_s"));
 }
 
+// Rank 1 starts in a folder without the scene (as on a node that does not share the file
+// system): every rank stops with exit code 3 instead of waiting for it, rank 1 says why, and
+// no CSV is written.
+TEST_F(Mpi, ARankThatCannotReadTheSceneStopsEveryRank) {
+  fs::create_directories(dir / "with");
+  fs::create_directories(dir / "without");
+  write("with/s.json", scene_text());
+  const std::string args = std::string(" ") + DRAPE_BIN + " sweep s.json --set dt=0.001,0.0012 --out " +
+                           (dir / "r.csv").string();
+  const std::string cmd = "timeout 120 " + std::string(DRAPE_MPIEXEC) + " --oversubscribe --allow-run-as-root -np 1 -wdir " +
+                          (dir / "with").string() + args + " : -np 1 -wdir " + (dir / "without").string() + args +
+                          " > " + (dir / "out").string() + " 2> " + (dir / "err").string();
+  const int status = std::system(cmd.c_str());
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_NE(WEXITSTATUS(status), 124) << "the ranks waited for each other: " << Cli::slurp(dir / "err");
+  EXPECT_NE(WEXITSTATUS(status), 0);
+  EXPECT_NE(Cli::slurp(dir / "err").find("rank 1: s.json"), std::string::npos) << Cli::slurp(dir / "err");
+  EXPECT_FALSE(fs::exists(dir / "r.csv"));
+}
+
 }  // namespace

@@ -218,11 +218,20 @@ void write_sweep_csv(std::ostream& out, const SweepOptions& options, std::span<c
 int run_sweep(const SweepOptions& options, const std::filesystem::path& csv, std::ostream& log, const Cluster& cluster) {
   // Every rank plans the whole grid (it is cheap and the same everywhere), so a bad value
   // stops every rank before anything runs, and only rank 0 says so.
+  // The ranks agree on the plan's verdict before going on: a rank that cannot read a file
+  // another one can (no shared file system there) must not leave the others waiting.
+  // Rank 0 says what is wrong; another rank only when rank 0 found nothing wrong.
   std::vector<SweepCase> cases;
+  std::string problem;
   try {
     cases = plan_sweep(options);
   } catch (const SceneError& e) {
-    if (cluster.is_root()) log << "drape: " << e.what() << '\n';
+    problem = e.what();
+  }
+  const int verdict = cluster.max_over_ranks(problem.empty() ? 0 : cluster.is_root() ? 2 : 1);
+  if (verdict != 0) {
+    if (!problem.empty() && (cluster.is_root() || verdict == 1))
+      log << "drape: " << (cluster.is_root() ? "" : "rank " + std::to_string(cluster.rank()) + ": ") << problem << '\n';
     return exit_bad_scene;
   }
   if (cluster.is_root()) {

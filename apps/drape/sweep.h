@@ -85,7 +85,8 @@ void write_sweep_csv(std::ostream& out, const SweepOptions& options, std::span<c
 // The whole subcommand: plan, run this rank's cases, gather, and (rank 0) write `csv`
 // atomically. Returns an ExitCode (run.h): unstable runs are outcomes (a row with stable =
 // false), not errors; runs that failed make it exit_cases_failed, with every row written.
-// Only rank 0 writes to `log`.
+// Only rank 0 writes to `log`, but for a scene that only another rank cannot read (no shared
+// file system there): that rank says so, and every rank stops before running anything.
 int run_sweep(const SweepOptions& options, const std::filesystem::path& csv, std::ostream& log, const Cluster& cluster);
 
 }  // namespace drape::app
