@@ -229,7 +229,8 @@ void bind_world(py::module_& m, const char* name, const char* doc) {
   w.def("check", &W::check);
   w.def_property_readonly("halted", &W::halted);
   w.def_property_readonly("substep_dt", &W::substep_dt);
-  w.def_property_readonly("definition", &W::def, "A copy of the world's WorldDef.");
+  w.def_property_readonly("definition", [](const W& self) { return WorldDef(self.def()); },
+                          "A copy of the world's WorldDef (change it with set_dt, set_integrator, ...).");
   w.def("set_integrator", &W::set_integrator, py::arg("integrator"));
   w.def("set_dt", &W::set_dt, py::arg("dt"));
   w.def("set_adaptive", &W::set_adaptive, py::arg("adaptive"), py::arg("safety") = 0.8);

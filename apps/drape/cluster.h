@@ -59,7 +59,7 @@ class Cluster {
 
  private:
   int rank_ = 0, size_ = 1, local_size_ = 1;
-  bool joined_ = false;
+  [[maybe_unused]] bool joined_ = false;  // MPI was initialised here (cluster_mpi.cpp only)
 };
 
 }  // namespace drape::app

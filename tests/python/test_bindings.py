@@ -235,6 +235,8 @@ def test_definitions_take_keywords_and_tuples():
     assert w.integrator == drape.Integrator.RK4
     world = drape.World(w, threads=1)
     assert world.definition.dt == 2e-3 and world.definition.threads == 1
+    world.definition.dt = 1.0  # a copy: the world changes only through set_dt
+    assert world.definition.dt == 2e-3 and world.substep_dt == 2e-3
     scene = drape.parse_scene('{"frames": 2, "dt": 0.002, "sheets": [{"grid": [3, 5], "size": [1, 2], "stiffness": 10, "mass": 1}]}', overrides={"dt": 0.004})
     assert scene.world.dt == 0.004 and scene.sheets[0].m == 3 and scene.precision == "float64"
 
