@@ -1,5 +1,7 @@
 // `drape sweep`: one CSV row per run in grid order, each row the outcome of exactly the run
-// `drape run` makes with that value, unstable runs reported as such and never as NaN.
+// `drape run` makes with that value, unstable runs reported as such and never as NaN, a run
+// that fails reported in its row without losing the others. `drape batch`: each scene's
+// frames exactly those of `drape run`, a bad scene reported in its row.
 #include <algorithm>
 #include <cmath>
 #include <vector>
@@ -8,6 +10,8 @@
 #include "sweep.h"
 
 namespace {
+
+class Batch : public Cli {};
 
 std::vector<std::vector<std::string>> read_csv(const fs::path& p) {
   std::vector<std::vector<std::string>> rows;
@@ -67,12 +71,14 @@ TEST_F(Cli, SweepWritesOneRowPerRunScenesThenFirstParameterSlowest) {
   const auto rows = read_csv(csv);
   ASSERT_EQ(rows.size(), 1u + 2 * 3 * 2);
   EXPECT_EQ(rows[0], (std::vector<std::string>{"scene", "sheets[*].stiffness", "integrator", "stable", "frames",
-                                               "max_sag_m", "max_strain", "total_energy_J", "wall_time_s"}));
+                                               "max_sag_m", "max_strain", "total_energy_J", "wall_time_s",
+                                               "error"}));
   std::size_t k = 1;
   for (const fs::path& scene : {a, b})
     for (const char* stiffness : {"20", "40", "80"})
       for (const char* integrator : {"semi_implicit_euler", "forward_euler"}) {
-        ASSERT_EQ(rows[k].size(), 9u) << k;
+        ASSERT_EQ(rows[k].size(), 10u) << k;
+        EXPECT_EQ(rows[k][9], "") << "a run that ran has no error";
         EXPECT_EQ(rows[k][0], scene.string());
         EXPECT_EQ(rows[k][1], stiffness);
         EXPECT_EQ(rows[k][2], integrator);
@@ -151,5 +157,111 @@ TEST_F(Cli, SweepWithABadValueRunsNothingAndWritesNoCsv) {
   EXPECT_EQ(bad_syntax.code, 2);
   EXPECT_FALSE(fs::exists(csv));
 }
+
+// A run the engine refuses at run time (here a definition made invalid after planning, as a
+// scene would that passed the loader but not the engine) becomes its own row's error; the
+// runs before and after it keep exactly the results they have when run alone.
+TEST_F(Cli, SweepRunThatFailsIsReportedInItsRowAndTheOthersKeepTheirResults) {
+  drape::app::SweepOptions options;
+  options.scenes = {write("s.json", sheet_scene())};
+  options.parameters = {*drape::app::parse_sweep_parameter("sheets[*].stiffness=20,40,80")};
+  auto cases = drape::app::plan_sweep(options);
+  ASSERT_EQ(cases.size(), 3u);
+  cases[1].scene.sheets[0].stiffness = -1;
+  const auto outcomes = drape::app::run_sweep_cases(cases, 4, 2);
+  EXPECT_FALSE(outcomes[1].stable);
+  EXPECT_NE(outcomes[1].error.find("stiffness must be positive"), std::string::npos) << outcomes[1].error;
+  for (std::size_t k : {0u, 2u}) {
+    const auto alone = drape::app::simulate(cases[k].scene, 4);
+    EXPECT_TRUE(outcomes[k].stable && outcomes[k].error.empty()) << k;
+    EXPECT_EQ(outcomes[k].max_sag, alone.max_sag) << k;
+    EXPECT_EQ(outcomes[k].total_energy, alone.total_energy) << k;
+  }
+  std::ostringstream csv;
+  drape::app::write_sweep_csv(csv, options, cases, outcomes);
+  const fs::path file = write("r.csv", csv.str());
+  const auto rows = read_csv(file);
+  ASSERT_EQ(rows.size(), 4u);
+  EXPECT_EQ(rows[2][2], "false");
+  EXPECT_EQ(rows[2][3], "0");
+  ASSERT_EQ(rows[2].size(), 9u);
+  EXPECT_NE(rows[2][8].find("stiffness must be positive"), std::string::npos);
+  EXPECT_EQ(rows[1][8], "");
+}
+
+TEST_F(Batch, WritesEachSceneExactlyAsDrapeRunDoes) {
+  const fs::path a = write("a.json", sheet_scene());
+  const fs::path b = write("b.json", sheet_scene(R"("precision": "float32", )"));
+  const Result r = drape("batch " + a.string() + " " + b.string() + " --frames 4 --format obj,vtk --threads 2 --out " +
+                         (dir / "batch").string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  for (const char* name : {"a", "b"}) {
+    const fs::path single = dir / (std::string("single_") + name);
+    ASSERT_EQ(drape("run " + (dir / (std::string(name) + ".json")).string() + " --frames 4 --format obj,vtk --out " +
+                    single.string()).code, 0);
+    std::size_t files = 0;
+    for (const auto& e : fs::directory_iterator(single)) {
+      const fs::path mine = dir / "batch" / name / e.path().filename();
+      ASSERT_TRUE(fs::exists(mine)) << mine;
+      EXPECT_EQ(Cli::slurp(mine), Cli::slurp(e.path())) << mine;
+      ++files;
+    }
+    EXPECT_EQ(files, 5u * 2 + 2) << "frames 0-4 as obj and vtu, frames.pvd, scene.json";
+  }
+  const auto rows = read_csv(dir / "batch" / "batch.csv");
+  ASSERT_EQ(rows.size(), 3u);
+  EXPECT_EQ(rows[0], (std::vector<std::string>{"scene", "output", "status", "frames", "wall_time_s", "message"}));
+  EXPECT_EQ(rows[1][0], a.string());
+  EXPECT_EQ(rows[1][1], "a");
+  EXPECT_EQ(rows[1][2], "ok");
+  EXPECT_EQ(rows[1][3], "4");
+  EXPECT_EQ(rows[2][2], "ok");
+}
+
+// One unreadable scene and one that blows up: each is its row's status and message, the exit
+// code says some scenes did not finish, and the good scene's frames are all there.
+TEST_F(Batch, ReportsEachFailedSceneAndRunsTheRest) {
+  const fs::path good = write("good.json", sheet_scene());
+  const fs::path bad = write("bad.json", R"({"frames": 4, "sheets": [{"grid": [4, 4], "size": [1, 1], "stiffness": -5}]})");
+  std::string text = sheet_scene();
+  text.replace(text.find("\"dt\": 0.001"), 11, "\"dt\": 0.050");
+  const fs::path wild = write("wild.json", text);
+  const Result r = drape("batch " + bad.string() + " " + good.string() + " " + wild.string() + " --frames 40 --out " +
+                         (dir / "o").string());
+  EXPECT_EQ(r.code, 6) << r.err;
+  EXPECT_NE(r.err.find("bad.json: bad_scene"), std::string::npos) << r.err;
+  const auto rows = read_csv(dir / "o" / "batch.csv");
+  ASSERT_EQ(rows.size(), 4u);
+  EXPECT_EQ(rows[1][2], "bad_scene");
+  EXPECT_NE(rows[1][5].find("sheets[0].stiffness: must be positive"), std::string::npos) << rows[1][5];
+  EXPECT_EQ(rows[2][2], "ok");
+  EXPECT_TRUE(fs::exists(dir / "o" / "good" / "frame_00040.obj"));
+  EXPECT_EQ(rows[3][2], "unstable");
+  EXPECT_NE(rows[3][5].find("unstable"), std::string::npos) << rows[3][5];
+  EXPECT_FALSE(fs::exists(dir / "o" / "bad"));
+}
+
+TEST_F(Batch, RefusesTwoScenesThatWouldShareAFolder) {
+  fs::create_directories(dir / "x");
+  fs::create_directories(dir / "y");
+  const fs::path a = write("x/s.json", sheet_scene()), b = write("y/s.json", sheet_scene());
+  const Result r = drape("batch " + a.string() + " " + b.string() + " --out " + (dir / "o").string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("two scenes are named s"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "o"));
+}
+
+#ifndef DRAPE_HAVE_MPI
+// Built without MPI, a drape started by mpirun would run every case on every rank: it says so.
+TEST_F(Cli, SweepWithoutMpiStartedAsManyRanksRefuses) {
+  const fs::path scene = write("s.json", sheet_scene());
+  const std::string cmd = "OMPI_COMM_WORLD_SIZE=2 " + std::string(DRAPE_BIN) + " sweep " + scene.string() + " --out " +
+                          (dir / "m.csv").string() + " 2> " + (dir / "err").string();
+  const int status = std::system(cmd.c_str());
+  EXPECT_EQ(WEXITSTATUS(status), 2);
+  EXPECT_NE(Cli::slurp(dir / "err").find("built without MPI"), std::string::npos);
+  EXPECT_FALSE(fs::exists(dir / "m.csv"));
+}
+#endif
 
 }  // namespace

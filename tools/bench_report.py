@@ -145,8 +145,9 @@ def verdict(met):
 
 
 class Report:
-    def __init__(self, context, runs, build_dir, img_dir, md_dir):
+    def __init__(self, context, runs, build_dir, img_dir, md_dir, sweep_ranks=None):
         self.context, self.runs = context, runs
+        self.sweep_ranks = sweep_ranks  # tools/bench_ranks.py's JSON, or None
         self.build_dir, self.img_dir, self.md_dir = build_dir, img_dir, md_dir
         self.lines, self.targets, self.used = [], [], set()
         self.plt = None
@@ -378,6 +379,35 @@ class Report:
             ax.set_title("Thread scaling")
             ax.legend()
             self.image(fig, "threads.png", "Thread scaling: rates at 1 and 2 threads")
+
+    def ranks(self):
+        """drape sweep across MPI ranks (issue 17), from tools/bench_ranks.py: mpirun cannot run
+        inside Google Benchmark, so the script times the drape program and this reads its JSON."""
+        data = self.sweep_ranks
+        if not data or not data.get("results"):
+            return
+        base = next((r for r in data["results"] if r["ranks"] == 1 and r["threads_per_rank"] == 1), None)
+        rows = []
+        for r in sorted(data["results"], key=lambda r: (r["ranks"], r["threads_per_rank"])):
+            cv = f" ± {100 * r['cv']:.0f} %" if r.get("cv") is not None else ""
+            speedup = f"{r['runs_per_s'] / base['runs_per_s']:.2f}" if base else "–"
+            rows.append(f"| {r['ranks']} | {r['threads_per_rank']} | {r['ranks'] * r['threads_per_rank']} | "
+                        f"{r['runs_per_s']:.1f}{cv} | {speedup} | {r['command_s']:.2f} |")
+        load = data.get("load_avg") or []
+        scene = data["scene"]["sheets"][0]
+        self.out("## Sweeps across MPI ranks", "",
+                 f"`drape sweep` of {data['runs']} runs (a {scene['grid'][0]}×{scene['grid'][1]} sheet hung at its "
+                 f"corners, {data['scene']['frames']} frames of {data['scene']['substeps']} substeps, one stiffness "
+                 f"per run), measured by `tools/bench_ranks.py` on {data['cpu']} ({data['cores']} cores) on "
+                 f"{data['date']}" + (f", load average {load[0]:.2f}" if load else "") + ": the median of "
+                 f"{data['repetitions']} interleaved repetitions of the rate the sweep prints (runs ÷ seconds from "
+                 "the first run started to the last outcome gathered at rank 0; MPI's start-up and the plan are in "
+                 "the whole command's time only). 2 ranks run under `mpirun --oversubscribe`; ranks × threads "
+                 "beyond the cores share them."
+                 + (" Every configuration wrote the CSV of 1 rank × 1 thread, wall times aside."
+                    if data.get("csv_identical") else "") + (f" Note: {data['note']}." if data.get("note") else ""),
+                 "", "| ranks | threads per rank | workers | runs/s | speedup over 1 × 1 | whole command (s) |",
+                 "|---|---|---|---|---|---|", *rows, "")
 
     def ceiling(self):
         ceil_cpu = self.get("BM_CeilingSheets48")
@@ -781,6 +811,7 @@ class Report:
         self.against_bullet()
         self.ceiling()
         self.threads()
+        self.ranks()
         self.precision()
         self.features()
         self.cloth_terms()
@@ -823,9 +854,18 @@ def main():
     ap.add_argument("--out", default="docs/BENCHMARKS.md")
     ap.add_argument("--img", default="docs/img")
     ap.add_argument("--command", default="tools/bench.sh", help="how the run was made, for the report")
+    ap.add_argument("--sweep-ranks", default="docs/sweep_ranks.json",
+                    help="tools/bench_ranks.py's JSON (the section is left out when the file is missing)")
     args = ap.parse_args()
     context, runs = load_runs(args.json)
-    report = Report(context, runs, args.build_dir, args.img, os.path.dirname(os.path.abspath(args.out)))
+    sweep_ranks = None
+    if os.path.exists(args.sweep_ranks):
+        try:
+            with open(args.sweep_ranks) as f:
+                sweep_ranks = json.load(f)
+        except (OSError, json.JSONDecodeError) as e:
+            fail(f"cannot read {args.sweep_ranks}: {e}")
+    report = Report(context, runs, args.build_dir, args.img, os.path.dirname(os.path.abspath(args.out)), sweep_ranks)
     text = report.render(args.command)
     tmp = args.out + ".tmp"
     with open(tmp, "w") as f:

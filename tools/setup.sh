@@ -8,6 +8,8 @@ packages=(
   libeigen3-dev libtbb-dev libgtest-dev libgmock-dev libbenchmark-dev
   nlohmann-json3-dev libcli11-dev libfmt-dev libpng-dev
   python3 python3-matplotlib
+  python3-dev python3-numpy python3-pytest pybind11-dev python3-pybind11  # the Python module and its tests
+  libopenmpi-dev openmpi-bin  # sweeps and batches across MPI ranks, and their 2-rank test
   clang libclang-rt-dev  # libFuzzer and the sanitizer runtimes (only recommended by clang)
 )
 # Extra packages a caller may ask for, e.g. DRAPE_EXTRA_PACKAGES="clang python3-matplotlib".

@@ -1,12 +1,16 @@
-// drape: the command-line program. Subcommands: run (step a scene, write meshes) and info
-// (size, memory, stable steps). Exit codes are ExitCode in run.h, listed in docs/cli.md.
+// drape: the command-line program. Subcommands: run (step a scene, write meshes), render,
+// sweep and batch (many runs; across MPI ranks under mpirun) and info (size, memory, stable
+// steps). Exit codes are ExitCode in run.h, listed in docs/cli.md.
 #include <CLI/CLI.hpp>
 #include <unistd.h>
 
 #include <cstdio>
 #include <iostream>
+#include <memory>
 #include <sstream>
 
+#include "batch.h"
+#include "cluster.h"
 #include "render_command.h"
 #include "run.h"
 #include "scene.h"
@@ -30,12 +34,22 @@ std::optional<std::vector<MeshFormat>> parse_formats(const std::vector<std::stri
   return formats;
 }
 
+// The processes this sweep or batch runs on (cluster.h); null after saying why there are none.
+std::unique_ptr<Cluster> join_cluster(const char* command) {
+  try {
+    return std::make_unique<Cluster>();
+  } catch (const std::runtime_error& e) {
+    std::cerr << "drape " << command << ": " << e.what() << '\n';
+    return nullptr;
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"drape: elastic sheets as mass-spring grids (Gudukbay, Ozguc, Tokad 1997).\n"
                "Exit codes: 0 ok, 1 simulation became unstable, 2 bad command line, 3 bad scene file, "
-               "4 output could not be written, 5 checkpoint cannot be resumed."};
+               "4 output could not be written, 5 checkpoint cannot be resumed, 6 some runs of a sweep or batch failed."};
   app.require_subcommand(1);
 
   std::string scene_file;
@@ -71,7 +85,23 @@ int main(int argc, char** argv) {
       ->allow_extra_args(false);
   sweep->add_option("--out", sweep_csv, "CSV file to write (atomically)")->required();
   sweep->add_option("--frames", sweep_frames, "Frames per run (default: each scene's)")->check(CLI::PositiveNumber);
-  sweep->add_option("--threads", sweep_threads, "Runs in parallel (default 0: all cores)")->check(CLI::NonNegativeNumber);
+  sweep->add_option("--threads", sweep_threads, "Runs in parallel per process (default 0: all cores, shared by the "
+                                                "MPI ranks on a machine)")
+      ->check(CLI::NonNegativeNumber);
+
+  std::vector<std::string> batch_scenes, batch_formats;
+  std::string batch_out;
+  int batch_frames = 0, batch_threads = 0;
+  CLI::App* batch = app.add_subcommand("batch", "Run many scenes, each as drape run into OUT/<scene name>, in parallel; "
+                                                "OUT/batch.csv says how each went");
+  batch->add_option("SCENES", batch_scenes, "Scene files (JSON)")->required();
+  batch->add_option("--out", batch_out, "Output folder")->required();
+  batch->add_option("--frames", batch_frames, "Frames per scene (default: each scene's)")->check(CLI::PositiveNumber);
+  batch->add_option("--threads", batch_threads, "Scenes in parallel per process (default 0: all cores, shared by the "
+                                                "MPI ranks on a machine)")
+      ->check(CLI::NonNegativeNumber);
+  batch->add_option("--format", batch_formats, "Comma-separated mesh formats: obj, ply, vtk (default: each scene's)")
+      ->delimiter(',');
 
   CLI::App* info = app.add_subcommand("info", "Print points, springs, memory and the stable step per integrator");
   info->add_option("SCENE", scene_file, "Scene file (JSON)")->required();
@@ -118,7 +148,30 @@ int main(int argc, char** argv) {
     }
     if (sweep_frames > 0) sweep_options.frames = sweep_frames;
     sweep_options.threads = sweep_threads;
-    return run_sweep(sweep_options, sweep_csv, std::cerr);
+    const auto joined = join_cluster("sweep");
+    if (!joined) return exit_usage;
+    const Cluster& cluster = *joined;
+    return run_sweep(sweep_options, sweep_csv, std::cerr, cluster);
+  }
+
+  if (batch->parsed()) {
+    BatchOptions batch_options;
+    batch_options.scenes.assign(batch_scenes.begin(), batch_scenes.end());
+    batch_options.out_dir = batch_out;
+    if (batch_frames > 0) batch_options.frames = batch_frames;
+    batch_options.threads = batch_threads;
+    if (!batch_formats.empty()) {
+      std::string error;
+      batch_options.formats = parse_formats(batch_formats, error);
+      if (!batch_options.formats) {
+        std::cerr << "drape batch: " << error << '\n';
+        return exit_usage;
+      }
+    }
+    const auto joined = join_cluster("batch");
+    if (!joined) return exit_usage;
+    const Cluster& cluster = *joined;
+    return run_batch(batch_options, std::cerr, cluster);
   }
 
   Scene scene;

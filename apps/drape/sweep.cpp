@@ -9,6 +9,7 @@
 #include <chrono>
 #include <charconv>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numeric>
 
@@ -67,21 +68,62 @@ SweepOutcome simulate_in(const Scene& scene, int frames) {
   return outcome;
 }
 
-std::string number(double v) {
+// The fixed part of an outcome as it travels from a rank to rank 0 (then its error text):
+// copied as bytes, so every number arrives with the bits it was computed with.
+struct OutcomeBytes {
+  double max_sag, max_strain, total_energy, wall_seconds;
+  int frames_run;
+  bool stable;
+};
+
+std::string encode(const SweepOutcome& o) {
+  const OutcomeBytes b{o.max_sag, o.max_strain, o.total_energy, o.wall_seconds, o.frames_run, o.stable};
+  return std::string(reinterpret_cast<const char*>(&b), sizeof b) + o.error;
+}
+
+SweepOutcome decode(const std::string& bytes) {
+  OutcomeBytes b;
+  std::memcpy(&b, bytes.data(), sizeof b);
+  return {b.stable, b.frames_run, b.max_sag, b.max_strain, b.total_energy, b.wall_seconds, bytes.substr(sizeof b)};
+}
+
+// fn(k) for every k < count, `threads` at a time (0: all cores).
+template <class Fn>
+void parallel_runs(std::size_t count, int threads, Fn&& fn) {
+  tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
+  arena.execute([&] {
+    // grain 1: runs differ a lot in cost (grid size, step count)
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 1), [&](const tbb::blocked_range<std::size_t>& r) {
+      for (std::size_t k = r.begin(); k != r.end(); ++k) fn(k);
+    });
+  });
+}
+
+SweepOutcome run_case(const SweepCase& c, std::optional<int> frames) {
+  try {
+    return simulate(c.scene, frames);
+  } catch (const std::exception& e) {
+    SweepOutcome failed;
+    failed.stable = false;
+    failed.error = e.what();
+    return failed;
+  }
+}
+
+}  // namespace
+
+std::string shortest_number(double v) {
   char buf[64];
   const auto r = std::to_chars(buf, buf + sizeof buf, v);
   return std::string(buf, r.ptr);
 }
 
-// RFC 4180: quote a field holding a comma, quote or line break; double inner quotes.
 std::string csv_field(const std::string& s) {
   if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
   std::string q = "\"";
   for (char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c);
   return q + "\"";
 }
-
-}  // namespace
 
 std::optional<SweepParameter> parse_sweep_parameter(std::string_view text) {
   const auto eq = text.find('=');
@@ -137,15 +179,17 @@ SweepOutcome simulate(const Scene& scene, std::optional<int> frames) {
   return scene.precision == Precision::Float32 ? simulate_in<float>(scene, n) : simulate_in<double>(scene, n);
 }
 
+std::vector<std::string> run_spread(const Cluster& cluster, std::size_t total, int threads,
+                                    const std::function<std::string(std::size_t)>& run_case) {
+  const std::vector<std::size_t> mine = cluster.my_cases(total);
+  std::vector<std::string> results(mine.size());
+  parallel_runs(mine.size(), threads, [&](std::size_t k) { results[k] = run_case(mine[k]); });
+  return cluster.gather(total, results);
+}
+
 std::vector<SweepOutcome> run_sweep_cases(std::span<const SweepCase> cases, std::optional<int> frames, int threads) {
   std::vector<SweepOutcome> outcomes(cases.size());
-  tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
-  arena.execute([&] {
-    // grain 1: runs differ a lot in cost (grid size, step count)
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, cases.size(), 1), [&](const tbb::blocked_range<std::size_t>& r) {
-      for (std::size_t k = r.begin(); k != r.end(); ++k) outcomes[k] = simulate(cases[k].scene, frames);
-    });
-  });
+  parallel_runs(cases.size(), threads, [&](std::size_t k) { outcomes[k] = run_case(cases[k], frames); });
   return outcomes;
 }
 
@@ -153,7 +197,7 @@ void write_sweep_csv(std::ostream& out, const SweepOptions& options, std::span<c
                      std::span<const SweepOutcome> outcomes) {
   out << "scene";
   for (const auto& p : options.parameters) out << ',' << csv_field(p.path);
-  out << ",stable,frames,max_sag_m,max_strain,total_energy_J,wall_time_s\n";
+  out << ",stable,frames,max_sag_m,max_strain,total_energy_J,wall_time_s,error\n";
   for (std::size_t k = 0; k < cases.size(); ++k) {
     const SweepCase& c = cases[k];
     const SweepOutcome& o = outcomes[k];
@@ -161,25 +205,55 @@ void write_sweep_csv(std::ostream& out, const SweepOptions& options, std::span<c
     for (const auto& v : c.values) out << ',' << csv_field(v);
     out << ',' << (o.stable ? "true" : "false") << ',' << o.frames_run;
     if (o.stable)
-      out << ',' << number(o.max_sag) << ',' << number(o.max_strain) << ',' << number(o.total_energy);
+      out << ',' << shortest_number(o.max_sag) << ',' << shortest_number(o.max_strain) << ','
+          << shortest_number(o.total_energy);
     else
       out << ",,,";
-    out << ',' << number(o.wall_seconds) << '\n';
+    out << ',' << shortest_number(o.wall_seconds) << ',' << csv_field(o.error) << '\n';
   }
 }
 
-int run_sweep(const SweepOptions& options, const std::filesystem::path& csv, std::ostream& log) {
+int run_sweep(const SweepOptions& options, const std::filesystem::path& csv, std::ostream& log, const Cluster& cluster) {
+  // Every rank plans the whole grid (it is cheap and the same everywhere), so a bad value
+  // stops every rank before anything runs, and only rank 0 says so.
+  // The ranks agree on the plan's verdict before going on: a rank that cannot read a file
+  // another one can (no shared file system there) must not leave the others waiting.
+  // Rank 0 says what is wrong; another rank only when rank 0 found nothing wrong.
   std::vector<SweepCase> cases;
+  std::string problem;
   try {
     cases = plan_sweep(options);
   } catch (const SceneError& e) {
-    log << "drape: " << e.what() << '\n';
+    problem = e.what();
+  }
+  const int verdict = cluster.max_over_ranks(problem.empty() ? 0 : cluster.is_root() ? 2 : 1);
+  if (verdict != 0) {
+    if (!problem.empty() && (cluster.is_root() || verdict == 1))
+      log << "drape: " << (cluster.is_root() ? "" : "rank " + std::to_string(cluster.rank()) + ": ") << problem << '\n';
     return exit_bad_scene;
   }
-  log << "drape: sweep of " << cases.size() << " run(s)\n";
+  if (cluster.is_root()) {
+    log << "drape: sweep of " << cases.size() << " run(s)";
+    if (cluster.size() > 1) log << " on " << cluster.size() << " MPI ranks";
+    log << '\n';
+  }
   const auto start = std::chrono::steady_clock::now();
-  const std::vector<SweepOutcome> outcomes = run_sweep_cases(cases, options.frames, options.threads);
+  const std::vector<std::string> results = run_spread(cluster, cases.size(), cluster.threads(options.threads),
+                                                      [&](std::size_t k) { return encode(run_case(cases[k], options.frames)); });
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (!cluster.is_root()) return exit_ok;
+
+  std::vector<SweepOutcome> outcomes;
+  for (const std::string& r : results) outcomes.push_back(decode(r));
+  std::size_t failed = 0;
+  for (std::size_t k = 0; k < cases.size(); ++k) {
+    if (outcomes[k].error.empty()) continue;
+    ++failed;
+    log << "drape: run " << k + 1 << " (" << options.scenes[cases[k].scene_index].string();
+    for (std::size_t a = 0; a < options.parameters.size(); ++a)
+      log << ", " << options.parameters[a].path << "=" << cases[k].values[a];
+    log << ") failed: " << outcomes[k].error << '\n';
+  }
   try {
     if (csv.has_parent_path()) {
       std::error_code ec;
@@ -191,10 +265,13 @@ int run_sweep(const SweepOptions& options, const std::filesystem::path& csv, std
     log << "drape: " << e.what() << '\n';
     return exit_write_failed;
   }
-  const auto unstable = std::count_if(outcomes.begin(), outcomes.end(), [](const SweepOutcome& o) { return !o.stable; });
+  const auto unstable = std::count_if(outcomes.begin(), outcomes.end(),
+                                      [](const SweepOutcome& o) { return !o.stable && o.error.empty(); });
   log << "drape: " << cases.size() << " run(s) in " << seconds << " s (" << double(cases.size()) / seconds
-      << " scenes/s), " << unstable << " unstable; wrote " << csv.string() << '\n';
-  return exit_ok;
+      << " scenes/s), " << unstable << " unstable";
+  if (failed) log << ", " << failed << " failed";
+  log << "; wrote " << csv.string() << '\n';
+  return failed ? exit_cases_failed : exit_ok;
 }
 
 }  // namespace drape::app

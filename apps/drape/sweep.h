@@ -1,16 +1,19 @@
 // `drape sweep`: many independent runs (several scenes, and/or one scene over a grid of
 // parameter values), run in parallel, one outcome row each in a CSV. Each run is a whole
 // `drape run` without files: the same scene text, overrides and step count give the same
-// final state bit for bit, so a row can be checked against a single run.
+// final state bit for bit, so a row can be checked against a single run. Under mpirun the
+// runs are dealt out to the ranks (cluster.h) and rank 0 writes the very same CSV.
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <ostream>
 #include <span>
 #include <string>
 #include <vector>
 
+#include "cluster.h"
 #include "scene.h"
 
 namespace drape::app {
@@ -52,6 +55,9 @@ struct SweepOutcome {
   double max_strain = 0;    // max over sheets of SheetDiagnostics::max_strain
   double total_energy = 0;  // J: Energies::total() summed over sheets
   double wall_seconds = 0;
+  // Why the run could not be made (an exception from the engine, out of memory, ...); empty
+  // when it ran. A failed run is reported in its row; every other run keeps its result.
+  std::string error;
 };
 // Steps one scene single-threaded for `frames` (default: its own) frames, checking the state
 // is finite after every frame.
@@ -59,13 +65,28 @@ SweepOutcome simulate(const Scene& scene, std::optional<int> frames = std::nullo
 // All cases in parallel (TBB over runs, `threads` workers, 0: all cores); result k is case k.
 std::vector<SweepOutcome> run_sweep_cases(std::span<const SweepCase> cases, std::optional<int> frames, int threads);
 
+// The parallel loop of sweeps and batches: run_case(k) for each case k < total of this rank
+// (cluster.my_cases), `threads` at a time (0: all cores), each returning its result as bytes.
+// Rank 0 gets every case's bytes in case order, the other ranks an empty vector. An exception
+// from run_case is not caught here: run_case turns its own failures into results.
+std::vector<std::string> run_spread(const Cluster& cluster, std::size_t total, int threads,
+                                    const std::function<std::string(std::size_t)>& run_case);
+
+// CSV helpers shared by the sweep's and the batch's tables: RFC 4180 quoting (a field holding
+// a comma, quote or line break), and numbers in shortest round-trip form.
+std::string csv_field(const std::string& s);
+std::string shortest_number(double v);
+
 // Header: scene, one column per parameter path, stable, frames, max_sag_m, max_strain,
-// total_energy_J, wall_time_s. Numbers in shortest round-trip form.
+// total_energy_J, wall_time_s, error. Numbers in shortest round-trip form.
 void write_sweep_csv(std::ostream& out, const SweepOptions& options, std::span<const SweepCase> cases,
                      std::span<const SweepOutcome> outcomes);
 
-// The whole subcommand: plan, run, write `csv` atomically. Returns an ExitCode (run.h);
-// unstable runs are outcomes (a row with stable = false), not errors.
-int run_sweep(const SweepOptions& options, const std::filesystem::path& csv, std::ostream& log);
+// The whole subcommand: plan, run this rank's cases, gather, and (rank 0) write `csv`
+// atomically. Returns an ExitCode (run.h): unstable runs are outcomes (a row with stable =
+// false), not errors; runs that failed make it exit_cases_failed, with every row written.
+// Only rank 0 writes to `log`, but for a scene that only another rank cannot read (no shared
+// file system there): that rank says so, and every rank stops before running anything.
+int run_sweep(const SweepOptions& options, const std::filesystem::path& csv, std::ostream& log, const Cluster& cluster);
 
 }  // namespace drape::app

@@ -1,0 +1,478 @@
+// The Python module `drape`: bindings of the engine's public API (engine/include/drape/) and
+// of the scene loader (apps/drape/scene.h), nothing of its own. Names follow the C++ ones;
+// definitions take keyword arguments; a sheet's state comes out as NumPy arrays that view
+// the world's buffers (docs/python.md).
+#include <drape/drape.h>
+#include <pybind11/numpy.h>
+#include <pybind11/operators.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
+
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "run.h"
+#include "scene.h"
+
+namespace py = pybind11;
+
+// Vec3 and Quat are plain tuples in Python: (x, y, z) and (w, x, y, z). Any sequence of
+// numbers of the right length (a list, a NumPy array) is accepted where one is expected.
+namespace pybind11::detail {
+
+template <class T, std::size_t N>
+struct tuple_value_caster {
+  T value;
+  bool load(handle src, bool) {
+    if (!isinstance<sequence>(src) || isinstance<str>(src)) return false;
+    const auto s = reinterpret_borrow<sequence>(src);
+    if (s.size() != N) return false;
+    double v[N];
+    for (std::size_t k = 0; k < N; ++k) {
+      make_caster<double> c;
+      if (!c.load(s[k], true)) return false;
+      v[k] = cast_op<double>(c);
+    }
+    if constexpr (N == 3) value = T{v[0], v[1], v[2]};
+    else value = T{v[0], v[1], v[2], v[3]};
+    return true;
+  }
+};
+
+template <>
+struct type_caster<drape::Vec3> : tuple_value_caster<drape::Vec3, 3> {
+  static constexpr auto name = const_name("tuple[float, float, float]");
+  template <class U>
+  using cast_op_type = movable_cast_op_type<U>;
+  operator drape::Vec3*() { return &value; }
+  operator drape::Vec3&() { return value; }
+  operator drape::Vec3&&() && { return std::move(value); }
+  static handle cast(const drape::Vec3& v, return_value_policy, handle) { return make_tuple(v.x, v.y, v.z).release(); }
+};
+
+template <>
+struct type_caster<drape::Quat> : tuple_value_caster<drape::Quat, 4> {
+  static constexpr auto name = const_name("tuple[float, float, float, float]");
+  template <class U>
+  using cast_op_type = movable_cast_op_type<U>;
+  operator drape::Quat*() { return &value; }
+  operator drape::Quat&() { return value; }
+  operator drape::Quat&&() && { return std::move(value); }
+  static handle cast(const drape::Quat& q, return_value_policy, handle) {
+    return make_tuple(q.w, q.x, q.y, q.z).release();
+  }
+};
+
+}  // namespace pybind11::detail
+
+namespace {
+
+using namespace drape;
+
+// A definition struct bound field by field: one line per field, and the class gets a
+// constructor taking any of them as keyword arguments (an unknown name is a TypeError) and
+// a repr listing them. A field added to SheetDef/WorldDef/ObstacleDef is one .field(...) line.
+template <class T>
+class Fields {
+ public:
+  Fields(py::module_& m, const char* name, const char* doc) : cls_(m, name, doc) {}
+
+  template <class M>
+  Fields& field(const char* name, M T::*member, const char* doc) {
+    cls_.def_readwrite(name, member, doc);
+    names_->push_back(name);
+    return *this;
+  }
+
+  py::class_<T>& done() {
+    auto names = names_;
+    cls_.def(py::init([](const py::kwargs& kwargs) { return with_fields(T{}, kwargs); }),
+             "Every field has a default; pass the ones to change as keyword arguments.");
+    cls_.def("__repr__", [names](py::object self) {
+      std::string text = py::str(self.attr("__class__").attr("__name__"));
+      text += "(";
+      for (std::size_t k = 0; k < names->size(); ++k)
+        text += (k ? ", " : "") + (*names)[k] + "=" + std::string(py::repr(self.attr((*names)[k].c_str())));
+      return text + ")";
+    });
+    cls_.def("__copy__", [](const T& self) { return T(self); });
+    cls_.def("__deepcopy__", [](const T& self, py::dict) { return T(self); });
+    return cls_;
+  }
+
+  // `base` with the keyword arguments written into its fields, in the order given.
+  static T with_fields(const T& base, const py::kwargs& kwargs) {
+    py::object obj = py::cast(base);
+    for (const auto& [key, value] : kwargs) {
+      if (!py::hasattr(obj, key)) {
+        throw py::type_error(std::string(py::str(obj.attr("__class__").attr("__name__"))) + " has no field '" +
+                             std::string(py::str(key)) + "'");
+      }
+      obj.attr(key) = value;
+    }
+    return obj.cast<T>();
+  }
+
+ private:
+  py::class_<T> cls_;
+  std::shared_ptr<std::vector<std::string>> names_ = std::make_shared<std::vector<std::string>>();
+};
+
+// A definition from an optional object of its type and keyword arguments that change it.
+template <class T>
+T definition(const std::optional<T>& def, const py::kwargs& kwargs) {
+  return Fields<T>::with_fields(def.value_or(T{}), kwargs);
+}
+
+// One sheet's six state arrays, each (m+1, n+1) in the grid's row-major order (eqs 2–3),
+// viewing the world's buffers: no copy is made, and the world stays alive while they do.
+struct SheetArrays {
+  std::uint32_t m = 0, n = 0;
+  py::array x, y, z, vx, vy, vz;
+};
+
+template <class Real, class Span>
+py::array grid_array(const Span& span, std::uint32_t m, std::uint32_t n, py::handle owner, bool writeable) {
+  py::array_t<Real> a({std::size_t(m) + 1, std::size_t(n) + 1}, {(std::size_t(n) + 1) * sizeof(Real), sizeof(Real)},
+                      span.data(), owner);
+  if (!writeable) a.attr("setflags")(py::arg("write") = false);
+  return a;
+}
+
+template <class Real, class View>
+SheetArrays arrays(const View& v, py::handle owner, bool writeable) {
+  auto g = [&](const auto& s) { return grid_array<Real>(s, v.m, v.n, owner, writeable); };
+  return {v.m, v.n, g(v.x), g(v.y), g(v.z), g(v.vx), g(v.vy), g(v.vz)};
+}
+
+template <class Real>
+std::span<const Real> flat(const py::array_t<Real, py::array::c_style | py::array::forcecast>& a) {
+  return {a.data(), std::size_t(a.size())};
+}
+
+template <class Real>
+void bind_world(py::module_& m, const char* name, const char* doc) {
+  using W = BasicWorld<Real>;
+  using Array = py::array_t<Real, py::array::c_style | py::array::forcecast>;
+  py::class_<W> w(m, name, doc);
+  w.def(py::init([](std::optional<WorldDef> def, const py::kwargs& kwargs) { return W(definition(def, kwargs)); }),
+        py::arg("definition") = py::none(),
+        "World(definition=None, **fields): a WorldDef, and/or WorldDef fields as keywords.");
+  w.def("add_sheet",
+        [](W& self, std::optional<SheetDef> def, const py::kwargs& kwargs) { return self.add_sheet(definition(def, kwargs)); },
+        py::arg("definition") = py::none(),
+        "Adds a sheet from a SheetDef and/or SheetDef fields as keywords. ValueError for a bad definition. "
+        "Arrays from view()/state() are invalid afterwards.");
+  w.def("remove_sheet", &W::remove_sheet, py::arg("sheet"), "Arrays from view()/state() are invalid afterwards.");
+  w.def("add_obstacle",
+        [](W& self, std::optional<ObstacleDef> def, const py::kwargs& kwargs) {
+          return self.add_obstacle(definition(def, kwargs));
+        },
+        py::arg("definition") = py::none(), "Adds an obstacle from an ObstacleDef and/or its fields as keywords.");
+  w.def("remove_obstacle", &W::remove_obstacle, py::arg("obstacle"));
+  w.def("contains", py::overload_cast<SheetId>(&W::contains, py::const_), py::arg("sheet"));
+  w.def("contains", py::overload_cast<ObstacleId>(&W::contains, py::const_), py::arg("obstacle"));
+  w.def_property_readonly("sheet_count", &W::sheet_count);
+  w.def_property_readonly("obstacle_count", &W::obstacle_count);
+  w.def("sheets", &W::sheets, "Sheet ids in the order they were added.");
+  w.def("obstacles", &W::obstacles, "Obstacle ids in the order they were added.");
+  w.def("obstacle", &W::obstacle, py::arg("obstacle"), "A copy of the obstacle's definition.");
+
+  w.def("view",
+        [](py::object self, SheetId id) { return arrays<Real>(self.cast<const W&>().view(id), self, false); },
+        py::arg("sheet"),
+        "Read-only arrays x, y, z, vx, vy, vz of shape (m+1, n+1) over the sheet's buffers (no copy); valid until "
+        "the next add_sheet/remove_sheet.");
+  w.def("state", [](py::object self, SheetId id) { return arrays<Real>(self.cast<W&>().state(id), self, true); },
+        py::arg("sheet"),
+        "Writable arrays as view(); writes take effect at the next step (pinned points return to their pins).");
+  w.def("set_state",
+        [](W& self, SheetId id, const Array& x, const Array& y, const Array& z, const Array& vx, const Array& vy,
+           const Array& vz) {
+          const SheetView<Real> v{0, 0, flat(x), flat(y), flat(z), flat(vx), flat(vy), flat(vz)};
+          self.set_state(id, v);
+        },
+        py::arg("sheet"), py::arg("x"), py::arg("y"), py::arg("z"), py::arg("vx"), py::arg("vy"), py::arg("vz"),
+        "Copies positions and velocities (each holding the sheet's point count) into the sheet.");
+  w.def("integrator_memory",
+        [](py::object self, SheetId id) {
+          const auto s = self.cast<const W&>().integrator_memory(id);
+          py::array_t<Real> a({s.size()}, {sizeof(Real)}, s.data(), self);
+          a.attr("setflags")(py::arg("write") = false);
+          return a;
+        },
+        py::arg("sheet"));
+  w.def("set_integrator_memory",
+        [](W& self, SheetId id, const Array& memory) { self.set_integrator_memory(id, flat(memory)); },
+        py::arg("sheet"), py::arg("memory"));
+
+  // The GIL is released while the world steps, so Python threads can step several worlds
+  // at once (one thread per world at a time, as in C++).
+  w.def("step", &W::step, py::arg("substeps") = 1, py::call_guard<py::gil_scoped_release>(),
+        "Advances by `substeps` substeps, then runs the stability guard; returns its StabilityReport.");
+  w.def("advance", &W::advance, py::arg("seconds"), py::call_guard<py::gil_scoped_release>(),
+        "Advances by `seconds` in equal substeps, landing exactly on time + seconds.");
+  w.def("run_frames",
+        [](W& self, int frames, int substeps_per_frame, const py::function& on_frame) {
+          py::gil_scoped_release release;
+          return self.run_frames(frames, substeps_per_frame, [&](int frame) {
+            py::gil_scoped_acquire acquire;
+            const py::object r = on_frame(frame);
+            return r.is_none() || r.cast<bool>();  // returning False stops the run
+          });
+        },
+        py::arg("frames"), py::arg("substeps_per_frame"), py::arg("on_frame"),
+        "`frames` times: step(substeps_per_frame), then on_frame(frame); on_frame returning False stops. Returns "
+        "the frames run.");
+  w.def("check", &W::check);
+  w.def_property_readonly("halted", &W::halted);
+  w.def_property_readonly("substep_dt", &W::substep_dt);
+  w.def_property_readonly("definition", [](const W& self) { return WorldDef(self.def()); },
+                          "A copy of the world's WorldDef (change it with set_dt, set_integrator, ...).");
+  w.def("set_integrator", &W::set_integrator, py::arg("integrator"));
+  w.def("set_dt", &W::set_dt, py::arg("dt"));
+  w.def("set_adaptive", &W::set_adaptive, py::arg("adaptive"), py::arg("safety") = 0.8);
+  w.def("set_cg", &W::set_cg, py::arg("tolerance"), py::arg("max_iterations"));
+  w.def("solver_stats", &W::solver_stats, py::arg("sheet"));
+  w.def_property_readonly("time", &W::time);
+  w.def("set_threads", &W::set_threads, py::arg("threads"));
+  w.def_property_readonly("contact_pair_count", &W::contact_pair_count);
+  w.def_property("step_count", &W::step_count, &W::set_step_count);
+  w.def("diagnostics", &W::diagnostics, py::arg("sheet"));
+  w.def("energies", &W::energies);
+  w.def("all_finite", &W::all_finite);
+  w.def("stable_step_estimate", py::overload_cast<SheetId>(&W::stable_step_estimate, py::const_), py::arg("sheet"));
+  w.def("stable_step_estimate", py::overload_cast<>(&W::stable_step_estimate, py::const_));
+  w.def("critical_step", &W::critical_step, py::arg("integrator"));
+  w.attr("dtype") = py::dtype::of<Real>();
+
+  py::class_<typename W::SolverStats>(w, "SolverStats")
+      .def_readonly("iterations", &W::SolverStats::iterations)
+      .def_readonly("relative_residual", &W::SolverStats::relative_residual);
+}
+
+template <class Id>
+void bind_id(py::module_& m, const char* name) {
+  py::class_<Id>(m, name, "A handle the world hands out: pool index and generation.")
+      .def_readonly("index", &Id::index)
+      .def_readonly("generation", &Id::generation)
+      .def_property_readonly("is_valid", &Id::is_valid)
+      .def(py::self == py::self)
+      .def("__hash__", [](const Id& id) { return py::hash(py::make_tuple(id.index, id.generation)); })
+      .def("__repr__", [name](const Id& id) {
+        return std::string(name) + "(" + std::to_string(id.index) + ", generation " + std::to_string(id.generation) + ")";
+      });
+}
+
+// A scene's world with its sheets and obstacles, in the precision the scene asks for.
+py::object scene_world(const app::Scene& scene, int threads) {
+  std::vector<SheetId> ids;
+  if (scene.precision == app::Precision::Float32) return py::cast(app::build_world<float>(scene, threads, ids));
+  return py::cast(app::build_world<double>(scene, threads, ids));
+}
+
+// A Python value for `--set PATH=VALUE`: a str is taken as written (JSON or a bare word, as
+// on the command line), anything else as its JSON text.
+std::vector<app::SceneOverride> overrides_from(const py::dict& overrides) {
+  std::vector<app::SceneOverride> out;
+  const py::object dumps = py::module_::import("json").attr("dumps");
+  for (const auto& [key, value] : overrides) {
+    const std::string text = py::isinstance<py::str>(value) ? value.cast<std::string>() : dumps(value).cast<std::string>();
+    out.push_back({key.cast<std::string>(), text});
+  }
+  return out;
+}
+
+}  // namespace
+
+PYBIND11_MODULE(drape, m) {
+  m.doc() =
+      "drape: elastic sheets as mass-spring grids (Gudukbay, Ozguc, Tokad 1997). Bindings of the C++ engine: "
+      "World (float64) and WorldF (float32), definitions with keyword arguments, state as NumPy views. "
+      "See docs/python.md.";
+
+  py::register_exception<app::SceneError>(m, "SceneError", PyExc_ValueError);
+
+  py::enum_<Integrator>(m, "Integrator")
+      .value("ForwardEuler", Integrator::ForwardEuler)
+      .value("SemiImplicitEuler", Integrator::SemiImplicitEuler)
+      .value("VelocityVerlet", Integrator::VelocityVerlet)
+      .value("RK4", Integrator::RK4)
+      .value("ImplicitEuler", Integrator::ImplicitEuler)
+      .def(py::init([](const std::string& name) {
+             const auto i = integrator_from_name(name);
+             if (!i) throw py::value_error("unknown integrator \"" + name + "\"");
+             return *i;
+           }),
+           py::arg("name"), "From the scene format's name: \"semi_implicit_euler\", \"rk4\", ...")
+      .def_property_readonly("label", [](Integrator i) { return std::string(integrator_name(i)); })
+      .def_property_readonly("order", &integrator_order)
+      .def_property_readonly("is_explicit", &integrator_is_explicit)
+      .def("critical_step", &integrator_critical_step, py::arg("omega_max"));
+  py::implicitly_convertible<std::string, Integrator>();
+
+  py::enum_<ObstacleShape>(m, "ObstacleShape")
+      .value("Plane", ObstacleShape::Plane)
+      .value("Sphere", ObstacleShape::Sphere)
+      .value("Ellipsoid", ObstacleShape::Ellipsoid)
+      .value("Torus", ObstacleShape::Torus)
+      .value("Box", ObstacleShape::Box);
+  py::enum_<StabilityStatus>(m, "StabilityStatus")
+      .value("Stable", StabilityStatus::Stable)
+      .value("EnergyGrowth", StabilityStatus::EnergyGrowth)
+      .value("NonFinite", StabilityStatus::NonFinite);
+
+  bind_id<SheetId>(m, "SheetId");
+  bind_id<ObstacleId>(m, "ObstacleId");
+
+  Fields<StiffnessRegion>(m, "StiffnessRegion", "Springs inside rows/columns [begin, end] get this stiffness (§5.1).")
+      .field("row_begin", &StiffnessRegion::row_begin, "")
+      .field("row_end", &StiffnessRegion::row_end, "")
+      .field("col_begin", &StiffnessRegion::col_begin, "")
+      .field("col_end", &StiffnessRegion::col_end, "")
+      .field("stiffness", &StiffnessRegion::stiffness, "N/m")
+      .done();
+  Fields<AnchorDef>(m, "AnchorDef", "eq (8): a spring from a grid point to a fixed point in space.")
+      .field("point", &AnchorDef::point, "point index i*(n+1)+j")
+      .field("stiffness", &AnchorDef::stiffness, "N/m")
+      .field("target", &AnchorDef::target, "m; None: the point's initial position")
+      .done();
+
+  Fields<SheetDef>(m, "SheetDef", "One elastic sheet: (m+1)x(n+1) points, row-major (eqs 2-3). SI units.")
+      .field("m", &SheetDef::m, "cells vertically (rows 0..m)")
+      .field("n", &SheetDef::n, "cells horizontally (columns 0..n)")
+      .field("width", &SheetDef::width, "Lh, m")
+      .field("height", &SheetDef::height, "Lv, m")
+      .field("center", &SheetDef::center, "m")
+      .field("orientation", &SheetDef::orientation, "unit quaternion (w, x, y, z)")
+      .field("initial_velocity", &SheetDef::initial_velocity, "m/s, every point")
+      .field("mass", &SheetDef::mass, "kg, whole sheet")
+      .field("point_masses", &SheetDef::point_masses, "kg per point; overrides mass when given")
+      .field("stiffness", &SheetDef::stiffness, "k, N/m")
+      .field("stiffness_regions", &SheetDef::stiffness_regions, "list of StiffnessRegion")
+      .field("rest_length_h", &SheetDef::rest_length_h, "m; None: the spacing h1")
+      .field("rest_length_v", &SheetDef::rest_length_v, "m; None: the spacing h2")
+      .field("damping", &SheetDef::damping, "C of eq (4), N*s/m per point")
+      .field("point_damping", &SheetDef::point_damping, "per point; overrides damping when given")
+      .field("anchors", &SheetDef::anchors, "list of AnchorDef")
+      .field("pins", &SheetDef::pins, "point indices that never move")
+      .field("self_collision", &SheetDef::self_collision, "contacts of the sheet with itself")
+      .done();
+
+  Fields<ObstacleDef>(m, "ObstacleDef", "A rigid obstacle with the repulsion potential c*exp(-f/xi) of eq (9).")
+      .field("shape", &ObstacleDef::shape, "ObstacleShape")
+      .field("center", &ObstacleDef::center, "m")
+      .field("orientation", &ObstacleDef::orientation, "unit quaternion (w, x, y, z)")
+      .field("size", &ObstacleDef::size, "m, meaning per shape")
+      .field("c", &ObstacleDef::c, "J, strength")
+      .field("xi", &ObstacleDef::xi, "m, decay length")
+      .field("full_gradient", &ObstacleDef::full_gradient, "use -grad E instead of its normal projection")
+      .field("max_exponent", &ObstacleDef::max_exponent, "cap of -f/xi")
+      .done();
+
+  Fields<WorldDef>(m, "WorldDef", "The world's step, gravity, integrator, threads, guard and contact parameters.")
+      .field("dt", &WorldDef::dt, "s, one substep")
+      .field("gravity", &WorldDef::gravity, "m/s^2")
+      .field("integrator", &WorldDef::integrator, "Integrator (or its name)")
+      .field("threads", &WorldDef::threads, "worker threads of step(); 0: all cores")
+      .field("cg_tolerance", &WorldDef::cg_tolerance, "implicit Euler's CG stop")
+      .field("cg_max_iterations", &WorldDef::cg_max_iterations, "implicit Euler's CG stop")
+      .field("adaptive", &WorldDef::adaptive, "explicit integrators take their largest stable substep")
+      .field("adaptive_safety", &WorldDef::adaptive_safety, "in (0, 1]")
+      .field("guard", &WorldDef::guard, "stability guard after every step()/advance()")
+      .field("guard_energy_growth", &WorldDef::guard_energy_growth, "")
+      .field("contact_thickness", &WorldDef::contact_thickness, "h, m")
+      .field("contact_xi", &WorldDef::contact_xi, "xi, m")
+      .field("contact_strength", &WorldDef::contact_strength, "c, J; 0: no contacts")
+      .field("contact_range", &WorldDef::contact_range, "cut-off beyond h, in units of xi")
+      .field("block_points", &WorldDef::block_points, "points per row block of a large sheet")
+      .done();
+
+  py::class_<Energies>(m, "Energies", "J")
+      .def_readonly("kinetic", &Energies::kinetic)
+      .def_readonly("spring", &Energies::spring)
+      .def_readonly("gravity", &Energies::gravity)
+      .def_readonly("anchor", &Energies::anchor)
+      .def_readonly("obstacle", &Energies::obstacle)
+      .def_property_readonly("total", &Energies::total);
+  py::class_<SheetDiagnostics>(m, "SheetDiagnostics")
+      .def_readonly("energy", &SheetDiagnostics::energy)
+      .def_readonly("max_strain", &SheetDiagnostics::max_strain)
+      .def_readonly("finite", &SheetDiagnostics::finite);
+  py::class_<StabilityReport>(m, "StabilityReport", "What the stability guard found; str() describes it.")
+      .def_readonly("status", &StabilityReport::status)
+      .def_readonly("sheet", &StabilityReport::sheet)
+      .def_readonly("step", &StabilityReport::step)
+      .def_readonly("time", &StabilityReport::time)
+      .def_readonly("energy_growth", &StabilityReport::energy_growth)
+      .def_readonly("integrator", &StabilityReport::integrator)
+      .def_readonly("dt", &StabilityReport::dt)
+      .def_readonly("stable_dt", &StabilityReport::stable_dt)
+      .def_readonly("stable_integrator", &StabilityReport::stable_integrator)
+      .def_property_readonly("ok", &StabilityReport::ok)
+      .def("__bool__", &StabilityReport::ok)
+      .def("__str__", [](const StabilityReport& r) { return describe(r); });
+
+  py::class_<SheetArrays>(m, "SheetArrays",
+                          "A sheet's state as (m+1, n+1) arrays over the world's buffers; valid until the next "
+                          "add_sheet/remove_sheet on that world.")
+      .def_readonly("m", &SheetArrays::m)
+      .def_readonly("n", &SheetArrays::n)
+      .def_readonly("x", &SheetArrays::x)
+      .def_readonly("y", &SheetArrays::y)
+      .def_readonly("z", &SheetArrays::z)
+      .def_readonly("vx", &SheetArrays::vx)
+      .def_readonly("vy", &SheetArrays::vy)
+      .def_readonly("vz", &SheetArrays::vz);
+
+  bind_world<double>(m, "World", "A world of sheets stored and stepped in float64.");
+  bind_world<float>(m, "WorldF", "A world of sheets stored and stepped in float32.");
+
+  m.def("validate", py::overload_cast<const SheetDef&>(&validate), py::arg("definition"),
+        "'' when usable, else one message naming the field.");
+  m.def("validate", py::overload_cast<const WorldDef&>(&validate), py::arg("definition"));
+  m.def("validate", py::overload_cast<const ObstacleDef&>(&validate), py::arg("definition"));
+  m.def("corner_points", &corner_points, py::arg("m"), py::arg("n"));
+  m.def("center_point", &center_point, py::arg("m"), py::arg("n"));
+  m.def("anchors_at", [](const std::vector<std::uint32_t>& points, double k) { return anchors_at(points, k); },
+        py::arg("points"), py::arg("stiffness"));
+  m.def("point_index", &point_index, py::arg("n"), py::arg("i"), py::arg("j"));
+  m.def("point_count", &point_count, py::arg("m"), py::arg("n"));
+  m.def("spring_count", &spring_count, py::arg("m"), py::arg("n"));
+  m.def("quat_from_axis_angle", &quat_from_axis_angle, py::arg("axis"), py::arg("radians"));
+  m.def("rotate", &rotate, py::arg("q"), py::arg("v"));
+
+  py::class_<app::Scene>(m, "Scene", "A scene file, read and checked (docs/scene-format.md).")
+      .def_readonly("file", &app::Scene::file)
+      .def_readonly("description", &app::Scene::description)
+      .def_readonly("world", &app::Scene::world)
+      .def_property_readonly("precision", [](const app::Scene& s) { return std::string(app::precision_name(s.precision)); })
+      .def_readonly("fps", &app::Scene::fps)
+      .def_readonly("substeps", &app::Scene::substeps)
+      .def_readonly("frames", &app::Scene::frames)
+      .def_readonly("sheet_names", &app::Scene::sheet_names)
+      .def_readonly("sheets", &app::Scene::sheets)
+      .def_readonly("obstacles", &app::Scene::obstacles)
+      .def_readonly("fingerprint", &app::Scene::fingerprint)
+      .def_property_readonly("frame_time", &app::Scene::frame_time)
+      .def("make_world", &scene_world, py::arg("threads") = 0,
+           "A World (float64) or WorldF (float32, by the scene's precision) holding the scene's sheets, in the "
+           "scene's order, and obstacles; stepping it `substeps` at a time gives drape run's frames.");
+  m.def("load_scene",
+        [](const std::filesystem::path& file, const py::dict& overrides) {
+          const auto o = overrides_from(overrides);
+          return app::load_scene(file, o);
+        },
+        py::arg("file"), py::arg("overrides") = py::dict(),
+        "Reads and checks a scene file; overrides maps a field path ('dt', 'sheets[*].stiffness') to a value, as "
+        "drape sweep --set does. SceneError (a ValueError) names the file, the field and the problem.");
+  m.def("parse_scene",
+        [](const std::string& text, const std::string& name, const py::dict& overrides) {
+          const auto o = overrides_from(overrides);
+          return app::parse_scene(text, name, o);
+        },
+        py::arg("text"), py::arg("name") = "<string>", py::arg("overrides") = py::dict(),
+        "load_scene from the text of a scene file.");
+}

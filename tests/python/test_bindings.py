@@ -1,0 +1,264 @@
+"""The Python module against the C++ engine: same bits as `drape run`, arrays that view the
+engine's buffers, the GIL released while stepping, and errors as Python exceptions."""
+import json
+import re
+import subprocess
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import drape
+
+
+def read_vtu(path, dtype):
+    """Per sheet: positions and velocities, each (points, 3), as drape run wrote them (exact form)."""
+    text = path.read_text()
+    blocks = re.findall(r'NumberOfComponents="3" format="ascii">\n(.*?)</DataArray>', text, re.S)
+    arrays = [np.array([[dtype(float(v)) for v in line.split()] for line in b.splitlines()], dtype=dtype) for b in blocks]
+    return [(arrays[k], arrays[k + 1]) for k in range(0, len(arrays), 2)]
+
+
+def state_of(world, sheet):
+    v = world.view(sheet)
+    return (np.stack([v.x.ravel(), v.y.ravel(), v.z.ravel()], axis=1),
+            np.stack([v.vx.ravel(), v.vy.ravel(), v.vz.ravel()], axis=1))
+
+
+@pytest.mark.parametrize("scene_name,frames,precision", [
+    ("fig09.json", 3, None),           # an ellipsoid obstacle (eq 9)
+    ("fig05.json", 2, "float32"),      # five anchored sheets, in float32
+    ("stack_sphere.json", 2, None),    # 24 sheets in contact over a sphere
+])
+def test_bindings_agree_with_drape_run_bit_for_bit(tmp_path, source_dir, drape_bin, scene_name, frames, precision):
+    scene_file = source_dir / "scenes" / scene_name
+    if precision:
+        doc = json.loads(scene_file.read_text())
+        doc["precision"] = precision
+        scene_file = tmp_path / scene_name
+        scene_file.write_text(json.dumps(doc))
+    out = tmp_path / "out"
+    subprocess.run([drape_bin, "run", str(scene_file), "--frames", str(frames), "--format", "vtk", "--threads", "2",
+                    "--out", str(out)], check=True, capture_output=True)
+
+    scene = drape.load_scene(scene_file)
+    world = scene.make_world(threads=1)
+    assert isinstance(world, drape.WorldF if precision == "float32" else drape.World)
+    dtype = np.float32 if precision == "float32" else np.float64
+    sheets = world.sheets()
+    assert len(sheets) == len(scene.sheets)
+    for frame in range(frames + 1):
+        if frame:
+            assert world.step(scene.substeps).ok
+        written = read_vtu(out / f"frame_{frame:05d}.vtu", dtype)
+        assert len(written) == len(sheets)
+        for k, sheet in enumerate(sheets):
+            x, v = state_of(world, sheet)
+            assert x.dtype == dtype
+            # bit for bit: equal as numbers and no -0.0/+0.0 swaps
+            assert np.array_equal(x.view(np.uint8), written[k][0].view(np.uint8)), f"frame {frame} sheet {k} x"
+            assert np.array_equal(v.view(np.uint8), written[k][1].view(np.uint8)), f"frame {frame} sheet {k} v"
+
+
+def hanging_world(**world_fields):
+    world = drape.World(dt=5e-4, threads=1, **world_fields)
+    sheet = world.add_sheet(m=6, n=9, stiffness=250, damping=0.02, pins=drape.corner_points(6, 9))
+    return world, sheet
+
+
+def address(a):
+    return a.__array_interface__["data"][0]
+
+
+def test_arrays_are_views_of_the_engine_buffers():
+    world, sheet = hanging_world()
+    v = world.view(sheet)
+    assert v.x.shape == (7, 10) and v.vz.shape == (7, 10)
+    assert v.x.dtype == np.float64
+    assert not v.x.flags.owndata and not v.x.flags.writeable
+    s = world.state(sheet)
+    assert s.x.flags.writeable
+    for name in ("x", "y", "z", "vx", "vy", "vz"):
+        assert address(getattr(v, name)) == address(getattr(s, name)), name  # one buffer, no copy
+    before = v.z.copy()
+    world.step(20)
+    again = world.view(sheet)
+    assert address(again.z) == address(v.z)  # stepping does not move the buffers
+    assert not np.array_equal(v.z, before)   # the old array sees the new state: it is the buffer
+    assert np.array_equal(v.z, again.z)
+    # row-major grid: point (i, j) is x[i, j]; the sheet spans 1 m along columns, centred on 0
+    flat_index = drape.point_index(9, 2, 3)
+    assert v.x.ravel()[flat_index] == v.x[2, 3]
+
+
+def test_pinned_corners_stay_and_grid_spacing_is_the_definition():
+    world, sheet = hanging_world()
+    v = world.view(sheet)
+    # h1 = Lh/n, h2 = Lv/m (paper §2): the initial grid, independent of any step
+    assert np.allclose(np.diff(v.x, axis=1), 1.0 / 9, rtol=0, atol=1e-15)
+    assert np.allclose(np.diff(v.y, axis=0), 1.0 / 6, rtol=0, atol=1e-15)
+    corners = v.x[[0, 0, -1, -1], [0, -1, 0, -1]].copy(), v.z[[0, 0, -1, -1], [0, -1, 0, -1]].copy()
+    world.step(100)
+    assert np.array_equal(v.x[[0, 0, -1, -1], [0, -1, 0, -1]], corners[0])
+    assert np.array_equal(v.z[[0, 0, -1, -1], [0, -1, 0, -1]], corners[1])
+    assert v.z[3, 4] < -1e-3  # the middle sags under gravity
+
+
+def test_a_write_through_state_is_seen_by_the_next_step():
+    # No gravity, springs at rest: a uniform velocity written through the arrays is a rigid
+    # translation, x(t) = x0 + vx·t exactly up to rounding.
+    world = drape.World(dt=1e-3, gravity=(0, 0, 0), threads=1)
+    sheet = world.add_sheet(m=4, n=5)
+    s = world.state(sheet)
+    x0 = s.x.copy()
+    s.vx[...] = 0.5
+    world.step(10)
+    assert np.allclose(s.x, x0 + 0.5 * 10 * 1e-3, rtol=0, atol=1e-12)
+    assert np.allclose(s.vx, 0.5, rtol=0, atol=1e-12)
+    with pytest.raises(ValueError):
+        world.view(sheet).x[0, 0] = 1.0  # views are read-only
+
+
+def test_free_fall_matches_the_closed_form_of_semi_implicit_euler():
+    # One unconstrained sheet with springs at rest falls as a rigid body. Semi-implicit Euler
+    # gives v_k = -g·k·dt, z_k = z0 - g·dt²·k(k+1)/2 exactly (up to rounding).
+    g, dt, k = 9.81, 1e-3, 200
+    world = drape.World(dt=dt, gravity=(0, 0, -g), integrator="semi_implicit_euler", threads=1)
+    sheet = world.add_sheet(m=3, n=3, center=(0, 0, 2.0))
+    report = world.step(k)
+    assert report.ok and bool(report)
+    v = world.view(sheet)
+    assert np.allclose(v.z, 2.0 - g * dt * dt * k * (k + 1) / 2, rtol=0, atol=1e-12)
+    assert np.allclose(v.vz, -g * k * dt, rtol=0, atol=1e-12)
+    assert world.step_count == k and world.time == pytest.approx(k * dt, rel=1e-15)
+    e = world.energies()
+    assert e.kinetic == pytest.approx(0.5 * 1.0 * (g * k * dt) ** 2, rel=1e-12)
+
+
+def test_step_releases_the_gil():
+    # While one thread is inside step(), the main thread keeps running Python. With the GIL
+    # held through the step, no main-thread iteration could fall in the middle of it.
+    world = drape.World(dt=1e-4, threads=1)
+    world.add_sheet(m=60, n=60, stiffness=10, damping=0.01)
+    substeps, took = 10, 0.0
+    while took < 0.1:  # until a step() call lasts long enough to time
+        substeps *= 2
+        start = time.perf_counter()
+        world.step(substeps)
+        took = time.perf_counter() - start
+    substeps = int(substeps * 0.4 / took)  # about 0.4 s of stepping
+    window = {}
+
+    def stepper():
+        window["t0"] = time.perf_counter()
+        world.step(substeps)
+        window["t1"] = time.perf_counter()
+
+    ticks = []
+    t = threading.Thread(target=stepper)
+    t.start()
+    while t.is_alive():
+        ticks.append(time.perf_counter())
+    t.join()
+    t0, t1 = window["t0"], window["t1"]
+    middle = [x for x in ticks if t0 + 0.25 * (t1 - t0) < x < t1 - 0.25 * (t1 - t0)]
+    assert t1 - t0 > 0.05
+    assert middle, "the main thread did not run while step() ran: the GIL is held"
+
+
+def test_python_threads_step_worlds_like_one_thread():
+    def run(world):
+        world.step(300)
+
+    worlds = [hanging_world()[0] for _ in range(3)]
+    threads = [threading.Thread(target=run, args=(w,)) for w in worlds]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    serial, sheet = hanging_world()
+    run(serial)
+    for w in worlds:
+        for name in ("x", "y", "z", "vx", "vy", "vz"):
+            assert np.array_equal(getattr(w.view(w.sheets()[0]), name), getattr(serial.view(sheet), name))
+
+
+def test_errors_arrive_as_python_exceptions_with_the_engine_message(tmp_path):
+    world = drape.World(threads=1)
+    with pytest.raises(ValueError, match="stiffness must be positive"):
+        world.add_sheet(stiffness=-3)
+    with pytest.raises(ValueError, match="WorldDef"):
+        drape.World(dt=0)
+    with pytest.raises(TypeError, match="SheetDef has no field 'stifness'"):
+        drape.SheetDef(stifness=3)
+    sheet = world.add_sheet()
+    world.remove_sheet(sheet)
+    with pytest.raises(ValueError, match="unknown or removed SheetId"):
+        world.view(sheet)
+    other = world.add_sheet(m=2, n=2)
+    with pytest.raises(ValueError, match="needs"):
+        world.set_state(other, *(np.zeros(3) for _ in range(6)))
+    with pytest.raises(ValueError, match="unknown integrator"):
+        drape.Integrator("leapfrog")
+    with pytest.raises(ValueError, match="advance"):
+        world.advance(-1.0)
+    missing = tmp_path / "missing.json"
+    with pytest.raises(drape.SceneError, match="missing.json"):
+        drape.load_scene(missing)
+    assert issubclass(drape.SceneError, ValueError)
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"frames": 1, "sheets": [{"grid": [4, 4], "size": [1, 1], "stiffness": 10}]}')
+    with pytest.raises(drape.SceneError, match=r"sheets\[0\]\.stiffness: must be positive"):
+        drape.load_scene(bad, overrides={"sheets[*].stiffness": -1})
+    assert drape.validate(drape.SheetDef(mass=0)) != ""
+    assert drape.validate(drape.SheetDef()) == ""
+
+
+def test_unstable_world_reports_instead_of_raising():
+    world = drape.World(dt=0.05, gravity=(0, 0, 0), integrator=drape.Integrator.ForwardEuler, threads=1)
+    sheet = world.add_sheet(m=4, n=4, stiffness=1000)
+    world.state(sheet).vz[2, 2] = 1.0
+    report = world.step(200)
+    assert not report.ok and report.status != drape.StabilityStatus.Stable
+    assert report.sheet == sheet and world.halted
+    assert "forward_euler" in str(report)
+
+
+def test_definitions_take_keywords_and_tuples():
+    d = drape.SheetDef(m=3, n=4, center=[1, 2, 3], anchors=[drape.AnchorDef(point=0, stiffness=5)])
+    assert d.center == (1.0, 2.0, 3.0) and d.m == 3 and d.anchors[0].target is None
+    d.orientation = drape.quat_from_axis_angle((0, 0, 1), 0.5)
+    assert len(d.orientation) == 4
+    assert "stiffness=100.0" in repr(d)
+    w = drape.WorldDef(integrator="rk4", dt=2e-3)
+    assert w.integrator == drape.Integrator.RK4
+    world = drape.World(w, threads=1)
+    assert world.definition.dt == 2e-3 and world.definition.threads == 1
+    world.definition.dt = 1.0  # a copy: the world changes only through set_dt
+    assert world.definition.dt == 2e-3 and world.substep_dt == 2e-3
+    scene = drape.parse_scene('{"frames": 2, "dt": 0.002, "sheets": [{"grid": [3, 5], "size": [1, 2], "stiffness": 10, "mass": 1}]}', overrides={"dt": 0.004})
+    assert scene.world.dt == 0.004 and scene.sheets[0].m == 3 and scene.precision == "float64"
+
+
+def test_run_frames_calls_back_per_frame_and_stops_on_false():
+    world, sheet = hanging_world()
+    seen = []
+
+    def on_frame(frame):
+        seen.append((frame, world.step_count, float(world.view(sheet).z[3, 4])))
+        return frame < 3
+
+    assert world.run_frames(10, 25, on_frame) == 3
+    assert [(f, s) for f, s, _ in seen] == [(1, 25), (2, 50), (3, 75)]
+    # the same states as stepping a frame at a time
+    again, other = hanging_world()
+    for f, _, z in seen:
+        again.step(25)
+        assert float(again.view(other).z[3, 4]) == z
+
+    def broken(frame):
+        raise RuntimeError("callback failed")
+
+    with pytest.raises(RuntimeError, match="callback failed"):
+        world.run_frames(2, 1, broken)
