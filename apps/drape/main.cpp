@@ -7,6 +7,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "progress.h"
 #include "render_command.h"
 #include "run.h"
 #include "scene.h"
@@ -100,7 +101,7 @@ int main(int argc, char** argv) {
         return exit_usage;
       }
     }
-    options.progress_bar = isatty(fileno(stderr)) != 0;
+    options.progress_bar = stderr_is_terminal();
     options.checkpoint_every = checkpoint_every;
     if (!resume_dir.empty()) options.resume_dir = resume_dir;
   }
@@ -118,6 +119,7 @@ int main(int argc, char** argv) {
     }
     if (sweep_frames > 0) sweep_options.frames = sweep_frames;
     sweep_options.threads = sweep_threads;
+    sweep_options.progress_bar = stderr_is_terminal();
     return run_sweep(sweep_options, sweep_csv, std::cerr);
   }
 

@@ -11,6 +11,7 @@
 
 #include "checkpoint.h"
 #include "export.h"
+#include "progress.h"
 
 namespace drape::app {
 
@@ -157,7 +158,7 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
   const std::uint64_t first_step = world.step_count();
   double points = 0;
   for (SheetId id : world.sheets()) points += double(world.view(id).x.size());
-  const int line_every = std::max(1, frames / 10);
+  Progress progress(log, "frame", frames, opt.progress_bar, first_frame - 1);
   try {
     if (!opt.resume_dir) write_frame(0);
     for (int frame = first_frame; frame <= frames; ++frame) {
@@ -165,7 +166,8 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
       // the engine's stability guard: non-finite state, or energy growing without bound
       const drape::StabilityReport report = world.step(scene.substeps);
       if (!report.ok() || !world.all_finite()) {
-        log << (opt.progress_bar ? "\n" : "") << "drape: " << scene.file << ": the simulation became unstable "
+        progress.finish();
+        log << "drape: " << scene.file << ": the simulation became unstable "
             << "during frame " << frame << ", substeps " << first << "–" << world.step_count() << " (t ≤ "
             << world.time() << " s): " << drape::describe(report) << ". Frames 0–" << frame - 1
             << " are written; nothing non-finite was. Lower dt (now " << dt << " s; estimated stable step "
@@ -176,20 +178,18 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
       // after the frame's files: a checkpoint of frame K implies frames 0..K are on disk
       if (opt.checkpoint_every > 0 && frame % opt.checkpoint_every == 0 && frame < frames)
         save_checkpoint(world, dir / checkpoint_file_name, scene.fingerprint);
-      if (opt.progress_bar) {
-        const int width = 30, done = frame * width / frames;
-        log << "\r[" << std::string(done, '#') << std::string(width - done, '.') << "] frame " << frame << "/" << frames
-            << std::flush;
-      } else if (frame % line_every == 0 || frame == frames) {
-        log << "drape: frame " << frame << "/" << frames << ", t = " << world.time() << " s\n";
-      }
+      std::ostringstream time;
+      time << "t = " << world.time() << " s";
+      progress.update(frame, time.str());
     }
   } catch (const std::runtime_error& e) {
-    log << (opt.progress_bar ? "\n" : "") << "drape: " << e.what() << '\n';
+    progress.finish();
+    log << "drape: " << e.what() << '\n';
     return exit_write_failed;
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  log << (opt.progress_bar ? "\n" : "") << "drape: wrote " << std::max(0, frames + 1 - first_frame + (opt.resume_dir ? 0 : 1)) << " frames to " << dir.string() << " in "
+  progress.finish();
+  log << "drape: wrote " << std::max(0, frames + 1 - first_frame + (opt.resume_dir ? 0 : 1)) << " frames to " << dir.string() << " in "
       << std::setprecision(3) << seconds << " s";
   // the run's throughput, output included: what the scene costs on this machine
   const double point_steps = points * double(world.step_count() - first_step);

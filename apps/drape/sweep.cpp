@@ -6,6 +6,7 @@
 #include <oneapi/tbb/task_arena.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <charconv>
 #include <cmath>
@@ -13,6 +14,7 @@
 #include <numeric>
 
 #include "export.h"
+#include "progress.h"
 #include "run.h"
 
 namespace drape::app {
@@ -139,13 +141,17 @@ SweepOutcome simulate(const Scene& scene, std::optional<int> frames) {
   return scene.precision == Precision::Float32 ? simulate_in<float>(scene, n) : simulate_in<double>(scene, n);
 }
 
-std::vector<SweepOutcome> run_sweep_cases(std::span<const SweepCase> cases, std::optional<int> frames, int threads) {
+std::vector<SweepOutcome> run_sweep_cases(std::span<const SweepCase> cases, std::optional<int> frames, int threads,
+                                          const std::function<void()>& finished) {
   std::vector<SweepOutcome> outcomes(cases.size());
   tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
   arena.execute([&] {
     // grain 1: runs differ a lot in cost (grid size, step count)
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, cases.size(), 1), [&](const tbb::blocked_range<std::size_t>& r) {
-      for (std::size_t k = r.begin(); k != r.end(); ++k) outcomes[k] = simulate(cases[k].scene, frames);
+      for (std::size_t k = r.begin(); k != r.end(); ++k) {
+        outcomes[k] = simulate(cases[k].scene, frames);
+        if (finished) finished();
+      }
     });
   });
   return outcomes;
@@ -180,7 +186,11 @@ int run_sweep(const SweepOptions& options, const std::filesystem::path& csv, std
   }
   log << "drape: sweep of " << cases.size() << " run(s)\n";
   const auto start = std::chrono::steady_clock::now();
-  const std::vector<SweepOutcome> outcomes = run_sweep_cases(cases, options.frames, options.threads);
+  Progress progress(log, "run", std::int64_t(cases.size()), options.progress_bar);
+  std::atomic<std::int64_t> done{0};
+  const std::vector<SweepOutcome> outcomes =
+      run_sweep_cases(cases, options.frames, options.threads, [&] { progress.update(++done); });
+  progress.finish();
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   try {
     if (csv.has_parent_path()) {

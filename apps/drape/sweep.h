@@ -5,6 +5,7 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <ostream>
 #include <span>
@@ -29,6 +30,7 @@ struct SweepOptions {
   std::vector<SweepParameter> parameters;  // the grid is their Cartesian product
   std::optional<int> frames;               // overrides each scene's frame count
   int threads = 0;                         // runs in parallel; 0: all cores
+  bool progress_bar = false;               // true on a terminal: one redrawn line (progress.h)
 };
 
 // One run of the grid. Row order: scenes in the order given; within a scene the first
@@ -57,7 +59,9 @@ struct SweepOutcome {
 // is finite after every frame.
 SweepOutcome simulate(const Scene& scene, std::optional<int> frames = std::nullopt);
 // All cases in parallel (TBB over runs, `threads` workers, 0: all cores); result k is case k.
-std::vector<SweepOutcome> run_sweep_cases(std::span<const SweepCase> cases, std::optional<int> frames, int threads);
+// `finished`, when given, is called (from a worker thread) after each run.
+std::vector<SweepOutcome> run_sweep_cases(std::span<const SweepCase> cases, std::optional<int> frames, int threads,
+                                          const std::function<void()>& finished = {});
 
 // Header: scene, one column per parameter path, stable, frames, max_sag_m, max_strain,
 // total_energy_J, wall_time_s. Numbers in shortest round-trip form.
