@@ -30,7 +30,7 @@
 
 namespace drape::render {
 
-enum class SurfaceKind { Grid, Bezier, BSpline };
+// SurfaceKind (Grid, Bezier, BSpline) is declared in render.h, whose options name it.
 std::string_view surface_kind_name(SurfaceKind kind);                   // "grid", "bezier", "bspline"
 std::optional<SurfaceKind> surface_kind_from_name(std::string_view name);
 
