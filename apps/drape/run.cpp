@@ -11,6 +11,7 @@
 
 #include "checkpoint.h"
 #include "export.h"
+#include "gltf.h"
 #include "progress.h"
 
 namespace drape::app {
@@ -57,6 +58,14 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
   if (scene.world.adaptive && (opt.resume_dir || opt.checkpoint_every > 0)) {
     log << "drape: " << scene.file << ": --checkpoint-every and --resume need fixed substeps; the scene sets "
         << "\"adaptive\": true. Nothing was written\n";
+    return exit_usage;
+  }
+
+  const bool glb = std::find(formats.begin(), formats.end(), MeshFormat::Glb) != formats.end();
+  if (glb && opt.resume_dir) {
+    log << "drape: --resume " << opt.resume_dir->string() << ": the glb format holds every frame of a run in one file, "
+        << "and the frames before the checkpoint are not in memory; resume with --format obj, ply or vtk. Nothing was "
+        << "written\n";
     return exit_usage;
   }
 
@@ -127,6 +136,8 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
     return exit_write_failed;
   }
   std::vector<PvdEntry> pvd;
+  std::optional<GltfRun> gltf;
+  if (glb) gltf.emplace(scene, GltfOptions{opt.surface, opt.surface_samples});
   // frames written before a resume stay in the .pvd series; time as world.time() computes it
   if (std::find(formats.begin(), formats.end(), MeshFormat::Vtk) != formats.end())
     for (int f = 0; f < first_frame && opt.resume_dir; ++f)
@@ -150,8 +161,13 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
           pvd.push_back({world.time(), frame_name(frame, "vtu")});
           write_atomically(dir / "frames.pvd", [&](std::ostream& out) { write_pvd(out, pvd); });
           break;
+        case MeshFormat::Glb: gltf->add_frame<Real>(span, world.time()); break;
       }
     }
+  };
+  // The glb holds the frames so far; written once, when the run ends (or goes unstable).
+  auto write_glb = [&] {
+    if (gltf) write_atomically(dir / glb_file_name, [&](std::ostream& out) { gltf->write(out); });
   };
 
   const auto start = std::chrono::steady_clock::now();
@@ -167,6 +183,7 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
       const drape::StabilityReport report = world.step(scene.substeps);
       if (!report.ok() || !world.all_finite()) {
         progress.finish();
+        write_glb();
         log << "drape: " << scene.file << ": the simulation became unstable "
             << "during frame " << frame << ", substeps " << first << "–" << world.step_count() << " (t ≤ "
             << world.time() << " s): " << drape::describe(report) << ". Frames 0–" << frame - 1
@@ -182,6 +199,7 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
       time << "t = " << world.time() << " s";
       progress.update(frame, time.str());
     }
+    write_glb();
   } catch (const std::runtime_error& e) {
     progress.finish();
     log << "drape: " << e.what() << '\n';
