@@ -246,6 +246,7 @@ void GltfRun::write(std::ostream& out) {
   doc["scenes"] = json::array({{{"name", scene_.file},
                                 {"nodes", {0}},
                                 {"extras", {{"drape", {{"frames", frames},
+                                                       {"times", times_},
                                                        {"surface", render::surface_kind_name(options_.surface)},
                                                        {"samples_per_cell", options_.samples_per_cell},
                                                        {"sheets", sheet_info}}}}}}});

@@ -9,7 +9,7 @@
 // "frame_00000", … (mesh k is frame k), then obstacle nodes "obstacle<k>", then the node
 // "camera". Positions are drape's own coordinates in float32; primitive s of every frame
 // mesh is sheet s, its triangles shared by all frames (accessor reuse). scenes[0].extras.drape
-// holds {frames, surface, samples_per_cell, sheets: [{name, m, n, rows, cols}]}.
+// holds {frames, times (s), surface, samples_per_cell, sheets: [{name, m, n, rows, cols}]}.
 //
 // Why a writer of our own and not tinygltf: the file is a JSON header (nlohmann_json, already
 // used for scenes) and one binary buffer appended frame by frame; tinygltf would hold every

@@ -14,6 +14,7 @@
 #include "run.h"
 #include "scene.h"
 #include "sweep.h"
+#include "view_command.h"
 
 namespace {
 
@@ -92,6 +93,8 @@ int main(int argc, char** argv) {
 
   RenderArgs render_args;  // `drape render`: render_command.h
   CLI::App* render = add_render_subcommand(app, render_args);
+  ViewArgs view_args;  // `drape view`: view_command.h
+  CLI::App* view = add_view_subcommand(app, view_args);
 
   try {
     app.parse(argc, argv);
@@ -100,6 +103,7 @@ int main(int argc, char** argv) {
     return code == 0 ? exit_ok : exit_usage;
   }
   if (render->parsed()) return render_command(render_args, std::cerr);
+  if (view->parsed()) return view_command(view_args, std::cerr);
 
   RunOptions options;
   if (run->parsed()) {
