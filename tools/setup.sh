@@ -9,6 +9,7 @@ packages=(
   nlohmann-json3-dev libcli11-dev libfmt-dev libpng-dev
   python3 python3-matplotlib
   clang libclang-rt-dev  # libFuzzer and the sanitizer runtimes (only recommended by clang)
+  nodejs npm chromium    # the browser viewer: built with npm (three.js, esbuild), tested in headless Chromium
 )
 # Extra packages a caller may ask for, e.g. DRAPE_EXTRA_PACKAGES="clang python3-matplotlib".
 if [[ -n "${DRAPE_EXTRA_PACKAGES:-}" ]]; then
