@@ -544,3 +544,80 @@ TEST(Render, RejectsBadSizeAndMismatchedSheet) {
 }
 
 }  // namespace
+
+namespace {
+
+// render.h's light, computed here: over the camera's left shoulder, fixed to the view,
+// L = normalize(−0.45·r + 0.65·u − f); a side lit at angle θ shows (0.33 + 0.67·max(0, cos θ))
+// of its colour.
+std::array<double, 3> expected_shade(const Pinhole& p, Vec3 normal, std::array<std::uint8_t, 3> color) {
+  double l[3];
+  for (int k = 0; k < 3; ++k) l[k] = -0.45 * p.r[k] + 0.65 * p.u[k] - p.f[k];
+  const double ll = std::sqrt(l[0] * l[0] + l[1] * l[1] + l[2] * l[2]);
+  const double c = std::max(0.0, (normal.x * l[0] + normal.y * l[1] + normal.z * l[2]) / ll);
+  const double k = 0.33 + 0.67 * c;
+  return {k * color[0], k * color[1], k * color[2]};
+}
+
+TEST(RenderShaded, AFlatSheetShowsItsLitFrontFromAboveAndItsBackFromBelow) {
+  const TestSheet sheet(4, 4, -1, -1, 0, 2, 2, 0);  // z = 0, its quads face +z
+  const std::vector<SheetMesh> sheets{sheet.mesh()};
+  const RenderOptions opt;
+  for (double side : {1.0, -1.0}) {
+    Camera cam;
+    cam.eye = {0.2, -0.3, 4 * side};
+    cam.target = {0, 0, 0};
+    cam.up = {0, 1, 0};
+    const Image img = render_shaded(sheets, {}, cam, 120, 90, opt);
+    const Pinhole p(cam, 120, 90);
+    // the side seen is lit with the normal turned towards the eye
+    const auto expect = expected_shade(p, {0, 0, side}, side > 0 ? opt.front_color : opt.back_color);
+    const auto c = img.pixel(60, 45);
+    for (int ch = 0; ch < 3; ++ch) EXPECT_NEAR(c[ch], expect[ch], 1.0) << "side " << side << " channel " << ch;
+    EXPECT_EQ(img.pixel(2, 2), white) << "outside the sheet's projection stays background";
+  }
+}
+
+TEST(RenderShaded, ASphereIsLitBrightestWhereItsNormalMeetsTheLight) {
+  drape::ObstacleDef sphere;
+  sphere.shape = drape::ObstacleShape::Sphere;
+  sphere.size = {1, 0, 0};
+  Camera cam;
+  cam.eye = {0, -6, 0};
+  cam.target = {0, 0, 0};
+  const std::vector<drape::ObstacleDef> obstacles{sphere};
+  const RenderOptions opt;
+  const Image img = render_shaded({}, obstacles, cam, 160, 160, opt);
+  const Pinhole p(cam, 160, 160);
+  // the sphere's point facing the light straight: normal = L (seen from the front hemisphere)
+  double l[3];
+  for (int k = 0; k < 3; ++k) l[k] = -0.45 * p.r[k] + 0.65 * p.u[k] - p.f[k];
+  const double ll = std::sqrt(l[0] * l[0] + l[1] * l[1] + l[2] * l[2]);
+  const Vec3 n{l[0] / ll, l[1] / ll, l[2] / ll};
+  const auto [sx, sy] = p.project(n);
+  const auto c = img.pixel(int(sx), int(sy));
+  EXPECT_NEAR(c[0], opt.solid_color[0], 3.0);  // full light: the colour itself (meshed normals)
+  // the silhouette, seen edge-on, falls to the ambient third or a little more
+  const auto [ex, ey] = p.project({0.97, 0, -0.2});
+  EXPECT_LT(img.pixel(int(ex), int(ey))[0], 0.6 * opt.solid_color[0]);
+}
+
+TEST(RenderShaded, ANearerSheetHidesTheSphereBehindIt) {
+  const TestSheet sheet(5, 5, -2.0, -2.0, -2.0, 4.0, 4.0, std::numbers::pi / 2);  // the plane y = −2
+  drape::ObstacleDef sphere;
+  sphere.shape = drape::ObstacleShape::Sphere;
+  sphere.size = {0.7, 0, 0};
+  Camera cam;
+  cam.eye = {0.3, -7, 0.4};
+  cam.target = {0, 0, 0};
+  const std::vector<SheetMesh> sheets{sheet.mesh()};
+  const std::vector<drape::ObstacleDef> obstacles{sphere};
+  const RenderOptions opt;
+  const Image both = render_shaded(sheets, obstacles, cam, 100, 100, opt);
+  const Image sheet_only = render_shaded(sheets, {}, cam, 100, 100, opt);
+  EXPECT_EQ(both.rgb, sheet_only.rgb);
+  const Image sphere_only = render_shaded({}, obstacles, cam, 100, 100, opt);
+  EXPECT_NE(sphere_only.rgb, sheet_only.rgb) << "test set-up: the sphere alone is visible";
+}
+
+}  // namespace

@@ -13,6 +13,8 @@
 #
 # Figures the paper shows as an animation get a strip of frames, left to right, all seen by
 # the scene's camera; the frames are chosen where the motion shows (30 frames per second).
+# Each picture comes twice: as the paper draws it (wireframe, NAME.png) and shaded
+# (NAME_shaded.png: the sheets' uniform B-spline surfaces, lit, front and back in two colours).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -59,17 +61,28 @@ many=(
 
 out=figures
 mkdir -p "$out"
+
+# pictures NAME WxH RENDER_ARGS...: the wireframe and the shaded picture, and their half-size
+# copies for docs/figures.md with --docs.
+pictures() {
+  local name=$1 size=$2
+  shift 2
+  local w=${size%x*} h=${size#*x}
+  "$drape" render "$@" --size "$size" -o "$out/$name.png"
+  "$drape" render "$@" --size "$size" --style shaded --surface bspline -o "$out/${name}_shaded.png"
+  if [[ $docs -eq 1 ]]; then
+    "$drape" render "$@" --size "$((w / 2))x$((h / 2))" -o "docs/img/figures/$name.png"
+    "$drape" render "$@" --size "$((w / 2))x$((h / 2))" --style shaded --surface bspline \
+      -o "docs/img/figures/${name}_shaded.png"
+  fi
+}
 [[ $docs -eq 1 ]] && mkdir -p docs/img/figures
 start=$SECONDS
 for line in "${figures[@]}"; do
   read -r name frames size <<<"$line"
   args=("scenes/$name.json")
   [[ $frames != - ]] && args+=(--frame "$frames")
-  "$drape" render "${args[@]}" --size "$size" -o "$out/$name.png"
-  if [[ $docs -eq 1 ]]; then
-    w=${size%x*} h=${size#*x}
-    "$drape" render "${args[@]}" --size "$((w / 2))x$((h / 2))" -o "docs/img/figures/$name.png"
-  fi
+  pictures "$name" "$size" "${args[@]}"
 done
 for line in "${many[@]}"; do
   read -r name frames size <<<"$line"
@@ -80,11 +93,7 @@ for line in "${many[@]}"; do
     exit 1
   fi
   echo "main job: $name simulated in $((SECONDS - t0)) s"
-  "$drape" render "$frames_dir" --frame "$frames" --size "$size" -o "$out/$name.png"
-  if [[ $docs -eq 1 ]]; then
-    w=${size%x*} h=${size#*x}
-    "$drape" render "$frames_dir" --frame "$frames" --size "$((w / 2))x$((h / 2))" -o "docs/img/figures/$name.png"
-  fi
+  pictures "$name" "$size" "$frames_dir" --frame "$frames"
 done
 echo "main job: $(ls "$out"/*.png | wc -l) pictures in $(cd "$out" && pwd)/ ($((SECONDS - start)) s)"
 [[ $docs -eq 1 ]] && echo "main job: small copies in $(pwd)/docs/img/figures/"

@@ -11,6 +11,7 @@ packages=(
   python3-dev python3-numpy python3-pytest pybind11-dev python3-pybind11  # the Python module and its tests
   libopenmpi-dev openmpi-bin  # sweeps and batches across MPI ranks, and their 2-rank test
   clang libclang-rt-dev  # libFuzzer and the sanitizer runtimes (only recommended by clang)
+  nodejs npm chromium    # the browser viewer: built with npm (three.js, esbuild), tested in headless Chromium
 )
 # Extra packages a caller may ask for, e.g. DRAPE_EXTRA_PACKAGES="clang python3-matplotlib".
 if [[ -n "${DRAPE_EXTRA_PACKAGES:-}" ]]; then

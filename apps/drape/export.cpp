@@ -57,7 +57,14 @@ void write_atomically(const std::filesystem::path& file, const std::function<voi
     errno = 0;
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) throw std::runtime_error("cannot create " + tmp.string() + ": " + reason());
-    body(out);
+    try {
+      body(out);
+    } catch (...) {  // a body that gives up leaves no temporary file behind
+      out.close();
+      std::error_code ignored;
+      std::filesystem::remove(tmp, ignored);
+      throw;
+    }
     out.flush();
     if (!out) {
       const std::string why = reason();

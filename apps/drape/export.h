@@ -18,7 +18,8 @@
 namespace drape::app {
 
 // Writes `file` through a temporary "<file>.tmp" in the same folder, renamed into place only
-// after the body finished and the stream flushed. Throws std::runtime_error naming the file.
+// after the body finished and the stream flushed. Throws std::runtime_error naming the file;
+// an exception from the body passes through, and no temporary file is left either way.
 void write_atomically(const std::filesystem::path& file, const std::function<void(std::ostream&)>& body);
 
 template <class Real>

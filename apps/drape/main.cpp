@@ -9,12 +9,16 @@
 #include <memory>
 #include <sstream>
 
+#include <render/surface.h>
+
 #include "batch.h"
 #include "cluster.h"
+#include "progress.h"
 #include "render_command.h"
 #include "run.h"
 #include "scene.h"
 #include "sweep.h"
+#include "view_command.h"
 
 namespace {
 
@@ -26,7 +30,7 @@ std::optional<std::vector<MeshFormat>> parse_formats(const std::vector<std::stri
   for (const auto& name : names) {
     const auto f = mesh_format_from_name(name);
     if (!f) {
-      error = "--format: unknown format \"" + name + "\" (known: obj, ply, vtk)";
+      error = "--format: unknown format \"" + name + "\" (known: obj, ply, vtk, glb)";
       return std::nullopt;
     }
     if (std::find(formats.begin(), formats.end(), *f) == formats.end()) formats.push_back(*f);
@@ -63,8 +67,19 @@ int main(int argc, char** argv) {
   run->add_option("--frames", frames, "Frames to write after the initial one (default: the scene's)")
       ->check(CLI::PositiveNumber);
   run->add_option("--threads", threads, "Worker threads (default 0: all cores)")->check(CLI::NonNegativeNumber);
-  run->add_option("--format", formats, "Comma-separated mesh formats: obj, ply, vtk (default: the scene's)")
+  run->add_option("--format", formats, "Comma-separated mesh formats: obj, ply, vtk (per frame), glb (the whole run in OUT/run.glb) "
+                  "(default: the scene's)")
       ->delimiter(',');
+
+  std::string surface = "grid";
+  int surface_samples = 0;
+  run->add_option("--surface", surface,
+                  "glb: the surface exported over each sheet's grid: grid (default), bezier (the paper's Bezier "
+                  "surface, bicubic pieces) or bspline (uniform bicubic B-spline)")
+      ->check(CLI::IsMember({"grid", "bezier", "bspline"}));
+  run->add_option("--surface-samples", surface_samples,
+                  "glb: samples per grid cell along each side (default 1 for grid, 4 otherwise)")
+      ->check(CLI::Range(1, 64));
 
   int checkpoint_every = 0;
   std::string resume_dir;
@@ -108,6 +123,8 @@ int main(int argc, char** argv) {
 
   RenderArgs render_args;  // `drape render`: render_command.h
   CLI::App* render = add_render_subcommand(app, render_args);
+  ViewArgs view_args;  // `drape view`: view_command.h
+  CLI::App* view = add_view_subcommand(app, view_args);
 
   try {
     app.parse(argc, argv);
@@ -116,6 +133,7 @@ int main(int argc, char** argv) {
     return code == 0 ? exit_ok : exit_usage;
   }
   if (render->parsed()) return render_command(render_args, std::cerr);
+  if (view->parsed()) return view_command(view_args, std::cerr);
 
   RunOptions options;
   if (run->parsed()) {
@@ -130,7 +148,9 @@ int main(int argc, char** argv) {
         return exit_usage;
       }
     }
-    options.progress_bar = isatty(fileno(stderr)) != 0;
+    options.progress_bar = stderr_is_terminal();
+    options.surface = *drape::render::surface_kind_from_name(surface);  // checked by the option
+    options.surface_samples = surface_samples > 0 ? surface_samples : (surface == "grid" ? 1 : 4);
     options.checkpoint_every = checkpoint_every;
     if (!resume_dir.empty()) options.resume_dir = resume_dir;
   }
@@ -148,6 +168,7 @@ int main(int argc, char** argv) {
     }
     if (sweep_frames > 0) sweep_options.frames = sweep_frames;
     sweep_options.threads = sweep_threads;
+    sweep_options.progress_bar = stderr_is_terminal();
     const auto joined = join_cluster("sweep");
     if (!joined) return exit_usage;
     const Cluster& cluster = *joined;

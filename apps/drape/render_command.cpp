@@ -3,6 +3,7 @@
 #include "render_command.h"
 
 #include <render/render.h>
+#include <render/surface.h>
 
 #include <algorithm>
 #include <charconv>
@@ -214,12 +215,17 @@ int render_or_throw(const RenderArgs& args, std::ostream& log) {
 
   render::RenderOptions options;
   options.opaque_sheets = !args.see_through;
+  const bool shaded = args.style == "shaded";
+  options.surface = *render::surface_kind_from_name(args.surface);  // checked by the option
+  options.surface_samples = args.surface_samples > 0 ? args.surface_samples
+                                                     : (options.surface == render::SurfaceKind::Grid ? 1 : 4);
   try {
     render::Image strip(width * panels, height, options.background);
     for (int p = 0; p < panels; ++p) {
       std::vector<ObstacleDef> obstacles;  // moving ones where they are at the panel's frame
       for (const ObstacleDef& o : scene.obstacles) obstacles.push_back(obstacle_at(o, wanted[p] * scene.frame_time()));
-      const render::Image image = render::render_wireframe(meshes[p], obstacles, camera, width, height, options);
+      const render::Image image = shaded ? render::render_shaded(meshes[p], obstacles, camera, width, height, options)
+                                         : render::render_wireframe(meshes[p], obstacles, camera, width, height, options);
       for (int y = 0; y < height; ++y)
         std::copy_n(image.rgb.begin() + std::ptrdiff_t(y) * width * 3, width * 3,
                     strip.rgb.begin() + (std::ptrdiff_t(y) * width * panels + std::ptrdiff_t(p) * width) * 3);
@@ -244,7 +250,7 @@ int render_or_throw(const RenderArgs& args, std::ostream& log) {
 CLI::App* add_render_subcommand(CLI::App& app, RenderArgs& args) {
   CLI::App* render = app.add_subcommand(
       "render",
-      "Draw one frame as a wireframe PNG, like the paper's figures: from a scene file (simulated up to the frame) "
+      "Draw one frame as a wireframe PNG, like the paper's figures, or as shaded surfaces (--style shaded): from a scene file (simulated up to the frame) "
       "or from an output folder of `drape run` (the frame's mesh read back)");
   render->add_option("SCENE_OR_OUTPUT", args.input, "Scene file (JSON), or a folder `drape run` wrote")->required();
   render->add_option("-o,--output", args.output, "The PNG to write (replaced atomically)")->required();
@@ -258,6 +264,17 @@ CLI::App* add_render_subcommand(CLI::App& app, RenderArgs& args) {
                      "scene's camera, or the automatic framing when the scene has none)");
   render->add_option("--size", args.size, "Size WxH in pixels of one panel (default 800x600)");
   render->add_flag("--see-through", args.see_through, "Draw lines behind sheets too (sheets are not opaque)");
+  render->add_option("--style", args.style,
+                     "wireframe (grid lines, like the paper's figures) or shaded (lit surfaces: the sheets' two sides "
+                     "in two colours, obstacles solid)")
+      ->check(CLI::IsMember({"wireframe", "shaded"}));
+  render->add_option("--surface", args.surface,
+                     "With --style shaded: the surface drawn over each sheet's grid: grid (its cells), bezier (the "
+                     "paper's Bezier surface, bicubic pieces) or bspline (uniform bicubic B-spline)")
+      ->check(CLI::IsMember({"grid", "bezier", "bspline"}));
+  render->add_option("--surface-samples", args.surface_samples,
+                     "With --style shaded: samples per grid cell along each side (default 1 for grid, 4 otherwise)")
+      ->check(CLI::Range(1, 64));
   return render;
 }
 

@@ -1,4 +1,4 @@
-// `drape render`: a wireframe PNG of one frame — or a strip of several, left to right, like the
+// `drape render`: a wireframe or shaded PNG of one frame — or a strip of several, left to right, like the
 // paper's animation figures — from a scene file (simulated up to that frame) or from a folder
 // `drape run` wrote (the frame's mesh read back, exactly as it was written).
 #pragma once
@@ -17,6 +17,9 @@ struct RenderArgs {
   std::string camera;            // parse_camera() overrides of the scene's or automatic camera
   std::string size = "800x600";  // WxH pixels of one panel
   bool see_through = false;      // sheets do not hide what is behind them
+  std::string style = "wireframe";  // or "shaded"
+  std::string surface = "grid";     // shaded: grid, bezier or bspline (render/surface.h)
+  int surface_samples = 0;          // shaded: samples per grid cell; 0: 1 for grid, 4 otherwise
   std::string output;            // the PNG
 };
 

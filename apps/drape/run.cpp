@@ -11,6 +11,8 @@
 
 #include "checkpoint.h"
 #include "export.h"
+#include "gltf.h"
+#include "progress.h"
 
 namespace drape::app {
 
@@ -63,6 +65,14 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
   if (scene.world.adaptive && (opt.resume_dir || opt.checkpoint_every > 0)) {
     log << "drape: " << scene.file << ": --checkpoint-every and --resume need fixed substeps; the scene sets "
         << "\"adaptive\": true. Nothing was written\n";
+    return exit_usage;
+  }
+
+  const bool glb = std::find(formats.begin(), formats.end(), MeshFormat::Glb) != formats.end();
+  if (glb && opt.resume_dir) {
+    log << "drape: --resume " << opt.resume_dir->string() << ": the glb format holds every frame of a run in one file, "
+        << "and the frames before the checkpoint are not in memory; resume with --format obj, ply or vtk. Nothing was "
+        << "written\n";
     return exit_usage;
   }
 
@@ -133,6 +143,8 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
     return exit_write_failed;
   }
   std::vector<PvdEntry> pvd;
+  std::optional<GltfRun> gltf;
+  if (glb) gltf.emplace(scene, GltfOptions{opt.surface, opt.surface_samples});
   // frames written before a resume stay in the .pvd series; time as world.time() computes it
   if (std::find(formats.begin(), formats.end(), MeshFormat::Vtk) != formats.end())
     for (int f = 0; f < first_frame && opt.resume_dir; ++f)
@@ -156,15 +168,20 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
           pvd.push_back({world.time(), frame_name(frame, "vtu")});
           write_atomically(dir / "frames.pvd", [&](std::ostream& out) { write_pvd(out, pvd); });
           break;
+        case MeshFormat::Glb: gltf->add_frame<Real>(span, world.time()); break;
       }
     }
+  };
+  // The glb holds the frames so far; written once, when the run ends (or goes unstable).
+  auto write_glb = [&] {
+    if (gltf) write_atomically(dir / glb_file_name, [&](std::ostream& out) { gltf->write(out); });
   };
 
   const auto start = std::chrono::steady_clock::now();
   const std::uint64_t first_step = world.step_count();
   double points = 0;
   for (SheetId id : world.sheets()) points += double(world.view(id).x.size());
-  const int line_every = std::max(1, frames / 10);
+  Progress progress(log, "frame", frames, opt.progress_bar, first_frame - 1);
   try {
     if (!opt.resume_dir) write_frame(0);
     for (int frame = first_frame; frame <= frames; ++frame) {
@@ -172,7 +189,9 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
       // the engine's stability guard: non-finite state, or energy growing without bound
       const drape::StabilityReport report = world.step(scene.substeps);
       if (!report.ok() || !world.all_finite()) {
-        log << (opt.progress_bar ? "\n" : "") << "drape: " << scene.file << ": the simulation became unstable "
+        progress.finish();
+        write_glb();
+        log << "drape: " << scene.file << ": the simulation became unstable "
             << "during frame " << frame << ", substeps " << first << "–" << world.step_count() << " (t ≤ "
             << world.time() << " s): " << drape::describe(report) << ". Frames 0–" << frame - 1
             << " are written; nothing non-finite was. Lower dt (now " << dt << " s; estimated stable step "
@@ -183,20 +202,19 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
       // after the frame's files: a checkpoint of frame K implies frames 0..K are on disk
       if (opt.checkpoint_every > 0 && frame % opt.checkpoint_every == 0 && frame < frames)
         save_checkpoint(world, dir / checkpoint_file_name, scene.fingerprint);
-      if (opt.progress_bar) {
-        const int width = 30, done = frame * width / frames;
-        log << "\r[" << std::string(done, '#') << std::string(width - done, '.') << "] frame " << frame << "/" << frames
-            << std::flush;
-      } else if (frame % line_every == 0 || frame == frames) {
-        log << "drape: frame " << frame << "/" << frames << ", t = " << world.time() << " s\n";
-      }
+      std::ostringstream time;
+      time << "t = " << world.time() << " s";
+      progress.update(frame, time.str());
     }
+    write_glb();
   } catch (const std::runtime_error& e) {
-    log << (opt.progress_bar ? "\n" : "") << "drape: " << e.what() << '\n';
+    progress.finish();
+    log << "drape: " << e.what() << '\n';
     return exit_write_failed;
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  log << (opt.progress_bar ? "\n" : "") << "drape: wrote " << std::max(0, frames + 1 - first_frame + (opt.resume_dir ? 0 : 1)) << " frames to " << dir.string() << " in "
+  progress.finish();
+  log << "drape: wrote " << std::max(0, frames + 1 - first_frame + (opt.resume_dir ? 0 : 1)) << " frames to " << dir.string() << " in "
       << std::setprecision(3) << seconds << " s";
   // the run's throughput, output included: what the scene costs on this machine
   const double point_steps = points * double(world.step_count() - first_step);

@@ -7,6 +7,8 @@
 #include <ostream>
 #include <vector>
 
+#include <render/render.h>
+
 #include "scene.h"
 
 namespace drape::app {
@@ -25,6 +27,8 @@ enum ExitCode : int {
 // The checkpoint `drape run --checkpoint-every N` keeps in its output folder (replaced
 // atomically each time) and `--resume DIR` reads.
 inline constexpr const char* checkpoint_file_name = "checkpoint.drape";
+// The whole run as glTF (format glb), written when the run ends.
+inline constexpr const char* glb_file_name = "run.glb";
 
 struct RunOptions {
   std::optional<std::filesystem::path> out_dir;      // overrides the scene's output.dir
@@ -36,6 +40,9 @@ struct RunOptions {
   // Continue from DIR/checkpoint.drape, writing the remaining frames into DIR (which
   // replaces out_dir). The checkpoint must come from the same scene (its fingerprint).
   std::optional<std::filesystem::path> resume_dir;
+  // The glb format's surface over each sheet's grid, and its samples per cell (gltf.h).
+  render::SurfaceKind surface = render::SurfaceKind::Grid;
+  int surface_samples = 1;
 };
 
 // The scene's world with every sheet and obstacle added; `ids` gets the sheets' ids in the

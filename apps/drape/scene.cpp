@@ -25,12 +25,13 @@ std::string_view mesh_format_name(MeshFormat f) {
     case MeshFormat::Obj: return "obj";
     case MeshFormat::Ply: return "ply";
     case MeshFormat::Vtk: return "vtk";
+    case MeshFormat::Glb: return "glb";
   }
   return "unknown";
 }
 
 std::optional<MeshFormat> mesh_format_from_name(std::string_view name) {
-  for (MeshFormat f : {MeshFormat::Obj, MeshFormat::Ply, MeshFormat::Vtk})
+  for (MeshFormat f : {MeshFormat::Obj, MeshFormat::Ply, MeshFormat::Vtk, MeshFormat::Glb})
     if (mesh_format_name(f) == name) return f;
   return std::nullopt;
 }
@@ -715,7 +716,7 @@ Scene parse_scene(std::string_view text, const std::string& file, std::span<cons
       for (std::size_t k = 0, count = formats.array(1); k < count; ++k) {
         const std::string name = formats.at(k).string();
         const auto f = mesh_format_from_name(name);
-        if (!f) formats.at(k).fail("unknown format \"" + name + "\" (known: obj, ply, vtk)");
+        if (!f) formats.at(k).fail("unknown format \"" + name + "\" (known: obj, ply, vtk, glb)");
         if (std::find(scene.output.formats.begin(), scene.output.formats.end(), *f) == scene.output.formats.end())
           scene.output.formats.push_back(*f);
       }

@@ -21,7 +21,7 @@ namespace drape::app {
 enum class Precision { Float64, Float32 };
 std::string_view precision_name(Precision p);
 
-enum class MeshFormat { Obj, Ply, Vtk };
+enum class MeshFormat { Obj, Ply, Vtk, Glb };  // Glb: the whole run in one file (gltf.h)
 std::string_view mesh_format_name(MeshFormat f);
 std::optional<MeshFormat> mesh_format_from_name(std::string_view name);
 

@@ -6,6 +6,7 @@
 #include <oneapi/tbb/task_arena.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <charconv>
 #include <cmath>
@@ -14,6 +15,7 @@
 #include <numeric>
 
 #include "export.h"
+#include "progress.h"
 #include "run.h"
 
 namespace drape::app {
@@ -180,16 +182,24 @@ SweepOutcome simulate(const Scene& scene, std::optional<int> frames) {
 }
 
 std::vector<std::string> run_spread(const Cluster& cluster, std::size_t total, int threads,
-                                    const std::function<std::string(std::size_t)>& run_case) {
+                                    const std::function<std::string(std::size_t)>& run_case,
+                                    const std::function<void()>& finished) {
   const std::vector<std::size_t> mine = cluster.my_cases(total);
   std::vector<std::string> results(mine.size());
-  parallel_runs(mine.size(), threads, [&](std::size_t k) { results[k] = run_case(mine[k]); });
+  parallel_runs(mine.size(), threads, [&](std::size_t k) {
+    results[k] = run_case(mine[k]);
+    if (finished) finished();
+  });
   return cluster.gather(total, results);
 }
 
-std::vector<SweepOutcome> run_sweep_cases(std::span<const SweepCase> cases, std::optional<int> frames, int threads) {
+std::vector<SweepOutcome> run_sweep_cases(std::span<const SweepCase> cases, std::optional<int> frames, int threads,
+                                          const std::function<void()>& finished) {
   std::vector<SweepOutcome> outcomes(cases.size());
-  parallel_runs(cases.size(), threads, [&](std::size_t k) { outcomes[k] = run_case(cases[k], frames); });
+  parallel_runs(cases.size(), threads, [&](std::size_t k) {
+    outcomes[k] = run_case(cases[k], frames);
+    if (finished) finished();
+  });
   return outcomes;
 }
 
@@ -238,8 +248,17 @@ int run_sweep(const SweepOptions& options, const std::filesystem::path& csv, std
     log << '\n';
   }
   const auto start = std::chrono::steady_clock::now();
-  const std::vector<std::string> results = run_spread(cluster, cases.size(), cluster.threads(options.threads),
-                                                      [&](std::size_t k) { return encode(run_case(cases[k], options.frames)); });
+  // Progress of this rank's runs, shown by rank 0 only (its share is about 1/R of the sweep).
+  std::optional<Progress> progress;
+  if (cluster.is_root()) progress.emplace(log, "run", std::int64_t(cluster.my_cases(cases.size()).size()), options.progress_bar);
+  std::atomic<std::int64_t> done{0};
+  const std::vector<std::string> results = run_spread(
+      cluster, cases.size(), cluster.threads(options.threads),
+      [&](std::size_t k) { return encode(run_case(cases[k], options.frames)); },
+      [&] {
+        if (progress) progress->update(++done);
+      });
+  if (progress) progress->finish();
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (!cluster.is_root()) return exit_ok;
 

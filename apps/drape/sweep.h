@@ -32,6 +32,7 @@ struct SweepOptions {
   std::vector<SweepParameter> parameters;  // the grid is their Cartesian product
   std::optional<int> frames;               // overrides each scene's frame count
   int threads = 0;                         // runs in parallel; 0: all cores
+  bool progress_bar = false;               // true on a terminal: one redrawn line (progress.h)
 };
 
 // One run of the grid. Row order: scenes in the order given; within a scene the first
@@ -63,14 +64,18 @@ struct SweepOutcome {
 // is finite after every frame.
 SweepOutcome simulate(const Scene& scene, std::optional<int> frames = std::nullopt);
 // All cases in parallel (TBB over runs, `threads` workers, 0: all cores); result k is case k.
-std::vector<SweepOutcome> run_sweep_cases(std::span<const SweepCase> cases, std::optional<int> frames, int threads);
+// `finished`, when given, is called (from a worker thread) after each run.
+std::vector<SweepOutcome> run_sweep_cases(std::span<const SweepCase> cases, std::optional<int> frames, int threads,
+                                          const std::function<void()>& finished = {});
 
 // The parallel loop of sweeps and batches: run_case(k) for each case k < total of this rank
 // (cluster.my_cases), `threads` at a time (0: all cores), each returning its result as bytes.
 // Rank 0 gets every case's bytes in case order, the other ranks an empty vector. An exception
 // from run_case is not caught here: run_case turns its own failures into results.
+// `finished`, when given, is called (from a worker thread) after each of this rank's runs.
 std::vector<std::string> run_spread(const Cluster& cluster, std::size_t total, int threads,
-                                    const std::function<std::string(std::size_t)>& run_case);
+                                    const std::function<std::string(std::size_t)>& run_case,
+                                    const std::function<void()>& finished = {});
 
 // CSV helpers shared by the sweep's and the batch's tables: RFC 4180 quoting (a field holding
 // a comma, quote or line break), and numbers in shortest round-trip form.

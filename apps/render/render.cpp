@@ -7,6 +7,7 @@
 // down, which anti-aliases the lines. Depth is stored as w = 1/z, which is affine in screen
 // space, so interpolating it along lines and over triangles is perspective-correct.
 #include "render/render.h"
+#include "render/surface.h"
 
 #include <png.h>
 
@@ -199,12 +200,56 @@ class Canvas {
     const Screen a = project(ea), b = project(eb), c = project(ec);
     const double area = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
     if (!(std::abs(area) > 1e-12)) return;
-    // w over the screen is the plane w = w_a + dwdx·(x − a.x) + dwdy·(y − a.y).
-    const double dwdx = ((b.w - a.w) * (c.y - a.y) - (c.w - a.w) * (b.y - a.y)) / area;
-    const double dwdy = ((c.w - a.w) * (b.x - a.x) - (b.w - a.w) * (c.x - a.x)) / area;
+    const Plane w = plane(a, b, c, a.w, b.w, c.w, area);
     // A line on this surface is sampled up to half a line width plus a sample away from
     // where its depth was computed: push the surface back by that much of its slope.
-    const double offset = (std::abs(dwdx) + std::abs(dwdy)) * (half_width_ + 1.5);
+    const double offset = (std::abs(w.ddx) + std::abs(w.ddy)) * (half_width_ + 1.5);
+    scan(a, b, c, area, [&](int x, int y) {
+      float& stored = surface_[static_cast<std::size_t>(y) * w_ + x];
+      stored = std::max(stored, static_cast<float>(w.at(x + 0.5, y + 0.5) * (1 - 1e-4) - offset));
+    });
+  }
+
+ public:
+  // A triangle of the shaded picture: depth-tested, its colour interpolated from its corners'.
+  void shade_triangle(Vec3 pa, Vec3 pb, Vec3 pc, const std::array<double, 3> (&rgb)[3]) {
+    if (!finite(pa) || !finite(pb) || !finite(pc)) return;
+    const Vec3 ea = to_eye(pa), eb = to_eye(pb), ec = to_eye(pc);
+    if (ea.z < near_ || eb.z < near_ || ec.z < near_) return;  // shaded scenes sit in front of the camera
+    const Screen a = project(ea), b = project(eb), c = project(ec);
+    const double area = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+    if (!(std::abs(area) > 1e-12)) return;
+    const Plane w = plane(a, b, c, a.w, b.w, c.w, area);
+    Plane ch[3];
+    for (int k = 0; k < 3; ++k) ch[k] = plane(a, b, c, rgb[0][k], rgb[1][k], rgb[2][k], area);
+    scan(a, b, c, area, [&](int x, int y) {
+      const std::size_t k = static_cast<std::size_t>(y) * w_ + x;
+      const double px = x + 0.5, py = y + 0.5;
+      const float depth = static_cast<float>(w.at(px, py));
+      if (depth <= surface_[k]) return;
+      surface_[k] = depth;
+      auto channel = [&](int i) { return static_cast<std::uint8_t>(std::lround(std::clamp(ch[i].at(px, py), 0.0, 255.0))); };
+      line_color_[k] = {channel(0), channel(1), channel(2)};
+    });
+  }
+  Vec3 right() const { return r_; }
+  Vec3 up() const { return u_; }
+  Vec3 forward() const { return f_; }
+
+ private:
+  // An attribute affine over the screen: value = v0 + ddx·(x − x0) + ddy·(y − y0).
+  struct Plane {
+    double x0, y0, v0, ddx, ddy;
+    double at(double x, double y) const { return v0 + ddx * (x - x0) + ddy * (y - y0); }
+  };
+  static Plane plane(const Screen& a, const Screen& b, const Screen& c, double va, double vb, double vc, double area) {
+    return {a.x, a.y, va, ((vb - va) * (c.y - a.y) - (vc - va) * (b.y - a.y)) / area,
+            ((vc - va) * (b.x - a.x) - (vb - va) * (c.x - a.x)) / area};
+  }
+
+  // Calls fn(x, y) for every sample whose centre the triangle covers.
+  template <class F>
+  void scan(const Screen& a, const Screen& b, const Screen& c, double area, F&& fn) {
     const int x0 = std::max(0, static_cast<int>(std::floor(std::min({a.x, b.x, c.x}))));
     const int x1 = std::min(w_ - 1, static_cast<int>(std::ceil(std::max({a.x, b.x, c.x}))));
     const int y0 = std::max(0, static_cast<int>(std::floor(std::min({a.y, b.y, c.y}))));
@@ -232,12 +277,7 @@ class Canvas {
       if (!(hi >= lo)) continue;
       const int first = std::max(x0, static_cast<int>(std::ceil(lo - 0.5)));
       const int last = std::min(x1, static_cast<int>(std::floor(hi - 0.5)));
-      float* row = surface_.data() + static_cast<std::size_t>(y) * w_;
-      for (int x = first; x <= last; ++x) {
-        const double w = a.w + dwdx * (x + 0.5 - a.x) + dwdy * (py - a.y);
-        const float stored = static_cast<float>(w * (1 - 1e-4) - offset);
-        row[x] = std::max(row[x], stored);
-      }
+      for (int x = first; x <= last; ++x) fn(x, y);
     }
   }
 
@@ -435,19 +475,27 @@ void draw_box(Canvas& canvas, const ObstacleDef& o, std::array<std::uint8_t, 3> 
 
 // An infinite plane is drawn as a square grid patch under the rest of the content: centred
 // on the content's centre projected onto the plane, 1.2 content diagonals across.
-void draw_plane(Canvas& canvas, const ObstacleDef& o, const Bounds& content, std::array<std::uint8_t, 3> color,
-                Pass pass) {
-  const Vec3 ex = rotate(o.orientation, {1, 0, 0}), ey = rotate(o.orientation, {0, 1, 0}),
-             nz = rotate(o.orientation, {0, 0, 1});
-  Vec3 mid = o.center;
-  double half = 1.0;
+struct PlanePatch {
+  Vec3 ex, ey, nz, mid;
+  double half;
+  Vec3 at(double a, double b) const { return mid + (a * half) * ex + (b * half) * ey; }
+};
+PlanePatch plane_patch(const ObstacleDef& o, const Bounds& content) {
+  PlanePatch p{rotate(o.orientation, {1, 0, 0}), rotate(o.orientation, {0, 1, 0}), rotate(o.orientation, {0, 0, 1}),
+               o.center, 1.0};
   if (!content.empty()) {
     const Vec3 cc = 0.5 * (content.lo + content.hi);
-    mid = cc - dot(cc - o.center, nz) * nz;
-    half = std::max(0.6 * norm(content.hi - content.lo), 1e-3);
+    p.mid = cc - dot(cc - o.center, p.nz) * p.nz;
+    p.half = std::max(0.6 * norm(content.hi - content.lo), 1e-3);
   }
+  return p;
+}
+
+void draw_plane(Canvas& canvas, const ObstacleDef& o, const Bounds& content, std::array<std::uint8_t, 3> color,
+                Pass pass) {
+  const PlanePatch patch = plane_patch(o, content);
   constexpr int cells = 12;
-  auto at = [&](double a, double b) { return mid + (a * half) * ex + (b * half) * ey; };
+  auto at = [&](double a, double b) { return patch.at(a, b); };
   if (pass == Pass::Surfaces) {
     canvas.fill_triangle(at(-1, -1), at(1, -1), at(1, 1));
     canvas.fill_triangle(at(-1, -1), at(1, 1), at(-1, 1));
@@ -460,15 +508,18 @@ void draw_plane(Canvas& canvas, const ObstacleDef& o, const Bounds& content, std
   }
 }
 
+// The fill-mesh resolution of each curved obstacle, shared by the wireframe and the meshes.
+CurvedSurface curved_surface(const ObstacleDef& o) {
+  return o.shape == ObstacleShape::Torus ? CurvedSurface{o, true, 144, 48, 6, 12} : CurvedSurface{o, false, 96, 48, 8, 8};
+}
+
 void draw_obstacle(Canvas& canvas, const ObstacleDef& o, const Bounds& content, std::array<std::uint8_t, 3> color,
                    Pass pass) {
   switch (o.shape) {
     case ObstacleShape::Plane: draw_plane(canvas, o, content, color, pass); break;
     case ObstacleShape::Sphere:
     case ObstacleShape::Ellipsoid:
-      draw_curved(canvas, CurvedSurface{o, false, 96, 48, 8, 8}, color, pass);
-      break;
-    case ObstacleShape::Torus: draw_curved(canvas, CurvedSurface{o, true, 144, 48, 6, 12}, color, pass); break;
+    case ObstacleShape::Torus: draw_curved(canvas, curved_surface(o), color, pass); break;
     case ObstacleShape::Box: draw_box(canvas, o, color, pass); break;
   }
 }
@@ -565,6 +616,62 @@ Bounds scene_bounds(std::span<const SheetMesh> sheets, std::span<const ObstacleD
   }
   for (const ObstacleDef& o : obstacles) b.add(obstacle_bounds(o));
   return b;
+}
+
+TriangleMesh obstacle_mesh(const ObstacleDef& o, const Bounds& content) {
+  TriangleMesh mesh;
+  auto vertex = [&](Vec3 p, Vec3 n) {
+    mesh.points.push_back(p);
+    mesh.normals.push_back(normalized(n));
+    return std::uint32_t(mesh.points.size() - 1);
+  };
+  // Counter-clockwise seen from outside: the winding follows the normals, whatever the
+  // parametrisation's orientation.
+  auto triangle = [&](std::uint32_t a, std::uint32_t b, std::uint32_t c) {
+    const Vec3 pa = mesh.points[a], n = mesh.normals[a] + mesh.normals[b] + mesh.normals[c];
+    if (dot(cross(mesh.points[b] - pa, mesh.points[c] - pa), n) < 0) std::swap(b, c);
+    mesh.triangles.insert(mesh.triangles.end(), {a, b, c});
+  };
+  auto quad = [&](std::uint32_t a, std::uint32_t b, std::uint32_t c, std::uint32_t d) {
+    triangle(a, b, c);
+    triangle(a, c, d);
+  };
+  switch (o.shape) {
+    case ObstacleShape::Plane: {
+      const PlanePatch p = plane_patch(o, content);
+      quad(vertex(p.at(-1, -1), p.nz), vertex(p.at(1, -1), p.nz), vertex(p.at(1, 1), p.nz), vertex(p.at(-1, 1), p.nz));
+      break;
+    }
+    case ObstacleShape::Box: {
+      for (int axis = 0; axis < 3; ++axis)
+        for (double side : {-1.0, 1.0}) {
+          Vec3 n{0, 0, 0}, a{0, 0, 0}, b{0, 0, 0};
+          (axis == 0 ? n.x : axis == 1 ? n.y : n.z) = side;
+          (axis == 0 ? a.y : axis == 1 ? a.z : a.x) = 1;
+          (axis == 0 ? b.z : axis == 1 ? b.x : b.y) = 1;
+          auto corner = [&](double s, double t) {
+            const Vec3 l = n + s * a + t * b;
+            return vertex(o.center + rotate(o.orientation, {l.x * o.size.x, l.y * o.size.y, l.z * o.size.z}),
+                          rotate(o.orientation, n));
+          };
+          quad(corner(-1, -1), corner(1, -1), corner(1, 1), corner(-1, 1));
+        }
+      break;
+    }
+    case ObstacleShape::Sphere:
+    case ObstacleShape::Ellipsoid:
+    case ObstacleShape::Torus: {
+      const CurvedSurface c = curved_surface(o);
+      const std::uint32_t row = std::uint32_t(c.nu + 1);
+      for (int j = 0; j <= c.nv; ++j)
+        for (int i = 0; i <= c.nu; ++i) vertex(c.point(c.u_at(i), c.v_at(j)), c.normal(c.u_at(i), c.v_at(j)));
+      for (std::uint32_t j = 0; j < std::uint32_t(c.nv); ++j)
+        for (std::uint32_t i = 0; i < std::uint32_t(c.nu); ++i)
+          quad(j * row + i, j * row + i + 1, (j + 1) * row + i + 1, (j + 1) * row + i);
+      break;
+    }
+  }
+  return mesh;
 }
 
 Camera Camera::looking_at_bounds(const Bounds& box, double aspect, double fov_deg) {
@@ -698,8 +805,10 @@ void Image::set_pixel(int px, int py, std::array<std::uint8_t, 3> c) {
   std::copy(c.begin(), c.end(), rgb.begin() + k);
 }
 
-Image render_wireframe(std::span<const SheetMesh> sheets, std::span<const ObstacleDef> obstacles,
-                       const Camera& camera, int width, int height, const RenderOptions& options) {
+namespace {
+
+void check_render_arguments(std::span<const SheetMesh> sheets, const Camera& camera, int width, int height,
+                            const RenderOptions& options) {
   if (std::string problem = validate(camera); !problem.empty()) throw std::invalid_argument("render: " + problem);
   constexpr int max_side = 8192;
   if (width < 1 || height < 1 || width > max_side || height > max_side)
@@ -709,12 +818,22 @@ Image render_wireframe(std::span<const SheetMesh> sheets, std::span<const Obstac
     throw std::invalid_argument("render: supersampling must be 1..8 (got " + std::to_string(options.supersampling) +
                                 ")");
   for (std::size_t k = 0; k < sheets.size(); ++k) check_sheet(sheets[k], k);
+}
 
-  // About 11 bytes per sample: keep the buffers under ~64 M samples by supersampling less.
+// About 11 bytes per sample: keep the buffers under ~64 M samples by supersampling less.
+RenderOptions fitted(const RenderOptions& options, int width, int height) {
   RenderOptions opt = options;
   const double pixels = double(width) * height;
   while (opt.supersampling > 1 && pixels * opt.supersampling * opt.supersampling > 64e6) --opt.supersampling;
+  return opt;
+}
 
+}  // namespace
+
+Image render_wireframe(std::span<const SheetMesh> sheets, std::span<const ObstacleDef> obstacles,
+                       const Camera& camera, int width, int height, const RenderOptions& options) {
+  check_render_arguments(sheets, camera, width, height, options);
+  const RenderOptions opt = fitted(options, width, height);
   const Bounds content = scene_bounds(sheets, obstacles);
   Canvas canvas(camera, width, height, opt, content);
   for (const ObstacleDef& o : obstacles) draw_obstacle(canvas, o, content, options.obstacle_color, Pass::Surfaces);
@@ -722,6 +841,55 @@ Image render_wireframe(std::span<const SheetMesh> sheets, std::span<const Obstac
     for (const SheetMesh& s : sheets) draw_sheet(canvas, s, options.sheet_color, Pass::Surfaces);
   for (const ObstacleDef& o : obstacles) draw_obstacle(canvas, o, content, options.obstacle_color, Pass::Lines);
   for (const SheetMesh& s : sheets) draw_sheet(canvas, s, options.sheet_color, Pass::Lines);
+  return canvas.resolve(width, height);
+}
+
+Image render_shaded(std::span<const SheetMesh> sheets, std::span<const ObstacleDef> obstacles, const Camera& camera,
+                    int width, int height, const RenderOptions& options) {
+  check_render_arguments(sheets, camera, width, height, options);
+  const RenderOptions opt = fitted(options, width, height);
+  std::vector<SurfaceMesh> surfaces;
+  for (const SheetMesh& s : sheets) surfaces.push_back(sample_surface(s, options.surface, options.surface_samples));
+
+  const Bounds content = scene_bounds(sheets, obstacles);
+  Canvas canvas(camera, width, height, opt, content);
+  // The light comes from over the camera's left shoulder, fixed to the view.
+  const Vec3 light = normalized(-0.45 * canvas.right() + 0.65 * canvas.up() - 1.0 * canvas.forward());
+  const Vec3 eye = camera.eye;
+  auto lit = [&](std::array<std::uint8_t, 3> color, Vec3 n) {
+    const double k = 0.33 + 0.67 * std::max(0.0, dot(n, light));
+    return std::array<double, 3>{k * color[0], k * color[1], k * color[2]};
+  };
+  // front: the triangle's corners wind counter-clockwise seen from the eye; n then faces it
+  auto shade = [&](Vec3 a, Vec3 b, Vec3 c, Vec3 na, Vec3 nb, Vec3 nc, std::array<std::uint8_t, 3> front,
+                   std::array<std::uint8_t, 3> back) {
+    const Vec3 g = cross(b - a, c - a);
+    const bool facing = dot(g, eye - a) >= 0;
+    const double sign = facing ? 1 : -1;
+    const auto color = facing ? front : back;
+    const std::array<double, 3> rgb[3] = {lit(color, sign * na), lit(color, sign * nb), lit(color, sign * nc)};
+    canvas.shade_triangle(a, b, c, rgb);
+  };
+  for (const ObstacleDef& o : obstacles) {
+    const TriangleMesh mesh = obstacle_mesh(o, content);
+    for (std::size_t t = 0; t + 2 < mesh.triangles.size(); t += 3) {
+      const std::uint32_t a = mesh.triangles[t], b = mesh.triangles[t + 1], c = mesh.triangles[t + 2];
+      shade(mesh.points[a], mesh.points[b], mesh.points[c], mesh.normals[a], mesh.normals[b], mesh.normals[c],
+            options.solid_color, options.solid_color);
+    }
+  }
+  for (const SurfaceMesh& s : surfaces)
+    for (std::uint32_t i = 0; i + 1 < s.rows; ++i)
+      for (std::uint32_t j = 0; j + 1 < s.cols; ++j) {
+        // the exported quads' winding: (i, j), (i, j+1), (i+1, j+1), (i+1, j) faces the normals' side
+        const std::size_t k[4] = {std::size_t(i) * s.cols + j, std::size_t(i) * s.cols + j + 1,
+                                  std::size_t(i + 1) * s.cols + j + 1, std::size_t(i + 1) * s.cols + j};
+        for (int tri = 0; tri < 2; ++tri) {
+          const std::size_t a = k[0], b = k[1 + tri], c = k[2 + tri];
+          shade(s.points[a], s.points[b], s.points[c], s.normals[a], s.normals[b], s.normals[c], options.front_color,
+                options.back_color);
+        }
+      }
   return canvas.resolve(width, height);
 }
 

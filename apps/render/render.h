@@ -45,6 +45,15 @@ struct Bounds {
 // infinite and are left out (they are drawn as a patch under the rest of the content).
 Bounds scene_bounds(std::span<const SheetMesh> sheets, std::span<const ObstacleDef> obstacles);
 
+// An obstacle as triangles, for shading and export: points with outward unit normals and
+// counter-clockwise (seen from outside) index triples. A plane is the square patch the
+// wireframe draws under `content` (1.2 content diagonals across); a box has flat faces.
+struct TriangleMesh {
+  std::vector<Vec3> points, normals;
+  std::vector<std::uint32_t> triangles;
+};
+TriangleMesh obstacle_mesh(const ObstacleDef& obstacle, const Bounds& content);
+
 struct Camera {
   Vec3 eye{3, -4, 2.5};
   Vec3 target{0, 0, 0};
@@ -84,6 +93,9 @@ struct Image {
   void set_pixel(int px, int py, std::array<std::uint8_t, 3> c);
 };
 
+// The surface a sheet's control grid defines (surface.h says how each is evaluated).
+enum class SurfaceKind { Grid, Bezier, BSpline };
+
 struct RenderOptions {
   std::array<std::uint8_t, 3> background{255, 255, 255};
   std::array<std::uint8_t, 3> sheet_color{25, 25, 30};
@@ -93,6 +105,12 @@ struct RenderOptions {
                               // Lowered for huge pictures so the buffers stay under ~64 M samples.
   double depth_fade = 0.55;   // far lines are blended this much towards the background
   bool opaque_sheets = true;  // sheets hide what is behind them (hidden-line drawing)
+  // render_shaded only:
+  std::array<std::uint8_t, 3> front_color{226, 139, 58};  // the sheet's +z side (where its quads face)
+  std::array<std::uint8_t, 3> back_color{72, 118, 196};
+  std::array<std::uint8_t, 3> solid_color{176, 178, 184};  // obstacles
+  SurfaceKind surface = SurfaceKind::Grid;
+  int surface_samples = 1;  // per grid cell along each direction, 1..64
 };
 
 // Draws every sheet as its grid lines and every obstacle as a wireframe (longitude and
@@ -102,6 +120,14 @@ struct RenderOptions {
 // camera, size (1..8192 pixels per side) or sheet (span sizes not (m+1)·(n+1)).
 Image render_wireframe(std::span<const SheetMesh> sheets, std::span<const ObstacleDef> obstacles,
                        const Camera& camera, int width, int height, const RenderOptions& options = {});
+
+// Draws every sheet as its lit surface (options.surface sampled options.surface_samples times
+// per cell, smooth normals), the front side and the back side in their two colours, and every
+// obstacle as a lit solid, with a depth buffer. One light comes from over the camera's left
+// shoulder; a face turned away from it keeps an ambient third of its colour. Same errors as
+// render_wireframe().
+Image render_shaded(std::span<const SheetMesh> sheets, std::span<const ObstacleDef> obstacles, const Camera& camera,
+                    int width, int height, const RenderOptions& options = {});
 
 // Writes an 8-bit RGB PNG. The data go to a temporary file in the same folder, which is
 // renamed to `path` only when complete; on failure the temporary file is removed, `path` is
