@@ -503,6 +503,35 @@ TEST(Motions, CircleCarriesItsStartAroundTheAxis) {
   }
 }
 
+// The API's callback drives a path exactly as the motion it returns the poses of.
+TEST(Motions, ACallbackDrivesAPathAsTheMotionItComputes) {
+  Motion circle;
+  circle.kind = Motion::Kind::Circle;
+  circle.circle = {{0, 0, 0}, {0, 1, 1}, {0.3, 0, 0}, 0.7};
+  Motion callback;
+  callback.kind = Motion::Kind::Callback;
+  callback.callback = [circle](double t) { return pose_at(circle, t); };
+  std::vector<std::vector<double>> states;
+  for (const Motion& motion : {circle, callback}) {
+    World w;
+    SheetDef d;
+    d.m = d.n = 3;
+    const SheetId id = w.add_sheet(d);
+    ConstraintDef drag;
+    drag.kind = ConstraintKind::Path;
+    drag.sheet = id;
+    drag.points = {0, 15};
+    drag.motion = motion;
+    w.add_constraint(drag);
+    w.step(300);
+    const auto v = w.view(id);
+    states.emplace_back(v.x.begin(), v.x.end());
+    states.back().insert(states.back().end(), v.z.begin(), v.z.end());
+  }
+  EXPECT_EQ(states[0], states[1]);
+  EXPECT_NE(states[0][0], -0.5) << "the corner moved";
+}
+
 // ---- Bad constraints are refused by name ---------------------------------------------------
 
 std::string refusal(World& w, const ConstraintDef& c) {
