@@ -50,10 +50,8 @@ struct Hammock {
     c.rest_length = gap;
     c.sheet = a;
     c.other_sheet = b;
-    for (std::uint32_t i = 0; i <= m; ++i) {
-      c.points.push_back(point_index(n, i, n));       // a's right edge
-      c.other_points.push_back(point_index(n, i, 0));  // b's left edge
-    }
+    c.points = column_points(m, n, n);        // a's right edge
+    c.other_points = column_points(m, n, 0);  // b's left edge
     return c;
   }
 };
@@ -151,7 +149,7 @@ TEST(Constraints, WeldedSeamCarriesTheLowerPanelAndNeverOpensBeyondItsBound) {
   d.mass = 0.05;
   d.orientation = quat_from_axis_angle({1, 0, 0}, pi / 2);  // rows go up along z
   d.center = {0, 0, side / 2};
-  for (std::uint32_t j = 0; j <= n; ++j) d.pins.push_back(point_index(n, m, j));
+  d.pins = row_points(m, n, m);
   d.damping = 5.0 * d.mass / point_count(m, n);  // settles as e^(−5t)
   const SheetId upper = w.add_sheet(d);
   d.pins.clear();
@@ -163,10 +161,8 @@ TEST(Constraints, WeldedSeamCarriesTheLowerPanelAndNeverOpensBeyondItsBound) {
   weld.stiffness = weld_k;
   weld.sheet = lower;
   weld.other_sheet = upper;
-  for (std::uint32_t j = 0; j <= n; ++j) {
-    weld.points.push_back(point_index(n, m, j));
-    weld.other_points.push_back(point_index(n, 0, j));
-  }
+  weld.points = row_points(m, n, m);        // the lower panel's top edge
+  weld.other_points = row_points(m, n, 0);  // the upper panel's bottom edge
   w.add_constraint(weld);
 
   const double bound = 2 * lower_mass * g / weld_k;
@@ -414,7 +410,7 @@ TEST(Constraints, FrameTurnsTheEdgeItCarries) {
   frame.kind = ConstraintKind::Frame;
   frame.stiffness = 5000;
   frame.sheet = id;
-  for (std::uint32_t j = 0; j <= d.n; ++j) frame.points.push_back(point_index(d.n, 0, j));  // edge y = −0.2
+  frame.points = row_points(d.m, d.n, 0);  // the edge y = −0.2
   frame.motion.pivot = {0, 0.3, 0};
   frame.motion.keyframes = {{0, {}, {}}, {1, {0, 0, 0.1}, quat_from_axis_angle({0, 0, 1}, pi / 2)}};
   w.add_constraint(frame);
@@ -530,6 +526,12 @@ TEST(Motions, ACallbackDrivesAPathAsTheMotionItComputes) {
   }
   EXPECT_EQ(states[0], states[1]);
   EXPECT_NE(states[0][0], -0.5) << "the corner moved";
+}
+
+TEST(Constraints, RowAndColumnPointsAreTheGridsEdgesInOrder) {
+  // a 2×3-cell grid: rows of 4 points, point (i, j) at 4i + j
+  EXPECT_EQ(row_points(2, 3, 1), (std::vector<std::uint32_t>{4, 5, 6, 7}));
+  EXPECT_EQ(column_points(2, 3, 3), (std::vector<std::uint32_t>{3, 7, 11}));
 }
 
 // ---- Bad constraints are refused by name ---------------------------------------------------

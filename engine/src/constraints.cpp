@@ -19,6 +19,18 @@ std::string_view constraint_kind_name(ConstraintKind kind) {
   return "unknown";
 }
 
+std::vector<std::uint32_t> row_points(std::uint32_t, std::uint32_t n, std::uint32_t i) {
+  std::vector<std::uint32_t> points;
+  for (std::uint32_t j = 0; j <= n; ++j) points.push_back(i * (n + 1) + j);
+  return points;
+}
+
+std::vector<std::uint32_t> column_points(std::uint32_t m, std::uint32_t n, std::uint32_t j) {
+  std::vector<std::uint32_t> points;
+  for (std::uint32_t i = 0; i <= m; ++i) points.push_back(i * (n + 1) + j);
+  return points;
+}
+
 namespace {
 
 bool finite(Vec3 v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
