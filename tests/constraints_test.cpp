@@ -486,6 +486,19 @@ TEST(Motions, KeyframesInterpolateLinearlyAndSlerpAboutThePivot) {
   EXPECT_NEAR(again.z, o.z, 1e-12);
 }
 
+TEST(Motions, ComposeAppliesInnerThenOuterAndInverseUndoes) {
+  const Pose a{quat_from_axis_angle({0, 0, 1}, pi / 2), {1, 0, 0}}, b{quat_from_axis_angle({1, 0, 0}, pi / 2), {0, 2, 0}};
+  // by hand: b takes (0, 1, 0) to (0, 0, 1) + (0, 2, 0) = (0, 2, 1); a turns that to (−2, 0, 1), + (1, 0, 0)
+  const Vec3 p = apply(compose(a, b), {0, 1, 0});
+  EXPECT_NEAR(p.x, -1, 1e-12);
+  EXPECT_NEAR(p.y, 0, 1e-12);
+  EXPECT_NEAR(p.z, 1, 1e-12);
+  const Vec3 back = apply(inverse(compose(a, b)), p);
+  EXPECT_NEAR(back.x, 0, 1e-12);
+  EXPECT_NEAR(back.y, 1, 1e-12);
+  EXPECT_NEAR(back.z, 0, 1e-12);
+}
+
 TEST(Motions, CircleCarriesItsStartAroundTheAxis) {
   Motion m;
   m.kind = Motion::Kind::Circle;
