@@ -32,10 +32,8 @@ void build(drape::World& world, Kind kind) {
         c.kind = drape::ConstraintKind::PointToPoint;
         c.other_sheet = ids[s + 1];
         c.rest_length = spacing - 1.0;
-        for (std::uint32_t i = 0; i <= n; ++i) {
-          c.points.push_back(drape::point_index(n, i, n));
-          c.other_points.push_back(drape::point_index(n, i, 0));
-        }
+        c.points = drape::column_points(n, n, n);
+        c.other_points = drape::column_points(n, n, 0);
         break;
       case Kind::Paths:  // the four corners carried round a circle
         c.kind = drape::ConstraintKind::Path;
@@ -45,7 +43,7 @@ void build(drape::World& world, Kind kind) {
         break;
       case Kind::Rails:  // the top row on a straight rail
         c.kind = drape::ConstraintKind::Rail;
-        for (std::uint32_t j = 0; j <= n; ++j) c.points.push_back(drape::point_index(n, n, j));
+        c.points = drape::row_points(n, n, n);
         c.rail = {{-10, spacing * (s / 8) + 0.5, 0}, {20, spacing * (s / 8) + 0.5, 0}};
         break;
     }

@@ -90,6 +90,32 @@ TEST_F(Cli, InfoShowsContactSettingsAndSelfCollisionFromTheScene) {
   EXPECT_GT(r.out.find("collides with itself"), r.out.find("sheets[1]")) << "only the second sheet collides with itself: " << r.out;
 }
 
+TEST_F(Cli, InfoListsConstraintsAndMovingObstacles) {
+  const fs::path scene = write("c.json", R"({"frames": 1, "contact_strength": 0,
+    "sheets": [{"name": "cloth", "grid": [2, 2], "size": [1, 1], "stiffness": 5}],
+    "obstacles": [{"type": "sphere", "radius": 0.1, "motion": {"circle": {"center": [0, 0, 0], "start": [1, 0, 0],
+                   "period": 2}}}],
+    "constraints": [{"type": "rail", "sheet": "cloth", "points": {"row": 2}, "stiffness": 40,
+                     "rail": [[0, 0, 0], [1, 0, 0], [2, 1, 0]]},
+                    {"type": "frame", "sheet": 0, "points": [0], "stiffness": 50, "obstacle": 0}]})");
+  const Result r = drape("info " + scene.string());
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("obstacles[0] moves: a circle (period 2 s)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("constraints[0] rail: 3 point(s) of sheets[0] cloth sliding on a rail of 3 knots, stiffness 40 N/m"),
+            std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("constraints[1] frame: 1 point(s) of sheets[0] cloth carried by obstacles[0], stiffness 50 N/m"),
+            std::string::npos) << r.out;
+}
+
+TEST_F(Cli, BadConstraintExitsThreeNamingItsPathAndWritesNothing) {
+  const fs::path scene = write("b.json", R"({"frames": 1, "sheets": [{"grid": [2, 2], "size": [1, 1], "stiffness": 5}],
+    "constraints": [{"type": "rail", "sheet": 0, "points": [0], "stiffness": 40, "rail": [[0, 0, 0]]}]})");
+  const Result r = drape("run " + scene.string() + " --out " + (dir / "out").string());
+  EXPECT_EQ(r.code, 3);
+  EXPECT_NE(r.err.find("b.json: constraints[0]: rail must have at least two knots (got 1)"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "out"));
+}
+
 // A checkpoint stores the step count; adaptive substeps vary in length, so a resume could
 // not know the time or the frame: refused before anything is written.
 TEST_F(Cli, CheckpointsAreRefusedForAdaptiveScenes) {

@@ -5,13 +5,14 @@
 #include <drape/drape.h>
 #include <gtest/gtest.h>
 
-#include <Eigen/Dense>
 #include <array>
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
 #include <string>
 #include <vector>
+
+#include "newton_equilibrium.h"
 
 namespace drape {
 namespace {
@@ -20,62 +21,8 @@ constexpr double pi = std::numbers::pi;
 
 // ---- Two sheets joined point-to-point, hanging: the static equilibrium by Newton ----------
 
-struct Spring {
-  std::uint32_t a, b;
-  double k, rest;
-};
-
-// Minimises E(x) = Σ ½k(|xa − xb| − ℓ)² − Σ m g·x over the free points by Newton's method
-// with a backtracking line search, from `x` (which must stretch every spring). Written from
-// the energy alone; it shares no code with the engine.
-Eigen::VectorXd newton_equilibrium(Eigen::VectorXd x, const std::vector<Spring>& springs, const std::vector<double>& mass,
-                                   const std::vector<bool>& fixed, double g) {
-  const std::size_t count = mass.size();
-  auto energy = [&](const Eigen::VectorXd& y) {
-    double e = 0;
-    for (const Spring& s : springs) {
-      const double len = (y.segment<3>(3 * s.a) - y.segment<3>(3 * s.b)).norm();
-      e += 0.5 * s.k * (len - s.rest) * (len - s.rest);
-    }
-    for (std::size_t p = 0; p < count; ++p) e += mass[p] * g * y[3 * p + 2];
-    return e;
-  };
-  for (int iter = 0; iter < 200; ++iter) {
-    Eigen::VectorXd grad = Eigen::VectorXd::Zero(3 * count);
-    Eigen::MatrixXd hess = Eigen::MatrixXd::Zero(3 * count, 3 * count);
-    for (const Spring& s : springs) {
-      const Eigen::Vector3d d = x.segment<3>(3 * s.a) - x.segment<3>(3 * s.b);
-      const double len = d.norm();
-      const Eigen::Vector3d u = d / len;
-      const Eigen::Vector3d ga = s.k * (len - s.rest) * u;
-      const Eigen::Matrix3d block =
-          s.k * (u * u.transpose() + std::max(0.0, 1 - s.rest / len) * (Eigen::Matrix3d::Identity() - u * u.transpose()));
-      grad.segment<3>(3 * s.a) += ga;
-      grad.segment<3>(3 * s.b) -= ga;
-      hess.block<3, 3>(3 * s.a, 3 * s.a) += block;
-      hess.block<3, 3>(3 * s.b, 3 * s.b) += block;
-      hess.block<3, 3>(3 * s.a, 3 * s.b) -= block;
-      hess.block<3, 3>(3 * s.b, 3 * s.a) -= block;
-    }
-    for (std::size_t p = 0; p < count; ++p) grad[3 * p + 2] += mass[p] * g;
-    for (std::size_t p = 0; p < count; ++p)
-      if (fixed[p])
-        for (int c = 0; c < 3; ++c) {
-          const int r = int(3 * p) + c;
-          grad[r] = 0;
-          hess.row(r).setZero();
-          hess.col(r).setZero();
-          hess(r, r) = 1;
-        }
-    if (grad.norm() < 1e-12) break;
-    const Eigen::VectorXd step = hess.ldlt().solve(-grad);
-    const double e0 = energy(x);
-    double t = 1;
-    while (t > 1e-10 && energy(x + t * step) > e0 + 1e-4 * t * grad.dot(step)) t /= 2;
-    x += t * step;
-  }
-  return x;
-}
+using testing::newton_equilibrium;
+using testing::Spring;
 
 // A hammock of two square sheets side by side, 2 cm apart, joined along their facing edges
 // by point-to-point springs of rest length 2 cm; each sheet pinned at its two outer corners.
@@ -103,10 +50,8 @@ struct Hammock {
     c.rest_length = gap;
     c.sheet = a;
     c.other_sheet = b;
-    for (std::uint32_t i = 0; i <= m; ++i) {
-      c.points.push_back(point_index(n, i, n));       // a's right edge
-      c.other_points.push_back(point_index(n, i, 0));  // b's left edge
-    }
+    c.points = column_points(m, n, n);        // a's right edge
+    c.other_points = column_points(m, n, 0);  // b's left edge
     return c;
   }
 };
@@ -204,7 +149,7 @@ TEST(Constraints, WeldedSeamCarriesTheLowerPanelAndNeverOpensBeyondItsBound) {
   d.mass = 0.05;
   d.orientation = quat_from_axis_angle({1, 0, 0}, pi / 2);  // rows go up along z
   d.center = {0, 0, side / 2};
-  for (std::uint32_t j = 0; j <= n; ++j) d.pins.push_back(point_index(n, m, j));
+  d.pins = row_points(m, n, m);
   d.damping = 5.0 * d.mass / point_count(m, n);  // settles as e^(−5t)
   const SheetId upper = w.add_sheet(d);
   d.pins.clear();
@@ -216,10 +161,8 @@ TEST(Constraints, WeldedSeamCarriesTheLowerPanelAndNeverOpensBeyondItsBound) {
   weld.stiffness = weld_k;
   weld.sheet = lower;
   weld.other_sheet = upper;
-  for (std::uint32_t j = 0; j <= n; ++j) {
-    weld.points.push_back(point_index(n, m, j));
-    weld.other_points.push_back(point_index(n, 0, j));
-  }
+  weld.points = row_points(m, n, m);        // the lower panel's top edge
+  weld.other_points = row_points(m, n, 0);  // the upper panel's bottom edge
   w.add_constraint(weld);
 
   const double bound = 2 * lower_mass * g / weld_k;
@@ -467,7 +410,7 @@ TEST(Constraints, FrameTurnsTheEdgeItCarries) {
   frame.kind = ConstraintKind::Frame;
   frame.stiffness = 5000;
   frame.sheet = id;
-  for (std::uint32_t j = 0; j <= d.n; ++j) frame.points.push_back(point_index(d.n, 0, j));  // edge y = −0.2
+  frame.points = row_points(d.m, d.n, 0);  // the edge y = −0.2
   frame.motion.pivot = {0, 0.3, 0};
   frame.motion.keyframes = {{0, {}, {}}, {1, {0, 0, 0.1}, quat_from_axis_angle({0, 0, 1}, pi / 2)}};
   w.add_constraint(frame);
@@ -543,6 +486,19 @@ TEST(Motions, KeyframesInterpolateLinearlyAndSlerpAboutThePivot) {
   EXPECT_NEAR(again.z, o.z, 1e-12);
 }
 
+TEST(Motions, ComposeAppliesInnerThenOuterAndInverseUndoes) {
+  const Pose a{quat_from_axis_angle({0, 0, 1}, pi / 2), {1, 0, 0}}, b{quat_from_axis_angle({1, 0, 0}, pi / 2), {0, 2, 0}};
+  // by hand: b takes (0, 1, 0) to (0, 0, 1) + (0, 2, 0) = (0, 2, 1); a turns that to (−2, 0, 1), + (1, 0, 0)
+  const Vec3 p = apply(compose(a, b), {0, 1, 0});
+  EXPECT_NEAR(p.x, -1, 1e-12);
+  EXPECT_NEAR(p.y, 0, 1e-12);
+  EXPECT_NEAR(p.z, 1, 1e-12);
+  const Vec3 back = apply(inverse(compose(a, b)), p);
+  EXPECT_NEAR(back.x, 0, 1e-12);
+  EXPECT_NEAR(back.y, 1, 1e-12);
+  EXPECT_NEAR(back.z, 0, 1e-12);
+}
+
 TEST(Motions, CircleCarriesItsStartAroundTheAxis) {
   Motion m;
   m.kind = Motion::Kind::Circle;
@@ -554,6 +510,41 @@ TEST(Motions, CircleCarriesItsStartAroundTheAxis) {
     EXPECT_NEAR(p.y, 2 + 0.5 * std::sin(angle), 1e-12) << t;
     EXPECT_NEAR(p.z, 7, 1e-12) << t;
   }
+}
+
+// The API's callback drives a path exactly as the motion it returns the poses of.
+TEST(Motions, ACallbackDrivesAPathAsTheMotionItComputes) {
+  Motion circle;
+  circle.kind = Motion::Kind::Circle;
+  circle.circle = {{0, 0, 0}, {0, 1, 1}, {0.3, 0, 0}, 0.7};
+  Motion callback;
+  callback.kind = Motion::Kind::Callback;
+  callback.callback = [circle](double t) { return pose_at(circle, t); };
+  std::vector<std::vector<double>> states;
+  for (const Motion& motion : {circle, callback}) {
+    World w;
+    SheetDef d;
+    d.m = d.n = 3;
+    const SheetId id = w.add_sheet(d);
+    ConstraintDef drag;
+    drag.kind = ConstraintKind::Path;
+    drag.sheet = id;
+    drag.points = {0, 15};
+    drag.motion = motion;
+    w.add_constraint(drag);
+    w.step(300);
+    const auto v = w.view(id);
+    states.emplace_back(v.x.begin(), v.x.end());
+    states.back().insert(states.back().end(), v.z.begin(), v.z.end());
+  }
+  EXPECT_EQ(states[0], states[1]);
+  EXPECT_NE(states[0][0], -0.5) << "the corner moved";
+}
+
+TEST(Constraints, RowAndColumnPointsAreTheGridsEdgesInOrder) {
+  // a 2×3-cell grid: rows of 4 points, point (i, j) at 4i + j
+  EXPECT_EQ(row_points(2, 3, 1), (std::vector<std::uint32_t>{4, 5, 6, 7}));
+  EXPECT_EQ(column_points(2, 3, 3), (std::vector<std::uint32_t>{3, 7, 11}));
 }
 
 // ---- Bad constraints are refused by name ---------------------------------------------------

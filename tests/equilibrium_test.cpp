@@ -8,6 +8,8 @@
 #include <cmath>
 #include <vector>
 
+#include "newton_equilibrium.h"
+
 namespace {
 
 struct Grid {
@@ -15,17 +17,17 @@ struct Grid {
   double width, mass, k, g;
 };
 
-// Newton's method with a backtracking line search on
-//   E(x) = Σ_springs ½k(|xa − xb| − h)² − Σ_points m g·x,
-// corners held fixed. Written from the energy, sharing no code with the engine's kernels.
+// The static equilibrium by Newton's method on the total potential energy (springs and
+// gravity), corners held fixed (newton_equilibrium.h: written from the energy, sharing no
+// code with the engine's kernels).
 std::vector<double> static_equilibrium(const Grid& s) {
   const std::uint32_t cols = s.n + 1, count = (s.m + 1) * cols;
   const double h = s.width / s.n, pm = s.mass / count;
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> springs;
+  std::vector<drape::testing::Spring> springs;
   for (std::uint32_t i = 0; i <= s.m; ++i)
     for (std::uint32_t j = 0; j <= s.n; ++j) {
-      if (j < s.n) springs.push_back({i * cols + j, i * cols + j + 1});
-      if (i < s.m) springs.push_back({i * cols + j, (i + 1) * cols + j});
+      if (j < s.n) springs.push_back({i * cols + j, i * cols + j + 1, s.k, h});
+      if (i < s.m) springs.push_back({i * cols + j, (i + 1) * cols + j, s.k, h});
     }
   std::vector<bool> fixed(count, false);
   for (std::uint32_t p : {0u, s.n, s.m * cols, s.m * cols + s.n}) fixed[p] = true;
@@ -39,51 +41,8 @@ std::vector<double> static_equilibrium(const Grid& s) {
       x.segment<3>(3 * p) << j * h - s.width / 2, i * h - s.width / 2,
           fixed[p] ? 0.0 : -0.2 * s.width * std::sin(M_PI * u) * std::sin(M_PI * v) - 0.01;
     }
-  auto energy = [&](const Eigen::VectorXd& y) {
-    double e = 0;
-    for (auto [a, b] : springs) {
-      const double len = (y.segment<3>(3 * a) - y.segment<3>(3 * b)).norm();
-      e += 0.5 * s.k * (len - h) * (len - h);
-    }
-    for (std::uint32_t p = 0; p < count; ++p) e += pm * s.g * y[3 * p + 2];
-    return e;
-  };
-  for (int iter = 0; iter < 100; ++iter) {
-    Eigen::VectorXd grad = Eigen::VectorXd::Zero(3 * count);
-    Eigen::MatrixXd hess = Eigen::MatrixXd::Zero(3 * count, 3 * count);
-    for (auto [a, b] : springs) {
-      const Eigen::Vector3d d = x.segment<3>(3 * a) - x.segment<3>(3 * b);
-      const double len = d.norm();
-      const Eigen::Vector3d u = d / len;
-      const Eigen::Vector3d ga = s.k * (len - h) * u;
-      // ∂²E/∂xa² = k[u uᵀ + (1 − h/len)(I − u uᵀ)], the transverse part clamped at 0
-      const Eigen::Matrix3d block = s.k * (u * u.transpose() + std::max(0.0, 1 - h / len) *
-                                                                   (Eigen::Matrix3d::Identity() - u * u.transpose()));
-      grad.segment<3>(3 * a) += ga;
-      grad.segment<3>(3 * b) -= ga;
-      hess.block<3, 3>(3 * a, 3 * a) += block;
-      hess.block<3, 3>(3 * b, 3 * b) += block;
-      hess.block<3, 3>(3 * a, 3 * b) -= block;
-      hess.block<3, 3>(3 * b, 3 * a) -= block;
-    }
-    for (std::uint32_t p = 0; p < count; ++p) grad[3 * p + 2] += pm * s.g;
-    for (std::uint32_t p = 0; p < count; ++p)
-      if (fixed[p])
-        for (int c = 0; c < 3; ++c) {
-          const int r = 3 * p + c;
-          grad[r] = 0;
-          hess.row(r).setZero();
-          hess.col(r).setZero();
-          hess(r, r) = 1;
-        }
-    if (grad.norm() < 1e-12) break;
-    const Eigen::VectorXd step = hess.ldlt().solve(-grad);
-    const double e0 = energy(x);
-    double t = 1;
-    while (t > 1e-8 && energy(x + t * step) > e0 + 1e-4 * t * grad.dot(step)) t /= 2;
-    x += t * step;
-  }
-  return {x.data(), x.data() + x.size()};
+  const Eigen::VectorXd eq = drape::testing::newton_equilibrium(x, springs, std::vector<double>(count, pm), fixed, s.g);
+  return {eq.data(), eq.data() + eq.size()};
 }
 
 struct Rest {

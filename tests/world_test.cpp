@@ -599,10 +599,8 @@ void build_constrained_scene(W& w) {
   join.rest_length = 0.01;
   join.sheet = a;
   join.other_sheet = b;
-  for (std::uint32_t i = 0; i <= 8; ++i) {
-    join.points.push_back(point_index(8, i, 8));
-    join.other_points.push_back(point_index(8, i, 0));
-  }
+  join.points = column_points(8, 8, 8);
+  join.other_points = column_points(8, 8, 0);
   w.add_constraint(join);
   ConstraintDef stitch = join;  // within one sheet: opposite corners of b
   stitch.sheet = stitch.other_sheet = b;

@@ -168,6 +168,11 @@ class Report:
             self.used.add(name)
         return run
 
+    def family(self, prefix):
+        """The runs named prefix + a word, by that word."""
+        return {m.group(1): self.get(name) for name in list(self.runs)
+                if (m := re.fullmatch(re.escape(prefix) + r"(\w+)", name))}
+
     def out(self, *lines):
         self.lines.extend(lines)
 
@@ -484,11 +489,7 @@ class Report:
         }
         # what each row is priced against: itself stepped the same way, without the term
         base_of = {"guard_per_frame": "frames"}
-        found = {}
-        for name in self.runs:
-            m = re.fullmatch(r"BM_Feature_(\w+)", name)
-            if m:
-                found[m.group(1)] = self.get(name)
+        found = self.family("BM_Feature_")
         bare = found.get("bare")
         if bare is None:
             return
@@ -582,11 +583,7 @@ class Report:
             "joins_frames": "+ joins, a frame per call: a world with constraints steps substep by substep",
         }
         base_of = {"joins_frames": "none_frames"}
-        found = {}
-        for name in self.runs:
-            m = re.fullmatch(r"BM_Constraint_(\w+)", name)
-            if m:
-                found[m.group(1)] = self.get(name)
+        found = self.family("BM_Constraint_")
         if "none" not in found:
             return
         self.out("## Constraint prices (issue 14)", "",

@@ -209,17 +209,12 @@ Quat rotation_to(const Node& node, Vec3 normal) {
 // whole row or column, in grid order), or a list of point indices or [i, j] pairs.
 std::vector<std::uint32_t> read_points(const Node& node, std::uint32_t m, std::uint32_t n) {
   if (node.value().is_object()) {
-    std::vector<std::uint32_t> out;
     if (node.has("row")) {
       node.expect_object({"row"});
-      const auto i = std::uint32_t(node.child("row").whole(0, m));
-      for (std::uint32_t j = 0; j <= n; ++j) out.push_back(point_index(n, i, j));
-    } else {
-      node.expect_object({"column"});
-      const auto j = std::uint32_t(node.required("column").whole(0, n));
-      for (std::uint32_t i = 0; i <= m; ++i) out.push_back(point_index(n, i, j));
+      return row_points(m, n, std::uint32_t(node.child("row").whole(0, m)));
     }
-    return out;
+    node.expect_object({"column"});
+    return column_points(m, n, std::uint32_t(node.required("column").whole(0, n)));
   }
   if (node.value().is_string()) {
     const std::string s = node.string();

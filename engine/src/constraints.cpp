@@ -19,6 +19,18 @@ std::string_view constraint_kind_name(ConstraintKind kind) {
   return "unknown";
 }
 
+std::vector<std::uint32_t> row_points(std::uint32_t, std::uint32_t n, std::uint32_t i) {
+  std::vector<std::uint32_t> points;
+  for (std::uint32_t j = 0; j <= n; ++j) points.push_back(i * (n + 1) + j);
+  return points;
+}
+
+std::vector<std::uint32_t> column_points(std::uint32_t m, std::uint32_t n, std::uint32_t j) {
+  std::vector<std::uint32_t> points;
+  for (std::uint32_t i = 0; i <= m; ++i) points.push_back(i * (n + 1) + j);
+  return points;
+}
+
 namespace {
 
 bool finite(Vec3 v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
@@ -224,7 +236,7 @@ void ConstraintPool<Real>::remove(ConstraintId id, const Access& world) {
 }
 
 template <class Real>
-void ConstraintPool<Real>::erase_if(const std::function<bool(const ConstraintDef&)>& drop, const Access& world) {
+bool ConstraintPool<Real>::erase_if(const std::function<bool(const ConstraintDef&)>& drop, const Access& world) {
   bool any = false;
   for (std::uint32_t index : std::vector<std::uint32_t>(active_))
     if (drop(slots_[index].entry->def)) {
@@ -235,19 +247,22 @@ void ConstraintPool<Real>::erase_if(const std::function<bool(const ConstraintDef
       any = true;
     }
   if (any) rebuild(world);
+  return any;
 }
 
 template <class Real>
-void ConstraintPool<Real>::forget(SheetId sheet, const Access& world) {
-  erase_if([&](const ConstraintDef& d) {
+bool ConstraintPool<Real>::forget(SheetId sheet, const Access& world) {
+  const bool any = erase_if([&](const ConstraintDef& d) {
     return d.sheet == sheet || (d.kind == ConstraintKind::PointToPoint && d.other_sheet == sheet);
   }, world);
   std::erase_if(own_, [&](const OwnAnchors& o) { return o.sheet == sheet; });
+  return any;
 }
 
 template <class Real>
-void ConstraintPool<Real>::forget(ObstacleId carrier, const Access& world) {
-  erase_if([&](const ConstraintDef& d) { return d.kind == ConstraintKind::Frame && d.carrier == carrier; }, world);
+bool ConstraintPool<Real>::forget(ObstacleId carrier, const Access& world) {
+  return erase_if([&](const ConstraintDef& d) { return d.kind == ConstraintKind::Frame && d.carrier == carrier; },
+                  world);
 }
 
 template <class Real>

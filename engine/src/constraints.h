@@ -34,9 +34,10 @@ class ConstraintPool {
   // path or frame keeps the points' offsets from the motion's pose at this time.
   ConstraintId add(const ConstraintDef& def, double time, const Access& world);
   void remove(ConstraintId id, const Access& world);
-  // Drops every constraint on the sheet (before the sheet goes), or carried by the obstacle.
-  void forget(SheetId sheet, const Access& world);
-  void forget(ObstacleId carrier, const Access& world);
+  // Drops every constraint on the sheet (before the sheet goes), or carried by the obstacle;
+  // true when there was any.
+  bool forget(SheetId sheet, const Access& world);
+  bool forget(ObstacleId carrier, const Access& world);
 
   bool contains(ConstraintId id) const;
   const ConstraintDef& def(ConstraintId id) const;  // throws for an unknown id
@@ -74,7 +75,7 @@ class ConstraintPool {
     std::size_t count;
   };
   Entry& entry(ConstraintId id);
-  void erase_if(const std::function<bool(const ConstraintDef&)>& drop, const Access& world);
+  bool erase_if(const std::function<bool(const ConstraintDef&)>& drop, const Access& world);
   // Every sheet's anchors: its own, then each constraint's in the order they were added.
   void rebuild(const Access& world);
 

@@ -163,16 +163,22 @@ struct BasicWorld<Real>::Impl {
             [this](ObstacleId id) { return contains(id) ? &obstacle_slots[id.index].def : nullptr; }};
   }
   // Constraints add anchors (eq 8) to their sheets: the stable step and the guard's
-  // energies change with them.
+  // energies change with them, and which sheets are driven.
   void constraints_changed() {
+    for (std::uint32_t index : active) {
+      slots[index].omega_max = 2.0 / detail::sheet_stable_step(*slots[index].sheet);
+      slots[index].guard.has_reference = false;
+    }
+    find_driven();
+  }
+  // Slot::driven of every sheet: moved by a path or frame (or joined to such a sheet), or
+  // in a world with a moving obstacle.
+  void find_driven() {
     const std::vector<SheetId> moved = constraints.driven_sheets();
     const bool moving = obstacles_move();
-    for (std::uint32_t index : active) {
-      Slot& slot = slots[index];
-      slot.omega_max = 2.0 / detail::sheet_stable_step(*slot.sheet);
-      slot.guard.has_reference = false;
-      slot.driven = moving || std::find(moved.begin(), moved.end(), SheetId{index, slot.generation}) != moved.end();
-    }
+    for (std::uint32_t index : active)
+      slots[index].driven =
+          moving || std::find(moved.begin(), moved.end(), SheetId{index, slots[index].generation}) != moved.end();
   }
   bool obstacles_move() const {
     return std::any_of(active_obstacles.begin(), active_obstacles.end(),
@@ -765,13 +771,13 @@ SheetId BasicWorld<Real>::add_sheet(const SheetDef& def) {
 template <class Real>
 void BasicWorld<Real>::remove_sheet(SheetId id) {
   impl_->sheet(id);  // throws on a stale id
-  impl_->constraints.forget(id, impl_->access());
+  const bool held = impl_->constraints.forget(id, impl_->access());
   auto& slot = impl_->slots[id.index];
   slot.sheet.reset();
   ++slot.generation;
   impl_->free_slots.push_back(id.index);
   std::erase(impl_->active, id.index);
-  impl_->constraints_changed();
+  if (held) impl_->constraints_changed();  // the sheets it was joined to lost anchors
   impl_->broad_phase.reset();
   impl_->swept_broad_phase.reset();
 }
@@ -804,7 +810,7 @@ ObstacleId BasicWorld<Real>::add_obstacle(const ObstacleDef& def) {
   slot.def = def;
   slot.obstacle = detail::make_obstacle(obstacle_at(def, impl_->time()));
   impl_->active_obstacles.push_back(index);
-  impl_->constraints_changed();  // a moving obstacle drives every sheet
+  if (def.motion) impl_->find_driven();  // a moving obstacle drives every sheet
   return {index, slot.generation};
 }
 
@@ -812,14 +818,18 @@ template <class Real>
 void BasicWorld<Real>::remove_obstacle(ObstacleId id) {
   impl_->obstacle(id);  // throws on a stale id
   impl_->forget_near_obstacles();
-  impl_->constraints.forget(id, impl_->access());
+  const bool carried = impl_->constraints.forget(id, impl_->access());
   auto& slot = impl_->obstacle_slots[id.index];
+  const bool moved = slot.def.motion.has_value();
   slot.obstacle.reset();
   slot.def = {};
   ++slot.generation;
   impl_->free_obstacle_slots.push_back(id.index);
   std::erase(impl_->active_obstacles, id.index);
-  impl_->constraints_changed();
+  if (carried)
+    impl_->constraints_changed();
+  else if (moved)
+    impl_->find_driven();
 }
 
 template <class Real>

@@ -43,7 +43,12 @@ enum class ConstraintKind {
   Rail,
 };
 
-std::string_view constraint_kind_name(ConstraintKind kind);  // "point_to_point", "path", "frame", "rail"
+std::string_view constraint_kind_name(ConstraintKind kind);
+
+// The edges seams and rails hold, in a grid of (m+1)×(n+1) points: every point of row i
+// (columns 0 … n in order), every point of column j (rows 0 … m in order).
+std::vector<std::uint32_t> row_points(std::uint32_t m, std::uint32_t n, std::uint32_t i);
+std::vector<std::uint32_t> column_points(std::uint32_t m, std::uint32_t n, std::uint32_t j);  // "point_to_point", "path", "frame", "rail"
 
 struct ConstraintDef {
   ConstraintKind kind = ConstraintKind::PointToPoint;
