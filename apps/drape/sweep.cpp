@@ -9,10 +9,17 @@
 #include <chrono>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
+#include <fstream>
+#include <map>
+#include <mutex>
 #include <limits>
 #include <numeric>
 
+#include <unistd.h>
+
+#include "checkpoint.h"
 #include "export.h"
 #include "run.h"
 
@@ -110,6 +117,88 @@ SweepOutcome run_case(const SweepCase& c, std::optional<int> frames) {
     failed.error = e.what();
     return failed;
   }
+}
+
+// The runs of a sweep already done, kept as they finish in FILE.journal/ next to the CSV (one
+// file per process, a line per run: plan fingerprint, run index, the outcome's bytes in hex),
+// so a sweep that is killed, loses a rank or cannot write its CSV loses nothing computed: the
+// same command again reads them back and runs only the rest. Removed once the CSV is written.
+class Journal {
+ public:
+  Journal(std::filesystem::path dir, std::uint64_t plan) : dir_(std::move(dir)), plan_(plan) {}
+  ~Journal() {
+    if (file_) std::fclose(file_);
+  }
+  Journal(const Journal&) = delete;
+  Journal& operator=(const Journal&) = delete;
+
+  // Outcomes of this plan that some process recorded (a damaged or foreign line is skipped).
+  std::map<std::size_t, std::string> read() const {
+    std::map<std::size_t, std::string> done;
+    std::error_code ec;
+    for (const auto& entry : std::filesystem::directory_iterator(dir_, ec)) {
+      std::ifstream in(entry.path());
+      std::string plan, hex;
+      std::size_t k = 0;
+      while (in >> plan >> k >> hex) {
+        std::string bytes;
+        if (plan != plan_text() || hex.size() % 2 != 0 || hex.size() / 2 < sizeof(OutcomeBytes) ||
+            hex.find_first_not_of("0123456789abcdef") != std::string::npos)
+          continue;
+        for (std::size_t i = 0; i < hex.size(); i += 2) bytes += char(std::stoi(hex.substr(i, 2), nullptr, 16));
+        done[k] = std::move(bytes);
+      }
+    }
+    return done;
+  }
+
+  // Appends one finished run (any thread); flushed at once, so a kill keeps it.
+  void record(std::size_t k, const std::string& bytes) {
+    std::lock_guard lock(mutex_);
+    if (!file_) {
+      std::error_code ec;
+      std::filesystem::create_directories(dir_, ec);
+      const auto name = dir_ / ("process-" + std::to_string(::getpid()) + "-" + hostname() + ".log");
+      file_ = std::fopen(name.c_str(), "a");
+      if (!file_) return;  // the journal is a safety net: without it the sweep still runs
+    }
+    std::string line = plan_text() + ' ' + std::to_string(k) + ' ';
+    static const char* digits = "0123456789abcdef";
+    for (unsigned char c : bytes) line += {digits[c >> 4], digits[c & 15]};
+    line += '\n';
+    std::fputs(line.c_str(), file_);
+    std::fflush(file_);
+  }
+
+  void remove() const {
+    std::error_code ec;
+    std::filesystem::remove_all(dir_, ec);
+  }
+
+ private:
+  std::string plan_text() const {
+    char buf[17];
+    std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(plan_));
+    return buf;
+  }
+  static std::string hostname() {
+    char buf[256] = {};
+    ::gethostname(buf, sizeof buf - 1);
+    return buf;
+  }
+
+  std::filesystem::path dir_;
+  std::uint64_t plan_;
+  std::mutex mutex_;
+  std::FILE* file_ = nullptr;
+};
+
+// Equal for the same runs: every case's scene fingerprint (file bytes and overrides), in
+// order, and the frame count.
+std::uint64_t plan_fingerprint(std::span<const SweepCase> cases, std::optional<int> frames) {
+  std::string identity = std::to_string(frames.value_or(0));
+  for (const SweepCase& c : cases) identity += ' ' + std::to_string(c.scene.fingerprint);
+  return fnv1a64(std::span(reinterpret_cast<const unsigned char*>(identity.data()), identity.size()));
 }
 
 }  // namespace
@@ -239,9 +328,20 @@ int run_sweep(const SweepOptions& options, const std::filesystem::path& csv, std
     if (cluster.size() > 1) log << " on " << cluster.size() << " MPI ranks";
     log << '\n';
   }
+  Journal journal(csv.string() + ".journal", plan_fingerprint(cases, options.frames));
+  const std::map<std::size_t, std::string> done = journal.read();
+  if (cluster.is_root() && !done.empty())
+    log << "drape: " << done.size() << " run(s) already done by an earlier attempt (" << csv.string()
+        << ".journal), not run again\n";
   const auto start = std::chrono::steady_clock::now();
-  const std::vector<std::string> results = run_spread(cluster, cases.size(), cluster.threads(options.threads),
-                                                      [&](std::size_t k) { return encode(run_case(cases[k], options.frames)); });
+  const std::vector<std::string> results =
+      run_spread(cluster, cases.size(), cluster.threads(options.threads), [&](std::size_t k) {
+        if (const auto it = done.find(k); it != done.end()) return it->second;
+        const SweepOutcome outcome = run_case(cases[k], options.frames);
+        std::string bytes = encode(outcome);
+        if (outcome.error.empty()) journal.record(k, bytes);  // a failure is tried again next time
+        return bytes;
+      });
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (!cluster.is_root()) return exit_ok;
 
@@ -264,9 +364,11 @@ int run_sweep(const SweepOptions& options, const std::filesystem::path& csv, std
     }
     write_atomically(csv, [&](std::ostream& out) { write_sweep_csv(out, options, cases, outcomes); });
   } catch (const std::runtime_error& e) {
-    log << "drape: " << e.what() << '\n';
+    log << "drape: " << e.what() << "; the runs are kept in " << csv.string()
+        << ".journal: the same command again writes the CSV without running them\n";
     return exit_write_failed;
   }
+  journal.remove();
   const auto unstable = std::count_if(outcomes.begin(), outcomes.end(),
                                       [](const SweepOutcome& o) { return !o.stable && o.error.empty(); });
   log << "drape: " << cases.size() << " run(s) in " << seconds << " s (" << double(cases.size()) / seconds
