@@ -83,7 +83,8 @@ void write_sweep_csv(std::ostream& out, const SweepOptions& options, std::span<c
                      std::span<const SweepOutcome> outcomes);
 
 // The whole subcommand: plan, run this rank's cases, gather, and (rank 0) write `csv`
-// atomically. Returns an ExitCode (run.h): unstable runs are outcomes (a row with stable =
+// atomically. Finished runs are kept in `csv`.journal/ until the CSV is written, and an
+// earlier attempt's are taken from there instead of being run again. Returns an ExitCode (run.h): unstable runs are outcomes (a row with stable =
 // false), not errors; runs that failed make it exit_cases_failed, with every row written.
 // Only rank 0 writes to `log`, but for a scene that only another rank cannot read (no shared
 // file system there): that rank says so, and every rank stops before running anything.
