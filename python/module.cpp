@@ -293,6 +293,7 @@ PYBIND11_MODULE(drape, m) {
       "World (float64) and WorldF (float32), definitions with keyword arguments, state as NumPy views. "
       "See docs/python.md.";
 
+  m.attr("__version__") = DRAPE_VERSION;
   py::register_exception<app::SceneError>(m, "SceneError", PyExc_ValueError);
 
   py::enum_<Integrator>(m, "Integrator")
