@@ -371,8 +371,11 @@ int run_sweep(const SweepOptions& options, const std::filesystem::path& csv, std
   journal.remove();
   const auto unstable = std::count_if(outcomes.begin(), outcomes.end(),
                                       [](const SweepOutcome& o) { return !o.stable && o.error.empty(); });
-  log << "drape: " << cases.size() << " run(s) in " << seconds << " s (" << double(cases.size()) / seconds
-      << " scenes/s), " << unstable << " unstable";
+  // the rate of the runs made now, not of those taken from the journal
+  log << "drape: " << cases.size() << " run(s) in " << seconds << " s ("
+      << double(cases.size() - done.size()) / seconds << " scenes/s), ";
+  if (!done.empty()) log << done.size() << " of them from the journal, ";
+  log << unstable << " unstable";
   if (failed) log << ", " << failed << " failed";
   log << "; wrote " << csv.string() << '\n';
   return failed ? exit_cases_failed : exit_ok;
