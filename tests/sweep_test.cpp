@@ -3,6 +3,7 @@
 // that fails reported in its row without losing the others. `drape batch`: each scene's
 // frames exactly those of `drape run`, a bad scene reported in its row.
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <vector>
 
@@ -281,6 +282,34 @@ TEST_F(Batch, ReportsEachFailedSceneAndRunsTheRest) {
   EXPECT_EQ(rows[3][2], "unstable");
   EXPECT_NE(rows[3][5].find("unstable"), std::string::npos) << rows[3][5];
   EXPECT_FALSE(fs::exists(dir / "o" / "bad"));
+}
+
+// A batch whose batch.csv cannot be written (here it is a folder) keeps its finished scenes in
+// batch.csv.journal; the same command again runs none of them (their frames stay untouched)
+// and writes the table.
+TEST_F(Batch, KeepsFinishedScenesForTheNextAttempt) {
+  const fs::path a = write("a.json", sheet_scene()), b = write("b.json", sheet_scene(R"("integrator": "rk4", )"));
+  const fs::path out = dir / "o";
+  fs::create_directories(out / "batch.csv");
+  const std::string args = "batch " + a.string() + " " + b.string() + " --frames 3 --out " + out.string();
+  const Result failed = drape(args);
+  EXPECT_EQ(failed.code, 4) << failed.err;
+  EXPECT_NE(failed.err.find("batch.csv.journal"), std::string::npos) << failed.err;
+  ASSERT_TRUE(fs::exists(out / "b" / "frame_00003.obj"));
+  const auto written = fs::last_write_time(out / "b" / "frame_00003.obj");
+  std::error_code ec;
+  fs::last_write_time(out / "b" / "frame_00003.obj", written - std::chrono::hours(1), ec);  // any rewrite shows
+
+  fs::remove(out / "batch.csv");
+  const Result again = drape(args);
+  ASSERT_EQ(again.code, 0) << again.err;
+  EXPECT_NE(again.err.find("2 scene(s) already done"), std::string::npos) << again.err;
+  EXPECT_EQ(fs::last_write_time(out / "b" / "frame_00003.obj"), written - std::chrono::hours(1)) << "b was run again";
+  const auto rows = read_csv(out / "batch.csv");
+  ASSERT_EQ(rows.size(), 3u);
+  EXPECT_EQ(rows[1][2], "ok");
+  EXPECT_EQ(rows[2][2], "ok");
+  EXPECT_FALSE(fs::exists(out / "batch.csv.journal"));
 }
 
 TEST_F(Batch, RefusesTwoScenesThatWouldShareAFolder) {

@@ -119,86 +119,12 @@ SweepOutcome run_case(const SweepCase& c, std::optional<int> frames) {
   }
 }
 
-// The runs of a sweep already done, kept as they finish in FILE.journal/ next to the CSV (one
-// file per process, a line per run: plan fingerprint, run index, the outcome's bytes in hex),
-// so a sweep that is killed, loses a rank or cannot write its CSV loses nothing computed: the
-// same command again reads them back and runs only the rest. Removed once the CSV is written.
-class Journal {
- public:
-  Journal(std::filesystem::path dir, std::uint64_t plan) : dir_(std::move(dir)), plan_(plan) {}
-  ~Journal() {
-    if (file_) std::fclose(file_);
-  }
-  Journal(const Journal&) = delete;
-  Journal& operator=(const Journal&) = delete;
-
-  // Outcomes of this plan that some process recorded (a damaged or foreign line is skipped).
-  std::map<std::size_t, std::string> read() const {
-    std::map<std::size_t, std::string> done;
-    std::error_code ec;
-    for (const auto& entry : std::filesystem::directory_iterator(dir_, ec)) {
-      std::ifstream in(entry.path());
-      std::string plan, hex;
-      std::size_t k = 0;
-      while (in >> plan >> k >> hex) {
-        std::string bytes;
-        if (plan != plan_text() || hex.size() % 2 != 0 || hex.size() / 2 < sizeof(OutcomeBytes) ||
-            hex.find_first_not_of("0123456789abcdef") != std::string::npos)
-          continue;
-        for (std::size_t i = 0; i < hex.size(); i += 2) bytes += char(std::stoi(hex.substr(i, 2), nullptr, 16));
-        done[k] = std::move(bytes);
-      }
-    }
-    return done;
-  }
-
-  // Appends one finished run (any thread); flushed at once, so a kill keeps it.
-  void record(std::size_t k, const std::string& bytes) {
-    std::lock_guard lock(mutex_);
-    if (!file_) {
-      std::error_code ec;
-      std::filesystem::create_directories(dir_, ec);
-      const auto name = dir_ / ("process-" + std::to_string(::getpid()) + "-" + hostname() + ".log");
-      file_ = std::fopen(name.c_str(), "a");
-      if (!file_) return;  // the journal is a safety net: without it the sweep still runs
-    }
-    std::string line = plan_text() + ' ' + std::to_string(k) + ' ';
-    static const char* digits = "0123456789abcdef";
-    for (unsigned char c : bytes) line += {digits[c >> 4], digits[c & 15]};
-    line += '\n';
-    std::fputs(line.c_str(), file_);
-    std::fflush(file_);
-  }
-
-  void remove() const {
-    std::error_code ec;
-    std::filesystem::remove_all(dir_, ec);
-  }
-
- private:
-  std::string plan_text() const {
-    char buf[17];
-    std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(plan_));
-    return buf;
-  }
-  static std::string hostname() {
-    char buf[256] = {};
-    ::gethostname(buf, sizeof buf - 1);
-    return buf;
-  }
-
-  std::filesystem::path dir_;
-  std::uint64_t plan_;
-  std::mutex mutex_;
-  std::FILE* file_ = nullptr;
-};
-
 // Equal for the same runs: every case's scene fingerprint (file bytes and overrides), in
 // order, and the frame count.
 std::uint64_t plan_fingerprint(std::span<const SweepCase> cases, std::optional<int> frames) {
   std::string identity = std::to_string(frames.value_or(0));
   for (const SweepCase& c : cases) identity += ' ' + std::to_string(c.scene.fingerprint);
-  return fnv1a64(std::span(reinterpret_cast<const unsigned char*>(identity.data()), identity.size()));
+  return fingerprint_of(identity);
 }
 
 }  // namespace
@@ -214,6 +140,63 @@ std::string csv_field(const std::string& s) {
   std::string q = "\"";
   for (char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c);
   return q + "\"";
+}
+
+RunJournal::RunJournal(std::filesystem::path dir, std::uint64_t plan) : dir_(std::move(dir)) {
+  char buf[17];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(plan));
+  plan_ = buf;
+}
+
+RunJournal::~RunJournal() {
+  if (file_) std::fclose(file_);
+}
+
+std::map<std::size_t, std::string> RunJournal::read(std::size_t min_bytes) const {
+  std::map<std::size_t, std::string> done;
+  std::error_code ec;
+  for (const auto& entry : std::filesystem::directory_iterator(dir_, ec)) {
+    std::ifstream in(entry.path());
+    std::string plan, hex;
+    std::size_t k = 0;
+    while (in >> plan >> k >> hex) {
+      if (plan != plan_ || hex.size() % 2 != 0 || hex.size() / 2 < min_bytes ||
+          hex.find_first_not_of("0123456789abcdef") != std::string::npos)
+        continue;  // another plan's line, or one cut short by a kill
+      std::string bytes;
+      for (std::size_t i = 0; i < hex.size(); i += 2) bytes += char(std::stoi(hex.substr(i, 2), nullptr, 16));
+      done[k] = std::move(bytes);
+    }
+  }
+  return done;
+}
+
+void RunJournal::record(std::size_t k, const std::string& bytes) {
+  std::lock_guard lock(mutex_);
+  if (!file_) {
+    std::error_code ec;
+    std::filesystem::create_directories(dir_, ec);
+    char host[256] = {};
+    ::gethostname(host, sizeof host - 1);
+    const auto name = dir_ / ("process-" + std::to_string(::getpid()) + "-" + host + ".log");
+    file_ = std::fopen(name.c_str(), "a");
+    if (!file_) return;  // the journal is a safety net: without it the runs still run
+  }
+  std::string line = plan_ + ' ' + std::to_string(k) + ' ';
+  static const char* digits = "0123456789abcdef";
+  for (unsigned char c : bytes) line += {digits[c >> 4], digits[c & 15]};
+  line += '\n';
+  std::fputs(line.c_str(), file_);
+  std::fflush(file_);
+}
+
+void RunJournal::remove() const {
+  std::error_code ec;
+  std::filesystem::remove_all(dir_, ec);
+}
+
+std::uint64_t fingerprint_of(const std::string& identity) {
+  return fnv1a64(std::span(reinterpret_cast<const unsigned char*>(identity.data()), identity.size()));
 }
 
 std::optional<SweepParameter> parse_sweep_parameter(std::string_view text) {
@@ -328,8 +311,8 @@ int run_sweep(const SweepOptions& options, const std::filesystem::path& csv, std
     if (cluster.size() > 1) log << " on " << cluster.size() << " MPI ranks";
     log << '\n';
   }
-  Journal journal(csv.string() + ".journal", plan_fingerprint(cases, options.frames));
-  const std::map<std::size_t, std::string> done = journal.read();
+  RunJournal journal(csv.string() + ".journal", plan_fingerprint(cases, options.frames));
+  const std::map<std::size_t, std::string> done = journal.read(sizeof(OutcomeBytes));
   if (cluster.is_root() && !done.empty())
     log << "drape: " << done.size() << " run(s) already done by an earlier attempt (" << csv.string()
         << ".journal), not run again\n";
