@@ -293,6 +293,7 @@ PYBIND11_MODULE(drape, m) {
       "World (float64) and WorldF (float32), definitions with keyword arguments, state as NumPy views. "
       "See docs/python.md.";
 
+  m.attr("__version__") = DRAPE_VERSION;
   py::register_exception<app::SceneError>(m, "SceneError", PyExc_ValueError);
 
   py::enum_<Integrator>(m, "Integrator")
@@ -425,7 +426,11 @@ PYBIND11_MODULE(drape, m) {
       .def_readonly("z", &SheetArrays::z)
       .def_readonly("vx", &SheetArrays::vx)
       .def_readonly("vy", &SheetArrays::vy)
-      .def_readonly("vz", &SheetArrays::vz);
+      .def_readonly("vz", &SheetArrays::vz)
+      .def("__repr__", [](const SheetArrays& a) {
+        return "SheetArrays(m=" + std::to_string(a.m) + ", n=" + std::to_string(a.n) + ", " +
+               std::string(py::str(a.x.dtype())) + (a.x.writeable() ? ", writable)" : ", read-only)");
+      });
 
   bind_world<double>(m, "World", "A world of sheets stored and stepped in float64.");
   bind_world<float>(m, "WorldF", "A world of sheets stored and stepped in float32.");

@@ -3,6 +3,7 @@
 // that fails reported in its row without losing the others. `drape batch`: each scene's
 // frames exactly those of `drape run`, a bad scene reported in its row.
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <vector>
 
@@ -189,6 +190,48 @@ TEST_F(Cli, SweepRunThatFailsIsReportedInItsRowAndTheOthersKeepTheirResults) {
   EXPECT_EQ(rows[1][8], "");
 }
 
+// Every finished run is kept in FILE.journal as it finishes: a sweep whose CSV cannot be
+// written (here FILE is a folder) keeps them, and the same command then writes the CSV of an
+// uninterrupted sweep without running them again; a journal of other runs is not used.
+TEST_F(Cli, SweepKeepsFinishedRunsForTheNextAttempt) {
+  const fs::path scene = write("s.json", sheet_scene());
+  const std::string args = "sweep " + scene.string() + " --set sheets[*].stiffness=20,40,80 --set dt=0.001,0.0005 --out ";
+  const fs::path csv = dir / "r.csv", journal = dir / "r.csv.journal";
+  fs::create_directories(csv);  // the CSV cannot be renamed into place
+  const Result failed = drape(args + csv.string());
+  EXPECT_EQ(failed.code, 4) << failed.err;
+  EXPECT_NE(failed.err.find("r.csv.journal"), std::string::npos) << failed.err;
+  ASSERT_TRUE(fs::is_directory(journal));
+  std::size_t lines = 0;
+  for (const auto& e : fs::directory_iterator(journal)) {
+    std::istringstream in(Cli::slurp(e.path()));
+    for (std::string line; std::getline(in, line);) ++lines;
+  }
+  EXPECT_EQ(lines, 6u);
+
+  fs::remove(csv);
+  const Result again = drape(args + csv.string());
+  ASSERT_EQ(again.code, 0) << again.err;
+  EXPECT_NE(again.err.find("6 run(s) already done"), std::string::npos) << again.err;
+  EXPECT_FALSE(fs::exists(journal)) << "removed once the CSV is written";
+  const Result fresh = drape(args + (dir / "fresh.csv").string());
+  ASSERT_EQ(fresh.code, 0);
+  auto rows = read_csv(csv), expected = read_csv(dir / "fresh.csv");
+  ASSERT_EQ(rows.size(), 7u);
+  for (auto* table : {&rows, &expected})
+    for (auto& row : *table) row.at(8) = "";  // wall_time_s
+  EXPECT_EQ(rows, expected);
+
+  // a journal left by other runs (another --set) is not taken for these
+  fs::create_directories(csv.string() + "x");
+  EXPECT_EQ(drape("sweep " + scene.string() + " --set sheets[*].stiffness=20,40 --out " + csv.string() + "x").code, 4);
+  fs::remove(csv.string() + "x");
+  fs::rename(csv.string() + "x.journal", journal);
+  const Result other = drape(args + (dir / "r.csv").string());
+  ASSERT_EQ(other.code, 0) << other.err;
+  EXPECT_EQ(other.err.find("already done"), std::string::npos) << other.err;
+}
+
 TEST_F(Batch, WritesEachSceneExactlyAsDrapeRunDoes) {
   const fs::path a = write("a.json", sheet_scene());
   const fs::path b = write("b.json", sheet_scene(R"("precision": "float32", )"));
@@ -239,6 +282,34 @@ TEST_F(Batch, ReportsEachFailedSceneAndRunsTheRest) {
   EXPECT_EQ(rows[3][2], "unstable");
   EXPECT_NE(rows[3][5].find("unstable"), std::string::npos) << rows[3][5];
   EXPECT_FALSE(fs::exists(dir / "o" / "bad"));
+}
+
+// A batch whose batch.csv cannot be written (here it is a folder) keeps its finished scenes in
+// batch.csv.journal; the same command again runs none of them (their frames stay untouched)
+// and writes the table.
+TEST_F(Batch, KeepsFinishedScenesForTheNextAttempt) {
+  const fs::path a = write("a.json", sheet_scene()), b = write("b.json", sheet_scene(R"("integrator": "rk4", )"));
+  const fs::path out = dir / "o";
+  fs::create_directories(out / "batch.csv");
+  const std::string args = "batch " + a.string() + " " + b.string() + " --frames 3 --out " + out.string();
+  const Result failed = drape(args);
+  EXPECT_EQ(failed.code, 4) << failed.err;
+  EXPECT_NE(failed.err.find("batch.csv.journal"), std::string::npos) << failed.err;
+  ASSERT_TRUE(fs::exists(out / "b" / "frame_00003.obj"));
+  const auto written = fs::last_write_time(out / "b" / "frame_00003.obj");
+  std::error_code ec;
+  fs::last_write_time(out / "b" / "frame_00003.obj", written - std::chrono::hours(1), ec);  // any rewrite shows
+
+  fs::remove(out / "batch.csv");
+  const Result again = drape(args);
+  ASSERT_EQ(again.code, 0) << again.err;
+  EXPECT_NE(again.err.find("2 scene(s) already done"), std::string::npos) << again.err;
+  EXPECT_EQ(fs::last_write_time(out / "b" / "frame_00003.obj"), written - std::chrono::hours(1)) << "b was run again";
+  const auto rows = read_csv(out / "batch.csv");
+  ASSERT_EQ(rows.size(), 3u);
+  EXPECT_EQ(rows[1][2], "ok");
+  EXPECT_EQ(rows[2][2], "ok");
+  EXPECT_FALSE(fs::exists(out / "batch.csv.journal"));
 }
 
 TEST_F(Batch, RefusesTwoScenesThatWouldShareAFolder) {

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # What CI runs, from a clean clone: sets up a fresh Debian machine, then
-#   1. Release build (warnings as errors) and every test;
+#   1. Release build (warnings as errors) and every test, the Python module's pytest suite
+#      (Python.Bindings) and the 2-rank MPI tests (Mpi.*) among them;
 #   2. the tests again, built with AddressSanitizer + UndefinedBehaviorSanitizer (build-asan),
 #      and with every optional package left out (-DDRAPE_OPTIONAL_PACKAGES=OFF: Bullet, ...), so
 #      this stage also proves that a machine with only what tools/setup.sh installs builds

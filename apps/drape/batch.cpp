@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <cstring>
+#include <fstream>
 #include <set>
 #include <sstream>
 
@@ -23,8 +24,11 @@ struct BatchResult {
   std::string message;    // the run's last line of log when it did not succeed
 };
 
+constexpr std::size_t result_head = sizeof(BatchResult::code) + sizeof(BatchResult::frames) +
+                                    sizeof(BatchResult::wall_seconds);
+
 std::string encode(const BatchResult& r) {
-  char head[sizeof r.code + sizeof r.frames + sizeof r.wall_seconds];
+  char head[result_head];
   std::memcpy(head, &r.code, sizeof r.code);
   std::memcpy(head + sizeof r.code, &r.frames, sizeof r.frames);
   std::memcpy(head + sizeof r.code + sizeof r.frames, &r.wall_seconds, sizeof r.wall_seconds);
@@ -36,7 +40,7 @@ BatchResult decode(const std::string& bytes) {
   std::memcpy(&r.code, bytes.data(), sizeof r.code);
   std::memcpy(&r.frames, bytes.data() + sizeof r.code, sizeof r.frames);
   std::memcpy(&r.wall_seconds, bytes.data() + sizeof r.code + sizeof r.frames, sizeof r.wall_seconds);
-  r.message = bytes.substr(sizeof r.code + sizeof r.frames + sizeof r.wall_seconds);
+  r.message = bytes.substr(result_head);
   return r;
 }
 
@@ -84,6 +88,23 @@ BatchResult run_one(const std::filesystem::path& file, const std::filesystem::pa
   return r;
 }
 
+// Equal for the same batch: the scene files (paths and bytes), --frames and --format.
+std::uint64_t batch_fingerprint(const BatchOptions& options) {
+  std::string identity = std::to_string(options.frames.value_or(0));
+  for (MeshFormat f : options.formats.value_or(std::vector<MeshFormat>{})) identity += mesh_format_name(f);
+  for (const auto& scene : options.scenes) {
+    std::ifstream in(scene, std::ios::binary);
+    std::ostringstream bytes;
+    bytes << in.rdbuf();
+    identity += '\n' + scene.string() + '\n' + std::to_string(fingerprint_of(bytes.str()));
+  }
+  return fingerprint_of(identity);
+}
+
+// A result worth keeping: the scene ran to its end or went unstable, or its file was bad
+// (each would be the same again); a write failure or an exception is tried again.
+bool final_result(int code) { return code == exit_ok || code == exit_unstable || code == exit_bad_scene; }
+
 }  // namespace
 
 std::optional<std::vector<std::string>> batch_folders(const std::vector<std::filesystem::path>& scenes, std::string& error) {
@@ -112,10 +133,20 @@ int run_batch(const BatchOptions& options, std::ostream& log, const Cluster& clu
     if (cluster.size() > 1) log << " on " << cluster.size() << " MPI ranks";
     log << " into " << options.out_dir.string() << '\n';
   }
+  const std::filesystem::path csv = options.out_dir / "batch.csv";
+  RunJournal journal(csv.string() + ".journal", batch_fingerprint(options));
+  const std::map<std::size_t, std::string> done = journal.read(result_head);
+  if (cluster.is_root() && !done.empty())
+    log << "drape: " << done.size() << " scene(s) already done by an earlier attempt (" << csv.string()
+        << ".journal), not run again\n";
   const auto start = std::chrono::steady_clock::now();
   const std::vector<std::string> results =
       run_spread(cluster, options.scenes.size(), cluster.threads(options.threads), [&](std::size_t k) {
-        return encode(run_one(options.scenes[k], options.out_dir / (*folders)[k], options));
+        if (const auto it = done.find(k); it != done.end()) return it->second;
+        const BatchResult r = run_one(options.scenes[k], options.out_dir / (*folders)[k], options);
+        std::string bytes = encode(r);
+        if (final_result(r.code)) journal.record(k, bytes);
+        return bytes;
       });
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (!cluster.is_root()) return exit_ok;
@@ -129,7 +160,6 @@ int run_batch(const BatchOptions& options, std::ostream& log, const Cluster& clu
     log << "drape: " << options.scenes[k].string() << ": " << status_name(rows.back().code) << ": "
         << rows.back().message << '\n';
   }
-  const std::filesystem::path csv = options.out_dir / "batch.csv";
   try {
     std::error_code ec;
     std::filesystem::create_directories(options.out_dir, ec);
@@ -142,9 +172,11 @@ int run_batch(const BatchOptions& options, std::ostream& log, const Cluster& clu
             << ',' << csv_field(rows[k].message) << '\n';
     });
   } catch (const std::runtime_error& e) {
-    log << "drape: " << e.what() << '\n';
+    log << "drape: " << e.what() << "; the finished scenes are kept in " << csv.string()
+        << ".journal: the same command again does not run them\n";
     return exit_write_failed;
   }
+  journal.remove();
   log << "drape: " << rows.size() << " scene(s) in " << seconds << " s (" << double(rows.size()) / seconds
       << " scenes/s), " << failed << " did not finish; wrote " << csv.string() << '\n';
   return failed ? exit_cases_failed : exit_ok;

@@ -10,10 +10,17 @@
 #include <chrono>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
+#include <fstream>
+#include <map>
+#include <mutex>
 #include <limits>
 #include <numeric>
 
+#include <unistd.h>
+
+#include "checkpoint.h"
 #include "export.h"
 #include "progress.h"
 #include "run.h"
@@ -112,6 +119,14 @@ SweepOutcome run_case(const SweepCase& c, std::optional<int> frames) {
   }
 }
 
+// Equal for the same runs: every case's scene fingerprint (file bytes and overrides), in
+// order, and the frame count.
+std::uint64_t plan_fingerprint(std::span<const SweepCase> cases, std::optional<int> frames) {
+  std::string identity = std::to_string(frames.value_or(0));
+  for (const SweepCase& c : cases) identity += ' ' + std::to_string(c.scene.fingerprint);
+  return fingerprint_of(identity);
+}
+
 }  // namespace
 
 std::string shortest_number(double v) {
@@ -125,6 +140,63 @@ std::string csv_field(const std::string& s) {
   std::string q = "\"";
   for (char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c);
   return q + "\"";
+}
+
+RunJournal::RunJournal(std::filesystem::path dir, std::uint64_t plan) : dir_(std::move(dir)) {
+  char buf[17];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(plan));
+  plan_ = buf;
+}
+
+RunJournal::~RunJournal() {
+  if (file_) std::fclose(file_);
+}
+
+std::map<std::size_t, std::string> RunJournal::read(std::size_t min_bytes) const {
+  std::map<std::size_t, std::string> done;
+  std::error_code ec;
+  for (const auto& entry : std::filesystem::directory_iterator(dir_, ec)) {
+    std::ifstream in(entry.path());
+    std::string plan, hex;
+    std::size_t k = 0;
+    while (in >> plan >> k >> hex) {
+      if (plan != plan_ || hex.size() % 2 != 0 || hex.size() / 2 < min_bytes ||
+          hex.find_first_not_of("0123456789abcdef") != std::string::npos)
+        continue;  // another plan's line, or one cut short by a kill
+      std::string bytes;
+      for (std::size_t i = 0; i < hex.size(); i += 2) bytes += char(std::stoi(hex.substr(i, 2), nullptr, 16));
+      done[k] = std::move(bytes);
+    }
+  }
+  return done;
+}
+
+void RunJournal::record(std::size_t k, const std::string& bytes) {
+  std::lock_guard lock(mutex_);
+  if (!file_) {
+    std::error_code ec;
+    std::filesystem::create_directories(dir_, ec);
+    char host[256] = {};
+    ::gethostname(host, sizeof host - 1);
+    const auto name = dir_ / ("process-" + std::to_string(::getpid()) + "-" + host + ".log");
+    file_ = std::fopen(name.c_str(), "a");
+    if (!file_) return;  // the journal is a safety net: without it the runs still run
+  }
+  std::string line = plan_ + ' ' + std::to_string(k) + ' ';
+  static const char* digits = "0123456789abcdef";
+  for (unsigned char c : bytes) line += {digits[c >> 4], digits[c & 15]};
+  line += '\n';
+  std::fputs(line.c_str(), file_);
+  std::fflush(file_);
+}
+
+void RunJournal::remove() const {
+  std::error_code ec;
+  std::filesystem::remove_all(dir_, ec);
+}
+
+std::uint64_t fingerprint_of(const std::string& identity) {
+  return fnv1a64(std::span(reinterpret_cast<const unsigned char*>(identity.data()), identity.size()));
 }
 
 std::optional<SweepParameter> parse_sweep_parameter(std::string_view text) {
@@ -247,16 +319,27 @@ int run_sweep(const SweepOptions& options, const std::filesystem::path& csv, std
     if (cluster.size() > 1) log << " on " << cluster.size() << " MPI ranks";
     log << '\n';
   }
+  RunJournal journal(csv.string() + ".journal", plan_fingerprint(cases, options.frames));
+  const std::map<std::size_t, std::string> done = journal.read(sizeof(OutcomeBytes));
+  if (cluster.is_root() && !done.empty())
+    log << "drape: " << done.size() << " run(s) already done by an earlier attempt (" << csv.string()
+        << ".journal), not run again\n";
   const auto start = std::chrono::steady_clock::now();
   // Progress of this rank's runs, shown by rank 0 only (its share is about 1/R of the sweep).
   std::optional<Progress> progress;
   if (cluster.is_root()) progress.emplace(log, "run", std::int64_t(cluster.my_cases(cases.size()).size()), options.progress_bar);
-  std::atomic<std::int64_t> done{0};
+  std::atomic<std::int64_t> finished{0};
   const std::vector<std::string> results = run_spread(
       cluster, cases.size(), cluster.threads(options.threads),
-      [&](std::size_t k) { return encode(run_case(cases[k], options.frames)); },
+      [&](std::size_t k) {
+        if (const auto it = done.find(k); it != done.end()) return it->second;
+        const SweepOutcome outcome = run_case(cases[k], options.frames);
+        std::string bytes = encode(outcome);
+        if (outcome.error.empty()) journal.record(k, bytes);  // a failure is tried again next time
+        return bytes;
+      },
       [&] {
-        if (progress) progress->update(++done);
+        if (progress) progress->update(++finished);
       });
   if (progress) progress->finish();
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -281,13 +364,18 @@ int run_sweep(const SweepOptions& options, const std::filesystem::path& csv, std
     }
     write_atomically(csv, [&](std::ostream& out) { write_sweep_csv(out, options, cases, outcomes); });
   } catch (const std::runtime_error& e) {
-    log << "drape: " << e.what() << '\n';
+    log << "drape: " << e.what() << "; the runs are kept in " << csv.string()
+        << ".journal: the same command again writes the CSV without running them\n";
     return exit_write_failed;
   }
+  journal.remove();
   const auto unstable = std::count_if(outcomes.begin(), outcomes.end(),
                                       [](const SweepOutcome& o) { return !o.stable && o.error.empty(); });
-  log << "drape: " << cases.size() << " run(s) in " << seconds << " s (" << double(cases.size()) / seconds
-      << " scenes/s), " << unstable << " unstable";
+  // the rate of the runs made now, not of those taken from the journal
+  log << "drape: " << cases.size() << " run(s) in " << seconds << " s ("
+      << double(cases.size() - done.size()) / seconds << " scenes/s), ";
+  if (!done.empty()) log << done.size() << " of them from the journal, ";
+  log << unstable << " unstable";
   if (failed) log << ", " << failed << " failed";
   log << "; wrote " << csv.string() << '\n';
   return failed ? exit_cases_failed : exit_ok;

@@ -5,8 +5,11 @@
 // runs are dealt out to the ranks (cluster.h) and rank 0 writes the very same CSV.
 #pragma once
 
+#include <cstdio>
 #include <filesystem>
 #include <functional>
+#include <map>
+#include <mutex>
 #include <optional>
 #include <ostream>
 #include <span>
@@ -77,6 +80,33 @@ std::vector<std::string> run_spread(const Cluster& cluster, std::size_t total, i
                                     const std::function<std::string(std::size_t)>& run_case,
                                     const std::function<void()>& finished = {});
 
+// The results of a plan's runs, kept as they finish in a folder beside the output (one file per
+// process, a line per run: the plan's fingerprint, the run's index, its result's bytes in hex),
+// so a sweep or batch that is killed, loses a rank or cannot write its table loses nothing
+// computed: the same command again reads them back and runs only the rest. The caller removes
+// the folder once its output is written.
+class RunJournal {
+ public:
+  RunJournal(std::filesystem::path dir, std::uint64_t plan);
+  ~RunJournal();
+  RunJournal(const RunJournal&) = delete;
+  RunJournal& operator=(const RunJournal&) = delete;
+  // Results of this plan any process recorded, by run index; lines of another plan, of fewer
+  // than `min_bytes` bytes or cut short by a kill are skipped.
+  std::map<std::size_t, std::string> read(std::size_t min_bytes) const;
+  // Appends one run's result (from any thread), flushed at once so a kill keeps it.
+  void record(std::size_t k, const std::string& bytes);
+  void remove() const;
+
+ private:
+  std::filesystem::path dir_;
+  std::string plan_;
+  std::mutex mutex_;
+  std::FILE* file_ = nullptr;
+};
+// FNV-1a 64 of a plan's description: equal descriptions, equal runs.
+std::uint64_t fingerprint_of(const std::string& identity);
+
 // CSV helpers shared by the sweep's and the batch's tables: RFC 4180 quoting (a field holding
 // a comma, quote or line break), and numbers in shortest round-trip form.
 std::string csv_field(const std::string& s);
@@ -88,7 +118,8 @@ void write_sweep_csv(std::ostream& out, const SweepOptions& options, std::span<c
                      std::span<const SweepOutcome> outcomes);
 
 // The whole subcommand: plan, run this rank's cases, gather, and (rank 0) write `csv`
-// atomically. Returns an ExitCode (run.h): unstable runs are outcomes (a row with stable =
+// atomically. Finished runs are kept in `csv`.journal/ until the CSV is written, and an
+// earlier attempt's are taken from there instead of being run again. Returns an ExitCode (run.h): unstable runs are outcomes (a row with stable =
 // false), not errors; runs that failed make it exit_cases_failed, with every row written.
 // Only rank 0 writes to `log`, but for a scene that only another rank cannot read (no shared
 // file system there): that rank says so, and every rank stops before running anything.

@@ -226,6 +226,7 @@ def test_unstable_world_reports_instead_of_raising():
 
 
 def test_definitions_take_keywords_and_tuples():
+    assert drape.__version__.count(".") == 2
     d = drape.SheetDef(m=3, n=4, center=[1, 2, 3], anchors=[drape.AnchorDef(point=0, stiffness=5)])
     assert d.center == (1.0, 2.0, 3.0) and d.m == 3 and d.anchors[0].target is None
     d.orientation = drape.quat_from_axis_angle((0, 0, 1), 0.5)
