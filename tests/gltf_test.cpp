@@ -222,3 +222,23 @@ TEST_F(Cli, GlbCannotBeResumedAndSaysSo) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST_F(Cli, GlbIsTheSameBytesWithOneAndTwoThreads) {
+  const fs::path scene = write("s.json", scene_text);
+  std::string bytes[2];
+  for (int threads : {1, 2}) {
+    std::string name = "threads";  // appended, not "t" + …: GCC 12 warns falsely (-Wrestrict)
+    name += std::to_string(threads);
+    const fs::path out = dir / name;
+    const Result r = drape("run " + scene.string() + " --threads " + std::to_string(threads) + " --out " + out.string() +
+                           " --format glb --surface bspline --surface-samples 2");
+    ASSERT_EQ(r.code, 0) << r.err;
+    bytes[threads - 1] = slurp(out / "run.glb");
+  }
+  EXPECT_GT(bytes[0].size(), 1000u);
+  EXPECT_EQ(bytes[0], bytes[1]);
+}
+
+}  // namespace
