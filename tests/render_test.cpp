@@ -349,17 +349,26 @@ TEST(Render, ObstacleHidesSheetLinesBehindIt) {
   EXPECT_EQ(outside_same, outside) << "the sphere changed sheet lines it does not cover";
 }
 
-TEST(Render, OpaqueSheetHidesObstacleBehindIt) {
-  // A sheet standing between the eye and a sphere, covering the sphere's whole outline.
-  const TestSheet sheet(5, 5, -2.0, -2.0, -2.0, 4.0, 4.0, std::numbers::pi / 2);
-  drape::ObstacleDef sphere;
-  sphere.shape = drape::ObstacleShape::Sphere;
-  sphere.size = {0.7, 0, 0};
+// A sheet standing between the eye and a sphere (the plane y = −2), covering the sphere's
+// whole outline.
+struct SheetBeforeSphere {
+  TestSheet sheet{5, 5, -2.0, -2.0, -2.0, 4.0, 4.0, std::numbers::pi / 2};
+  std::vector<SheetMesh> sheets{sheet.mesh()};
+  std::vector<drape::ObstacleDef> obstacles;
   Camera cam;
-  cam.eye = {0.3, -7, 0.4};
-  cam.target = {0, 0, 0};
-  const std::vector<SheetMesh> sheets{sheet.mesh()};
-  const std::vector<drape::ObstacleDef> obstacles{sphere};
+  SheetBeforeSphere() {
+    drape::ObstacleDef sphere;
+    sphere.shape = drape::ObstacleShape::Sphere;
+    sphere.size = {0.7, 0, 0};
+    obstacles.push_back(sphere);
+    cam.eye = {0.3, -7, 0.4};
+    cam.target = {0, 0, 0};
+  }
+};
+
+TEST(Render, OpaqueSheetHidesObstacleBehindIt) {
+  const SheetBeforeSphere set_up;
+  const auto& [sheet, sheets, obstacles, cam] = set_up;
   auto bluish_pixels = [&](bool opaque) {
     RenderOptions opt;
     opt.opaque_sheets = opaque;
@@ -603,15 +612,8 @@ TEST(RenderShaded, ASphereIsLitBrightestWhereItsNormalMeetsTheLight) {
 }
 
 TEST(RenderShaded, ANearerSheetHidesTheSphereBehindIt) {
-  const TestSheet sheet(5, 5, -2.0, -2.0, -2.0, 4.0, 4.0, std::numbers::pi / 2);  // the plane y = −2
-  drape::ObstacleDef sphere;
-  sphere.shape = drape::ObstacleShape::Sphere;
-  sphere.size = {0.7, 0, 0};
-  Camera cam;
-  cam.eye = {0.3, -7, 0.4};
-  cam.target = {0, 0, 0};
-  const std::vector<SheetMesh> sheets{sheet.mesh()};
-  const std::vector<drape::ObstacleDef> obstacles{sphere};
+  const SheetBeforeSphere set_up;
+  const auto& [sheet, sheets, obstacles, cam] = set_up;
   const RenderOptions opt;
   const Image both = render_shaded(sheets, obstacles, cam, 100, 100, opt);
   const Image sheet_only = render_shaded(sheets, {}, cam, 100, 100, opt);
