@@ -211,6 +211,16 @@ TEST_F(Cli, GlbOfASurfaceHoldsItsSamples) {
   EXPECT_EQ(g.doc["scenes"][0]["extras"]["drape"]["surface"], "bezier");
 }
 
+TEST_F(Cli, AGlbAboveFourGibIsRefusedBeforeTheRunSteps) {
+  // 101² points sampled 64 times per cell: 6401² vertices × 24 bytes ≈ 938 MiB a frame; 6 frames
+  const fs::path scene = write("big.json", R"({"frames": 5, "sheets": [{"grid": [100, 100], "size": [1, 1], "stiffness": 10}]})");
+  const fs::path out = dir / "out";
+  const Result r = drape("run " + scene.string() + " --out " + out.string() + " --format glb --surface bspline --surface-samples 64");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("6 frames make a glb of at least 5626 MiB, above glTF's 4 GiB"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(out));
+}
+
 TEST_F(Cli, GlbCannotBeResumedAndSaysSo) {
   const fs::path scene = write("s.json", scene_text);
   const fs::path out = dir / "out";
