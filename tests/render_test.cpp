@@ -623,3 +623,30 @@ TEST(RenderShaded, ANearerSheetHidesTheSphereBehindIt) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(RenderShaded, EachOfFourSheetsInARowIsDarkerThanTheOneBefore) {
+  // Four flat sheets side by side seen from straight above: the same light on each, the
+  // brightness 1, 0.86, 0.72, 0.58 of the front colour (render.h), so a stack shows its layers.
+  std::vector<TestSheet> owned;
+  for (int k = 0; k < 4; ++k) owned.emplace_back(2, 2, -2.0 + k, -0.4, 0.0, 0.8, 0.8, 0.0);
+  std::vector<SheetMesh> sheets;
+  for (const auto& t : owned) sheets.push_back(t.mesh());
+  Camera cam;
+  cam.eye = {0, 0, 6};
+  cam.target = {0, 0, 0};
+  cam.up = {0, 1, 0};
+  const RenderOptions opt;
+  const Image img = render_shaded(sheets, {}, cam, 400, 200, opt);
+  const Pinhole p(cam, 400, 200);
+  const auto lit = expected_shade(p, {0, 0, 1}, opt.front_color);
+  for (int k = 0; k < 4; ++k) {
+    const auto [sx, sy] = p.project({-1.6 + k, 0, 0});
+    const double tint = 1 - 0.14 * k;
+    // the tinted colour is rounded before lighting: allow that rounding and the pixel's
+    for (int ch = 0; ch < 3; ++ch) EXPECT_NEAR(img.pixel(int(sx), int(sy))[ch], tint * lit[ch], 1.5) << "sheet " << k;
+  }
+}
+
+}  // namespace
