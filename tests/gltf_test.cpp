@@ -211,6 +211,16 @@ TEST_F(Cli, GlbOfASurfaceHoldsItsSamples) {
   EXPECT_EQ(g.doc["scenes"][0]["extras"]["drape"]["surface"], "bezier");
 }
 
+TEST_F(Cli, AGlbAboveFourGibIsRefusedBeforeTheRunSteps) {
+  // 101² points sampled 64 times per cell: 6401² vertices × 24 bytes ≈ 938 MiB a frame; 6 frames
+  const fs::path scene = write("big.json", R"({"frames": 5, "sheets": [{"grid": [100, 100], "size": [1, 1], "stiffness": 10}]})");
+  const fs::path out = dir / "out";
+  const Result r = drape("run " + scene.string() + " --out " + out.string() + " --format glb --surface bspline --surface-samples 64");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("6 frames make a glb of at least 5626 MiB, above glTF's 4 GiB"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(out));
+}
+
 TEST_F(Cli, GlbCannotBeResumedAndSaysSo) {
   const fs::path scene = write("s.json", scene_text);
   const fs::path out = dir / "out";
@@ -219,6 +229,26 @@ TEST_F(Cli, GlbCannotBeResumedAndSaysSo) {
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("the glb format holds every frame"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(out / "run.glb"));
+}
+
+}  // namespace
+
+namespace {
+
+TEST_F(Cli, GlbIsTheSameBytesWithOneAndTwoThreads) {
+  const fs::path scene = write("s.json", scene_text);
+  std::string bytes[2];
+  for (int threads : {1, 2}) {
+    std::string name = "threads";  // appended, not "t" + …: GCC 12 warns falsely (-Wrestrict)
+    name += std::to_string(threads);
+    const fs::path out = dir / name;
+    const Result r = drape("run " + scene.string() + " --threads " + std::to_string(threads) + " --out " + out.string() +
+                           " --format glb --surface bspline --surface-samples 2");
+    ASSERT_EQ(r.code, 0) << r.err;
+    bytes[threads - 1] = slurp(out / "run.glb");
+  }
+  EXPECT_GT(bytes[0].size(), 1000u);
+  EXPECT_EQ(bytes[0], bytes[1]);
 }
 
 }  // namespace

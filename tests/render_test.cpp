@@ -349,17 +349,26 @@ TEST(Render, ObstacleHidesSheetLinesBehindIt) {
   EXPECT_EQ(outside_same, outside) << "the sphere changed sheet lines it does not cover";
 }
 
-TEST(Render, OpaqueSheetHidesObstacleBehindIt) {
-  // A sheet standing between the eye and a sphere, covering the sphere's whole outline.
-  const TestSheet sheet(5, 5, -2.0, -2.0, -2.0, 4.0, 4.0, std::numbers::pi / 2);
-  drape::ObstacleDef sphere;
-  sphere.shape = drape::ObstacleShape::Sphere;
-  sphere.size = {0.7, 0, 0};
+// A sheet standing between the eye and a sphere (the plane y = −2), covering the sphere's
+// whole outline.
+struct SheetBeforeSphere {
+  TestSheet sheet{5, 5, -2.0, -2.0, -2.0, 4.0, 4.0, std::numbers::pi / 2};
+  std::vector<SheetMesh> sheets{sheet.mesh()};
+  std::vector<drape::ObstacleDef> obstacles;
   Camera cam;
-  cam.eye = {0.3, -7, 0.4};
-  cam.target = {0, 0, 0};
-  const std::vector<SheetMesh> sheets{sheet.mesh()};
-  const std::vector<drape::ObstacleDef> obstacles{sphere};
+  SheetBeforeSphere() {
+    drape::ObstacleDef sphere;
+    sphere.shape = drape::ObstacleShape::Sphere;
+    sphere.size = {0.7, 0, 0};
+    obstacles.push_back(sphere);
+    cam.eye = {0.3, -7, 0.4};
+    cam.target = {0, 0, 0};
+  }
+};
+
+TEST(Render, OpaqueSheetHidesObstacleBehindIt) {
+  const SheetBeforeSphere set_up;
+  const auto& [sheet, sheets, obstacles, cam] = set_up;
   auto bluish_pixels = [&](bool opaque) {
     RenderOptions opt;
     opt.opaque_sheets = opaque;
@@ -603,21 +612,41 @@ TEST(RenderShaded, ASphereIsLitBrightestWhereItsNormalMeetsTheLight) {
 }
 
 TEST(RenderShaded, ANearerSheetHidesTheSphereBehindIt) {
-  const TestSheet sheet(5, 5, -2.0, -2.0, -2.0, 4.0, 4.0, std::numbers::pi / 2);  // the plane y = −2
-  drape::ObstacleDef sphere;
-  sphere.shape = drape::ObstacleShape::Sphere;
-  sphere.size = {0.7, 0, 0};
-  Camera cam;
-  cam.eye = {0.3, -7, 0.4};
-  cam.target = {0, 0, 0};
-  const std::vector<SheetMesh> sheets{sheet.mesh()};
-  const std::vector<drape::ObstacleDef> obstacles{sphere};
+  const SheetBeforeSphere set_up;
+  const auto& [sheet, sheets, obstacles, cam] = set_up;
   const RenderOptions opt;
   const Image both = render_shaded(sheets, obstacles, cam, 100, 100, opt);
   const Image sheet_only = render_shaded(sheets, {}, cam, 100, 100, opt);
   EXPECT_EQ(both.rgb, sheet_only.rgb);
   const Image sphere_only = render_shaded({}, obstacles, cam, 100, 100, opt);
   EXPECT_NE(sphere_only.rgb, sheet_only.rgb) << "test set-up: the sphere alone is visible";
+}
+
+}  // namespace
+
+namespace {
+
+TEST(RenderShaded, EachOfFourSheetsInARowIsDarkerThanTheOneBefore) {
+  // Four flat sheets side by side seen from straight above: the same light on each, the
+  // brightness 1, 0.86, 0.72, 0.58 of the front colour (render.h), so a stack shows its layers.
+  std::vector<TestSheet> owned;
+  for (int k = 0; k < 4; ++k) owned.emplace_back(2, 2, -2.0 + k, -0.4, 0.0, 0.8, 0.8, 0.0);
+  std::vector<SheetMesh> sheets;
+  for (const auto& t : owned) sheets.push_back(t.mesh());
+  Camera cam;
+  cam.eye = {0, 0, 6};
+  cam.target = {0, 0, 0};
+  cam.up = {0, 1, 0};
+  const RenderOptions opt;
+  const Image img = render_shaded(sheets, {}, cam, 400, 200, opt);
+  const Pinhole p(cam, 400, 200);
+  const auto lit = expected_shade(p, {0, 0, 1}, opt.front_color);
+  for (int k = 0; k < 4; ++k) {
+    const auto [sx, sy] = p.project({-1.6 + k, 0, 0});
+    const double tint = 1 - 0.14 * k;
+    // the tinted colour is rounded before lighting: allow that rounding and the pixel's
+    for (int ch = 0; ch < 3; ++ch) EXPECT_NEAR(img.pixel(int(sx), int(sy))[ch], tint * lit[ch], 1.5) << "sheet " << k;
+  }
 }
 
 }  // namespace

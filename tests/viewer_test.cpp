@@ -120,12 +120,25 @@ TEST_F(Viewer, PlaysAShippedRunShowingTheSheetWhereTheCameraSeesIt) {
   const std::array<std::uint8_t, 3> white{255, 255, 255};
   EXPECT_EQ(first.pixel(4, 4), white) << "the background away from the content";
 
-  // The slider (set from the address, as a user's drag sets it) shows another frame.
+  // The slider, moved by ?frame=12 (the page sets it and fires its input event, as a drag
+  // does), shows another frame.
   const auto later = screenshot(server.port, "?frame=12", "later");
   int changed = 0;
   for (int py = 0; py < 432; ++py)
     for (int px = 0; px < 640; ++px) changed += later.pixel(px, py) != first.pixel(px, py);
   EXPECT_GT(changed, 1000);
+}
+
+TEST_F(Cli, ViewRefusesAFolderWithoutARunAndRenderAnUnknownStyle) {
+  const Result view = drape("view " + dir.string() + " --port 0");
+  EXPECT_EQ(view.code, 2);
+  EXPECT_EQ(view.err, "drape: view " + dir.string() + ": no run.glb there; write one with `drape run SCENE --out " +
+                          dir.string() + " --format glb`\n");
+  const fs::path scene = write("s.json", R"({"frames": 1, "sheets": [{"grid": [2, 2], "size": [1, 1], "stiffness": 10}]})");
+  const Result render = drape("render " + scene.string() + " --style cartoon -o " + (dir / "a.png").string());
+  EXPECT_EQ(render.code, 2);
+  EXPECT_NE(render.err.find("--style"), std::string::npos) << render.err;
+  EXPECT_FALSE(fs::exists(dir / "a.png"));
 }
 
 TEST_F(Cli, GlbPassesTheKhronosValidator) {

@@ -89,6 +89,13 @@ GltfRun::GltfRun(const Scene& scene, GltfOptions options) : scene_(scene), optio
   }
 }
 
+std::uint64_t GltfRun::frame_bytes(std::uint64_t frames) const {
+  std::uint64_t vertices = 0;
+  const std::uint64_t k = std::uint64_t(options_.samples_per_cell);
+  for (const SheetLayout& s : sheets_) vertices += (s.m * k + 1) * (s.n * k + 1);
+  return frames * vertices * 2 * 3 * sizeof(float);
+}
+
 int GltfRun::add_view(const void* data, std::size_t bytes, int target) {
   while (bin_.size() % 4) bin_.push_back(0);  // every component is 4 bytes wide
   const std::size_t offset = bin_.size();
@@ -267,7 +274,7 @@ void GltfRun::write(std::ostream& out) {
     out.write(reinterpret_cast<const char*>(b), 4);
   };
   const std::uint64_t total = 12 + 8 + text.size() + 8 + bin_.size();
-  if (total > std::numeric_limits<std::uint32_t>::max())
+  if (total > max_bytes)
     throw std::runtime_error("the run is " + std::to_string(total >> 20) + " MiB as glTF, above the format's 4 GiB; "
                              "write fewer frames or fewer surface samples");
   u32(0x46546C67);  // "glTF"

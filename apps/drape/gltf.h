@@ -45,6 +45,10 @@ class GltfRun {
   template <class Real>
   void add_frame(std::span<const SheetView<Real>> sheets, double time);
   int frames() const { return int(times_.size()); }
+  // The binary data `frames` frames will take (positions and normals; indices, obstacles and
+  // the animation not counted): a run can be refused before it steps.
+  std::uint64_t frame_bytes(std::uint64_t frames) const;
+  static constexpr std::uint64_t max_bytes = 0xFFFFFFFFull;  // a .glb's length is 32-bit
 
   // Finishes the file (obstacles, camera, animation) and writes the .glb bytes of the frames
   // added. Call once. Throws std::runtime_error when the file would pass glTF's 4 GiB.

@@ -75,6 +75,16 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
         << "written\n";
     return exit_usage;
   }
+  std::optional<GltfRun> gltf;
+  if (glb) {
+    gltf.emplace(scene, GltfOptions{opt.surface, opt.surface_samples});
+    if (const std::uint64_t bytes = gltf->frame_bytes(std::uint64_t(frames) + 1); bytes > GltfRun::max_bytes) {
+      log << "drape: " << scene.file << ": " << frames + 1 << " frames make a glb of at least " << (bytes >> 20)
+          << " MiB, above glTF's 4 GiB; write fewer frames (--frames) or fewer --surface-samples. Nothing was "
+          << "written\n";
+      return exit_usage;
+    }
+  }
 
   std::vector<SheetId> ids;
   BasicWorld<Real> world = build_world<Real>(scene, opt.threads, ids);
@@ -143,8 +153,6 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
     return exit_write_failed;
   }
   std::vector<PvdEntry> pvd;
-  std::optional<GltfRun> gltf;
-  if (glb) gltf.emplace(scene, GltfOptions{opt.surface, opt.surface_samples});
   // frames written before a resume stay in the .pvd series; time as world.time() computes it
   if (std::find(formats.begin(), formats.end(), MeshFormat::Vtk) != formats.end())
     for (int f = 0; f < first_frame && opt.resume_dir; ++f)

@@ -878,7 +878,15 @@ Image render_shaded(std::span<const SheetMesh> sheets, std::span<const ObstacleD
             options.solid_color, options.solid_color);
     }
   }
-  for (const SurfaceMesh& s : surfaces)
+  for (std::size_t index = 0; index < surfaces.size(); ++index) {
+    const SurfaceMesh& s = surfaces[index];
+    // sheet k's colours at (1 − 0.14·(k mod 4)) of their brightness: stacked sheets stay apart
+    const double tint = 1 - 0.14 * double(index % 4);
+    auto tinted = [&](std::array<std::uint8_t, 3> c) {
+      return std::array<std::uint8_t, 3>{std::uint8_t(std::lround(tint * c[0])), std::uint8_t(std::lround(tint * c[1])),
+                                         std::uint8_t(std::lround(tint * c[2]))};
+    };
+    const auto front = tinted(options.front_color), back = tinted(options.back_color);
     for (std::uint32_t i = 0; i + 1 < s.rows; ++i)
       for (std::uint32_t j = 0; j + 1 < s.cols; ++j) {
         // the exported quads' winding: (i, j), (i, j+1), (i+1, j+1), (i+1, j) faces the normals' side
@@ -886,10 +894,10 @@ Image render_shaded(std::span<const SheetMesh> sheets, std::span<const ObstacleD
                                   std::size_t(i + 1) * s.cols + j + 1, std::size_t(i + 1) * s.cols + j};
         for (int tri = 0; tri < 2; ++tri) {
           const std::size_t a = k[0], b = k[1 + tri], c = k[2 + tri];
-          shade(s.points[a], s.points[b], s.points[c], s.normals[a], s.normals[b], s.normals[c], options.front_color,
-                options.back_color);
+          shade(s.points[a], s.points[b], s.points[c], s.normals[a], s.normals[b], s.normals[c], front, back);
         }
       }
+  }
   return canvas.resolve(width, height);
 }
 

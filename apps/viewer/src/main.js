@@ -1,7 +1,8 @@
 // The drape viewer: plays the run.glb that `drape view OUT_DIR` serves next to this page.
 // The file's layout (apps/drape/gltf.h): frame nodes "frame_NNNNN" under the root, one shown at a
 // time; obstacles; a camera. The page shows frame k by making its node the only visible one,
-// so the slider, the play loop and a ?frame=K in the address all set the same state.
+// so the slider, the play loop and a ?frame=K in the address (which moves the slider) all set
+// the same state.
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/examples/jsm/loaders/GLTFLoader.js';
 import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
@@ -120,7 +121,11 @@ new GLTFLoader().load(params.get('file') || 'run.glb', (gltf) => {
   }
   slider.max = String(frames.length - 1);
   resize();
-  show(params.has('frame') ? Number(params.get('frame')) : 0);
+  show(0);
+  if (params.has('frame')) {  // as if the user had dragged the slider there
+    slider.value = params.get('frame');
+    slider.dispatchEvent(new Event('input'));
+  }
   if (params.get('play') === '1') setPlaying(true);
   document.title = `drape viewer: ${info.frames || frames.length} frames`;
   requestAnimationFrame((now) => { last = now; loop(now); });
@@ -129,6 +134,5 @@ new GLTFLoader().load(params.get('file') || 'run.glb', (gltf) => {
 slider.addEventListener('input', () => { show(Number(slider.value)); clock = times[current] - times[0]; });
 playButton.addEventListener('click', () => setPlaying(!playing));
 wire.addEventListener('change', () => { for (const m of materials) m.wireframe = wire.checked; });
-speed.addEventListener('change', () => {});
 window.addEventListener('keydown', (e) => { if (e.code === 'Space') { setPlaying(!playing); e.preventDefault(); } });
 window.addEventListener('resize', resize);
