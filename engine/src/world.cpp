@@ -226,30 +226,72 @@ struct BasicWorld<Real>::Impl {
            std::any_of(active.begin(), active.end(), [&](auto i) { return slots[i].sheet->self_collision; });
   }
 
-  // Host stage: bounds → broad-phase → contact work per overlapping pair → which forces
-  // each sheet gathers. Sheets whose boxes (grown by half the contact range each) do not
-  // meet never reach the narrow phase.
-  void host_stage() {
+  // ---- The substep's stages, in the order substep() runs them ----------------------
+  //
+  // The host stage (serial decisions, parallel work inside), then the parallel stage over
+  // sheets and row blocks. The contact stages run only while contacts are possible (more
+  // than one sheet, or a self-colliding one, and contact_strength > 0); sheets whose boxes
+  // (grown by half the contact range each) do not meet never reach the narrow phase.
+  enum class Stage {
+    Bounds,       // every sheet's box, and the box grown by half the contact range
+    BroadPhase,   // pairs of sheets whose grown boxes meet, and self-colliding sheets with themselves
+    NarrowPhase,  // each pair's contact forces, into buffers only that pair owns (contacts.cpp)
+    GatherPlan,   // each sheet's list of the buffers aimed at it, in pair order; has_contacts
+    Obstacles,    // each sheet's list of obstacles within reach (assign_obstacles)
+    Integrate,    // per sheet or row block: gather contacts, force terms (terms/terms.h), integrator
+  };
+  static constexpr Stage substep_stages[] = {Stage::Bounds,     Stage::BroadPhase, Stage::NarrowPhase,
+                                             Stage::GatherPlan, Stage::Obstacles,  Stage::Integrate};
+
+  void run_stage(Stage stage, double h) {
+    switch (stage) {
+      case Stage::Bounds: return contact_bounds();
+      case Stage::BroadPhase: return find_pairs();
+      case Stage::NarrowPhase: return narrow_phase();
+      case Stage::GatherPlan: return plan_gather();
+      case Stage::Obstacles: return assign_obstacles(h);
+      case Stage::Integrate: return integrate_sheets(step_params(h));
+    }
+  }
+
+  bool contacting = false;  // this substep's contact stages run (set by contact_bounds)
+
+  detail::ContactParams<Real> contact_params() const {
+    return detail::ContactParams<Real>::make(def.contact_thickness, def.contact_xi, def.contact_strength,
+                                             def.contact_range);
+  }
+
+  void contact_bounds() {
     const std::size_t count = active.size();
     for (std::size_t k = 0; k < count; ++k) at(k).has_contacts = false;
-    if (!contacts_possible()) {
+    contacting = contacts_possible();
+    if (!contacting) {
       pairs.clear();
       return;
     }
-    const auto params = detail::ContactParams<Real>::make(def.contact_thickness, def.contact_xi, def.contact_strength,
-                                                          def.contact_range);
+    const auto params = contact_params();
     bounds.resize(count);
     grown.resize(count);
     parallel(count, [&](std::size_t k) {
       bounds[k] = current_bounds(slots[active[k]]);
       grown[k] = bounds[k].inflated(0.5 * double(params.range));
     });
+  }
+
+  void find_pairs() {
+    if (!contacting) return;
+    const std::size_t count = active.size();
     broad_phase.find_pairs(grown, pairs);
     if (std::any_of(active.begin(), active.end(), [&](auto i) { return slots[i].sheet->self_collision; })) {
       for (std::uint32_t k = 0; k < count; ++k)
         if (at(k).self_collision) pairs.push_back({k, k});
       std::sort(pairs.begin(), pairs.end());
     }
+  }
+
+  void narrow_phase() {
+    if (!contacting) return;
+    const auto params = contact_params();
     if (pair_work.size() < pairs.size()) pair_work.resize(pairs.size());
     parallel(pairs.size(), [&](std::size_t q) {
       auto& w = pair_work[q];
@@ -261,7 +303,12 @@ struct BasicWorld<Real>::Impl {
       else
         detail::pair_contacts(at(w.a), bounds[w.a], at(w.b), bounds[w.b], params, w, grid);
     });
-    // Each sheet's sources in pair order: the gather's order, fixed by the boxes alone.
+  }
+
+  // Each sheet's sources in pair order: the gather's order, fixed by the boxes alone.
+  void plan_gather() {
+    if (!contacting) return;
+    const std::size_t count = active.size();
     source_start.assign(count + 1, 0);
     for (std::size_t q = 0; q < pairs.size(); ++q) {
       const auto& w = pair_work[q];
@@ -359,11 +406,9 @@ struct BasicWorld<Real>::Impl {
     });
   }
 
-  // One substep, stage by stage.
+  // One substep: the stages of substep_stages, in order.
   void substep(double h) {
-    host_stage();                   // 1. bounds, broad-phase, contact forces per pair; obstacles near each sheet
-    assign_obstacles(h);
-    integrate_sheets(step_params(h));  // 2. per sheet (or block): gather contacts, forces, integrate
+    for (Stage stage : substep_stages) run_stage(stage, h);
     count_substeps(h, 1);
   }
 
@@ -469,8 +514,7 @@ struct BasicWorld<Real>::Impl {
   // every obstacle's reach (what the host stage would find for them).
   bool apart(const std::vector<detail::Aabb>& boxes, detail::TrackingBroadPhase& tracker) {
     if (contacts_possible()) {
-      const auto params = detail::ContactParams<Real>::make(def.contact_thickness, def.contact_xi,
-                                                            def.contact_strength, def.contact_range);
+      const auto params = contact_params();
       swept_grown.resize(boxes.size());
       for (std::size_t k = 0; k < boxes.size(); ++k) swept_grown[k] = boxes[k].inflated(0.5 * double(params.range));
       tracker.find_pairs(swept_grown, pairs);
