@@ -21,7 +21,7 @@ struct WorldDef {
   double dt = 1e-3;                    // s, one substep (with `adaptive`: the frame unit of step())
   Vec3 gravity{0.0, 0.0, -9.81};       // m/s²; z is up
   Integrator integrator = Integrator::SemiImplicitEuler;
-  Wind wind;                           // for sheets with SheetDef::air only
+  Wind wind{};                         // for sheets with SheetDef::air only
   int threads = 0;                     // worker threads for step(); 0: all cores
 
   // Implicit Euler's conjugate-gradient solve: stop at relative residual |r|/|b| below
