@@ -313,10 +313,10 @@ bool wave_ready(const Sheet<Real>& s) {
          std::is_sorted(s.pins.point.begin(), s.pins.point.end());
 }
 
-std::uint32_t wave_levels(std::uint32_t cols, std::size_t bytes_per_value) {
-  // rows in flight: one per substep, and about four more at the wave's front and back
+std::uint32_t wave_levels(std::uint32_t cols, std::size_t bytes_per_value, std::uint32_t reach) {
+  // rows in flight: `reach` per substep, and about four more at the wave's front and back
   const std::size_t rows = cache_budget / (std::max<std::size_t>(cols, 1) * values_per_point * bytes_per_value);
-  return rows > 5 ? static_cast<std::uint32_t>(std::min<std::size_t>(64, rows - 4)) : 1;
+  return rows > 4 + reach ? static_cast<std::uint32_t>(std::min<std::size_t>(64, (rows - 4) / reach)) : 1;
 }
 
 

@@ -120,9 +120,10 @@ struct WaveScratch {
 template <class Real>
 bool wave_ready(const Sheet<Real>& sheet);
 
-// Substeps a wave sweeps at once for sheets of `cols` points per row: as many as keep
-// the rows in flight within about 1 MiB (an L2 cache), between 1 and 64.
-std::uint32_t wave_levels(std::uint32_t cols, std::size_t bytes_per_value);
+// Substeps a wave sweeps at once for sheets of `cols` points per row whose terms reach
+// `reach` rows (force_reach): as many as keep the rows in flight within about 1 MiB (an L2
+// cache), between 1 and 64.
+std::uint32_t wave_levels(std::uint32_t cols, std::size_t bytes_per_value, std::uint32_t reach = 1);
 
 // Whether the whole sheet fits that budget: it then stays in cache from one substep to the
 // next without a wave, and whole-sheet passes are cheaper than rows (sheet_forces_by_rows).

@@ -22,6 +22,7 @@
 #include "integrate.h"
 #include "obstacles.h"
 #include "sheet_data.h"
+#include "terms/terms.h"
 
 namespace drape {
 
@@ -453,13 +454,14 @@ struct BasicWorld<Real>::Impl {
   // order), for try_frame's check.
   void integrate_runs(double h, std::uint64_t count, std::vector<detail::Aabb>* swept = nullptr) {
     const detail::StepParams<Real> params = step_params(h);
-    std::uint32_t widest = 1;
+    std::uint32_t widest = 1, reach = 1;
     for (std::size_t k = 0; k < active.size(); ++k) {
       at(k).has_contacts = false;  // contact forces of an earlier substep no longer apply
       at(k).near_obstacles.clear();
       widest = std::max(widest, at(k).topology->cols());
+      reach = std::max(reach, detail::force_reach(at(k)));
     }
-    const std::uint32_t max_levels = detail::wave_levels(widest, sizeof(Real));
+    const std::uint32_t max_levels = detail::wave_levels(widest, sizeof(Real), reach);
     for (std::uint64_t done = 0; done < count;) {
       const auto levels = static_cast<std::uint32_t>(std::min<std::uint64_t>(max_levels, count - done));
       plan_wave_blocks(levels);
