@@ -49,7 +49,8 @@ template <class Real>
 void sheet_forces_rows(Sheet<Real>& sheet, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f,
                        Vec3Ptr<Real> row, std::uint32_t row_begin, std::uint32_t row_end);
 
-// f = springs(x) − C·v + contacts + anchors(x) + near obstacles(x): the total force of
+// f = springs(x) + shear, bending, air (those the sheet has) − C·v + contacts + anchors(x)
+// + near obstacles(x), in the order of terms/terms.h: the total force of
 // eq (4) without gravity, which the integrators add as an acceleration. Contact forces are
 // the ones the host stage gathered from the positions at the start of the substep; a
 // multi-stage integrator holds them constant over the substep.
