@@ -27,6 +27,7 @@ TEST_F(Cli, EveryBadSceneExitsThreeWithOneMessageAndWritesNothing) {
       {R"({"frames": 1, "sheets": [{"grid": [3, 4], "size": [1, 1]}]})", ": sheets[0].stiffness: missing"},
       {R"({"frames": [1], "sheets": [)" + good_sheet + "]}", ": frames: must be a number, got an array"},
       {R"({"frames": 1, "breeze": 3, "sheets": [)" + good_sheet + "]}", ": breeze: unknown key"},
+      {R"({"frames": 1, "wind": 3, "sheets": [)" + good_sheet + "]}", ": wind: must be an object"},
       {R"({"frames": 1, "sheets": [)" + good_sheet + R"(], "obstacles": [{"type": "cylinder"}]})",
        ": obstacles[0].type: unknown obstacle type"},
       {R"({"frames": 1, "sheets": [{"grid": [3, 4], "size": [0, 1], "stiffness": 4}]})", ": sheets[0].size[0]: must be positive"},

@@ -245,6 +245,9 @@ void describe_world(const Scene& scene, std::ostream& out) {
                                                                          [](const SheetDef& s) { return s.self_collision; })))
     out << "contacts between sheets: thickness " << w.contact_thickness << " m, xi " << w.contact_xi << " m, strength "
         << w.contact_strength << " J, range " << w.contact_range << " xi\n";
+  if (std::any_of(scene.sheets.begin(), scene.sheets.end(), [](const SheetDef& s) { return s.air.has_value(); }))
+    out << "wind: " << w.wind.velocity.x << ", " << w.wind.velocity.y << ", " << w.wind.velocity.z << " m/s, density "
+        << w.wind.density << " kg/m^3\n";
   std::uint64_t points = 0, springs = 0;
   for (std::size_t k = 0; k < ids.size(); ++k) {
     const auto& s = scene.sheets[k];
@@ -256,7 +259,8 @@ void describe_world(const Scene& scene, std::ostream& out) {
         << estimated_bytes(s, scene.precision) / 1024.0 << " KiB; stable step: semi_implicit_euler "
         << st.semi_implicit_euler << " s, forward_euler " << st.forward_euler << " s"
         << (st.forward_euler == 0 ? " (undamped: unstable at any step)" : "")
-        << (s.self_collision ? "; collides with itself" : "") << '\n';
+        << (s.self_collision ? "; collides with itself" : "") << (s.shear ? "; shear springs" : "")
+        << (s.bending ? "; bending" : "") << (s.air ? "; air" : "") << '\n';
   }
   auto motion_text = [](const Motion& m) {
     std::ostringstream text;

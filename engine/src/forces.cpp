@@ -150,7 +150,7 @@ void sweep_rows(const Topology<Real>& t, Springs horizontal_springs, Springs ver
                 ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f, Vec3Ptr<Real> row, std::uint32_t begin,
                 std::uint32_t end, RowDone done) {
   if (begin >= end) return;
-  const RowWindow<Real, ArrayRows<Real>> w{{x, v, f, t.cols()}, t.cols(), 0, begin, end, row};
+  const RowWindow<Real, ArrayRows<Real>> w{{x, v, f, t.cols()}, 0, begin, end, row};
   const std::uint32_t reach = terms.reach(), last = std::min(end - 1 + reach, t.m);
   for (std::uint32_t q = begin; q <= last; ++q) {
     arrive(t, horizontal_springs, vertical_springs, terms, w, q);
@@ -158,6 +158,7 @@ void sweep_rows(const Topology<Real>& t, Springs horizontal_springs, Springs ver
   }
   for (std::uint32_t i = last + 1 >= begin + reach ? last + 1 - reach : begin; i < end; ++i) done(i);
 }
+
 // Calls body(horizontal springs, vertical springs) with the spring parameters picked once
 // per call: constants when the topology is uniform, per-spring arrays otherwise.
 template <class Real, class Body>
@@ -312,10 +313,10 @@ bool wave_ready(const Sheet<Real>& s) {
          std::is_sorted(s.pins.point.begin(), s.pins.point.end());
 }
 
-std::uint32_t wave_levels(std::uint32_t cols, std::size_t bytes_per_value) {
-  // rows in flight: one per substep, and about four more at the wave's front and back
+std::uint32_t wave_levels(std::uint32_t cols, std::size_t bytes_per_value, std::uint32_t reach) {
+  // rows in flight: `reach` per substep, and about four more at the wave's front and back
   const std::size_t rows = cache_budget / (std::max<std::size_t>(cols, 1) * values_per_point * bytes_per_value);
-  return rows > 5 ? static_cast<std::uint32_t>(std::min<std::size_t>(64, rows - 4)) : 1;
+  return rows > 4 + reach ? static_cast<std::uint32_t>(std::min<std::size_t>(64, (rows - 4) / reach)) : 1;
 }
 
 
@@ -380,7 +381,7 @@ void wave_rows(Sheet<Real>& s, Springs horizontal_springs, Springs vertical_spri
   if (w.forces.x.size() < std::size_t(ring) * cols) w.forces.resize(std::size_t(ring) * cols);
   if (w.row.x.size() < cols) w.row.resize(cols);
   const WaveRows<Real> rows{&s, &w, range, row_begin, row_end, cols, mask};
-  const RowWindow<Real, WaveRows<Real>> window{rows, cols, lo, lo, hi, ptr(w.row)};
+  const RowWindow<Real, WaveRows<Real>> window{rows, lo, lo, hi, ptr(w.row)};
   const auto& an = s.anchors;
   const auto& pins = s.pins;
   const std::size_t first = std::size_t(lo) * cols;

@@ -49,7 +49,8 @@ template <class Real>
 void sheet_forces_rows(Sheet<Real>& sheet, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f,
                        Vec3Ptr<Real> row, std::uint32_t row_begin, std::uint32_t row_end);
 
-// f = springs(x) − C·v + contacts + anchors(x) + near obstacles(x): the total force of
+// f = springs(x) + shear, bending, air (those the sheet has) − C·v + contacts + anchors(x)
+// + near obstacles(x), in the order of terms/terms.h: the total force of
 // eq (4) without gravity, which the integrators add as an acceleration. Contact forces are
 // the ones the host stage gathered from the positions at the start of the substep; a
 // multi-stage integrator holds them constant over the substep.
@@ -120,9 +121,10 @@ struct WaveScratch {
 template <class Real>
 bool wave_ready(const Sheet<Real>& sheet);
 
-// Substeps a wave sweeps at once for sheets of `cols` points per row: as many as keep
-// the rows in flight within about 1 MiB (an L2 cache), between 1 and 64.
-std::uint32_t wave_levels(std::uint32_t cols, std::size_t bytes_per_value);
+// Substeps a wave sweeps at once for sheets of `cols` points per row whose terms reach
+// `reach` rows (force_reach): as many as keep the rows in flight within about 1 MiB (an L2
+// cache), between 1 and 64.
+std::uint32_t wave_levels(std::uint32_t cols, std::size_t bytes_per_value, std::uint32_t reach = 1);
 
 // Whether the whole sheet fits that budget: it then stays in cache from one substep to the
 // next without a wave, and whole-sheet passes are cheaper than rows (sheet_forces_by_rows).

@@ -23,6 +23,7 @@
 #include "integrate.h"
 #include "obstacles.h"
 #include "sheet_data.h"
+#include "terms/terms.h"
 
 namespace drape {
 
@@ -278,31 +279,78 @@ struct BasicWorld<Real>::Impl {
            std::any_of(active.begin(), active.end(), [&](auto i) { return slots[i].sheet->self_collision; });
   }
 
-  // Host stage: bounds → broad-phase → contact work per overlapping pair → which forces
-  // each sheet gathers. Sheets whose boxes (grown by half the contact range each) do not
-  // meet never reach the narrow phase.
-  void host_stage(double h) {
+  // ---- The substep's stages, in the order substep() runs them ----------------------
+  //
+  // The host stage (serial decisions, parallel work inside), then the parallel stage over
+  // sheets and row blocks. The contact stages run only while contacts are possible (more
+  // than one sheet, or a self-colliding one, and contact_strength > 0); sheets whose boxes
+  // (grown by half the contact range each) do not meet never reach the narrow phase.
+  enum class Stage {
+    RigidParts,   // moving obstacles posed and constraint targets set for this substep's time
+    Bounds,       // every sheet's box, and the box grown by half the contact range
+    BroadPhase,   // pairs of sheets whose grown boxes meet, and self-colliding sheets with themselves
+    NarrowPhase,  // each pair's contact forces, into buffers only that pair owns (contacts.cpp)
+    GatherPlan,   // each sheet's list of the buffers aimed at it, in pair order; has_contacts
+    Obstacles,    // each sheet's list of obstacles within reach (assign_obstacles)
+    Integrate,    // per sheet or row block: gather contacts, force terms (terms/terms.h), integrator
+  };
+  static constexpr Stage substep_stages[] = {Stage::RigidParts, Stage::Bounds,    Stage::BroadPhase,
+                                             Stage::NarrowPhase, Stage::GatherPlan, Stage::Obstacles,
+                                             Stage::Integrate};
+
+  void run_stage(Stage stage, double h) {
+    switch (stage) {
+      case Stage::RigidParts: return move_rigid_parts();
+      case Stage::Bounds: return contact_bounds(h);
+      case Stage::BroadPhase: return find_pairs();
+      case Stage::NarrowPhase: return narrow_phase(h);
+      case Stage::GatherPlan: return plan_gather();
+      case Stage::Obstacles: return assign_obstacles(h);
+      case Stage::Integrate: return integrate_sheets(step_params(h));
+    }
+  }
+
+  bool contacting = false;  // this substep's contact stages run (set by contact_bounds)
+
+  // The contact parameters of a substep of length h (friction stops at most one substep's slip).
+  detail::ContactParams<Real> contact_params(double h) const {
+    auto params = detail::ContactParams<Real>::make(def.contact_thickness, def.contact_xi, def.contact_strength,
+                                                    def.contact_range);
+    params.dt = static_cast<Real>(h);
+    return params;
+  }
+
+  void contact_bounds(double h) {
     const std::size_t count = active.size();
     for (std::size_t k = 0; k < count; ++k) at(k).has_contacts = false;
-    if (!contacts_possible()) {
+    contacting = contacts_possible();
+    if (!contacting) {
       pairs.clear();
       return;
     }
-    auto params = detail::ContactParams<Real>::make(def.contact_thickness, def.contact_xi, def.contact_strength,
-                                                    def.contact_range);
-    params.dt = static_cast<Real>(h);  // friction stops at most the slip of one substep
+    const auto params = contact_params(h);
     bounds.resize(count);
     grown.resize(count);
     parallel(count, [&](std::size_t k) {
       bounds[k] = current_bounds(slots[active[k]]);
       grown[k] = bounds[k].inflated(0.5 * double(params.range));
     });
+  }
+
+  void find_pairs() {
+    if (!contacting) return;
+    const std::size_t count = active.size();
     broad_phase.find_pairs(grown, pairs);
     if (std::any_of(active.begin(), active.end(), [&](auto i) { return slots[i].sheet->self_collision; })) {
       for (std::uint32_t k = 0; k < count; ++k)
         if (at(k).self_collision) pairs.push_back({k, k});
       std::sort(pairs.begin(), pairs.end());
     }
+  }
+
+  void narrow_phase(double h) {
+    if (!contacting) return;
+    const auto params = contact_params(h);
     if (pair_work.size() < pairs.size()) pair_work.resize(pairs.size());
     parallel(pairs.size(), [&](std::size_t q) {
       auto& w = pair_work[q];
@@ -314,7 +362,12 @@ struct BasicWorld<Real>::Impl {
       else
         detail::pair_contacts(at(w.a), bounds[w.a], at(w.b), bounds[w.b], params, w, grid);
     });
-    // Each sheet's sources in pair order: the gather's order, fixed by the boxes alone.
+  }
+
+  // Each sheet's sources in pair order: the gather's order, fixed by the boxes alone.
+  void plan_gather() {
+    if (!contacting) return;
+    const std::size_t count = active.size();
     source_start.assign(count + 1, 0);
     for (std::size_t q = 0; q < pairs.size(); ++q) {
       const auto& w = pair_work[q];
@@ -412,12 +465,9 @@ struct BasicWorld<Real>::Impl {
     });
   }
 
-  // One substep, stage by stage.
+  // One substep: the stages of substep_stages, in order.
   void substep(double h) {
-    move_rigid_parts();             // 0. moving obstacles posed, constraint targets set
-    host_stage(h);                  // 1. bounds, broad-phase, contact forces per pair; obstacles near each sheet
-    assign_obstacles(h);
-    integrate_sheets(step_params(h));  // 2. per sheet (or block): gather contacts, forces, integrate
+    for (Stage stage : substep_stages) run_stage(stage, h);
     count_substeps(h, 1);
   }
 
@@ -462,13 +512,14 @@ struct BasicWorld<Real>::Impl {
   // order), for try_frame's check.
   void integrate_runs(double h, std::uint64_t count, std::vector<detail::Aabb>* swept = nullptr) {
     const detail::StepParams<Real> params = step_params(h);
-    std::uint32_t widest = 1;
+    std::uint32_t widest = 1, reach = 1;
     for (std::size_t k = 0; k < active.size(); ++k) {
       at(k).has_contacts = false;  // contact forces of an earlier substep no longer apply
       at(k).near_obstacles.clear();
       widest = std::max(widest, at(k).topology->cols());
+      reach = std::max(reach, detail::force_reach(at(k)));
     }
-    const std::uint32_t max_levels = detail::wave_levels(widest, sizeof(Real));
+    const std::uint32_t max_levels = detail::wave_levels(widest, sizeof(Real), reach);
     for (std::uint64_t done = 0; done < count;) {
       const auto levels = static_cast<std::uint32_t>(std::min<std::uint64_t>(max_levels, count - done));
       plan_wave_blocks(levels);
@@ -523,8 +574,7 @@ struct BasicWorld<Real>::Impl {
   // every obstacle's reach (what the host stage would find for them).
   bool apart(const std::vector<detail::Aabb>& boxes, detail::TrackingBroadPhase& tracker) {
     if (contacts_possible()) {
-      const auto params = detail::ContactParams<Real>::make(def.contact_thickness, def.contact_xi,
-                                                            def.contact_strength, def.contact_range);
+      const auto params = contact_params(def.dt);  // only its range is used here
       swept_grown.resize(boxes.size());
       for (std::size_t k = 0; k < boxes.size(); ++k) swept_grown[k] = boxes[k].inflated(0.5 * double(params.range));
       tracker.find_pairs(swept_grown, pairs);

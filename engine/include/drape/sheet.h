@@ -34,7 +34,7 @@ struct AnchorDef {
 // paper's grid springs resist only to third order in the shear.
 struct ShearDef {
   double stiffness = 0;              // N/m, every diagonal spring
-  std::optional<double> rest_length; // m; default: the diagonal of the rest cell, √(ℓ1² + ℓ2²)
+  std::optional<double> rest_length{};  // m; default: the diagonal of the rest cell, √(ℓ1² + ℓ2²)
 };
 
 // Bending (issue 12): a quadratic energy on three consecutive points along every grid line,
@@ -82,9 +82,9 @@ struct SheetDef {
 
   // Terms beyond the paper, each off unless set (a sheet without them runs the paper's
   // kernel and pays nothing for them).
-  std::optional<ShearDef> shear;
-  std::optional<BendingDef> bending;
-  std::optional<AirDef> air;
+  std::optional<ShearDef> shear{};
+  std::optional<BendingDef> bending{};
+  std::optional<AirDef> air{};
 
   double damping = 0.0;               // C of eq (4), N·s/m per point; 0: no damping term
   std::vector<double> point_damping;  // per point; when given, overrides `damping`

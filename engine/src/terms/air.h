@@ -16,27 +16,17 @@
 
 namespace drape::detail::air {
 
-// The force on each cell between rows a and b into `cell` (n values per component).
+// The force on each cell between rows a and b into f (n values per component). Every
+// pointer is a restrict parameter (GCC ignores restrict on locals here and gives up on the
+// run-time alias checks of so many arrays), so the loop vectorises.
 template <class Real>
-inline void cell_forces(std::uint32_t n, const Air<Real>& air, ConstVec3Ptr<Real> xa, ConstVec3Ptr<Real> xb,
-                        ConstVec3Ptr<Real> va, ConstVec3Ptr<Real> vb, Vec3Ptr<Real> cell) {
-  const Real quarter = Real(0.25), half_pressure = Real(0.5) * air.pressure, half_friction = Real(0.5) * air.friction;
-  const Real wx = air.wind[0], wy = air.wind[1], wz = air.wind[2];
-  const Real* __restrict ax = xa.x;
-  const Real* __restrict ay = xa.y;
-  const Real* __restrict az = xa.z;
-  const Real* __restrict bx = xb.x;
-  const Real* __restrict by = xb.y;
-  const Real* __restrict bz = xb.z;
-  const Real* __restrict avx = va.x;
-  const Real* __restrict avy = va.y;
-  const Real* __restrict avz = va.z;
-  const Real* __restrict bvx = vb.x;
-  const Real* __restrict bvy = vb.y;
-  const Real* __restrict bvz = vb.z;
-  Real* __restrict fx = cell.x;
-  Real* __restrict fy = cell.y;
-  Real* __restrict fz = cell.z;
+inline void cells(std::uint32_t n, Real half_pressure, Real half_friction, Real wx, Real wy, Real wz,
+                  const Real* __restrict ax, const Real* __restrict ay, const Real* __restrict az,
+                  const Real* __restrict bx, const Real* __restrict by, const Real* __restrict bz,
+                  const Real* __restrict avx, const Real* __restrict avy, const Real* __restrict avz,
+                  const Real* __restrict bvx, const Real* __restrict bvy, const Real* __restrict bvz,
+                  Real* __restrict fx, Real* __restrict fy, Real* __restrict fz) {
+  const Real quarter = Real(0.25);
   for (std::uint32_t j = 0; j < n; ++j) {
     const Real d1x = bx[j + 1] - ax[j], d1y = by[j + 1] - ay[j], d1z = bz[j + 1] - az[j];
     const Real d2x = bx[j] - ax[j + 1], d2y = by[j] - ay[j + 1], d2z = bz[j] - az[j + 1];
@@ -55,6 +45,13 @@ inline void cell_forces(std::uint32_t n, const Air<Real>& air, ConstVec3Ptr<Real
     fy[j] = normal * cy + tangential * ty;
     fz[j] = normal * cz + tangential * tz;
   }
+}
+
+template <class Real>
+inline void cell_forces(std::uint32_t n, const Air<Real>& air, ConstVec3Ptr<Real> xa, ConstVec3Ptr<Real> xb,
+                        ConstVec3Ptr<Real> va, ConstVec3Ptr<Real> vb, Vec3Ptr<Real> cell) {
+  cells(n, Real(0.5) * air.pressure, Real(0.5) * air.friction, air.wind[0], air.wind[1], air.wind[2], xa.x, xa.y,
+        xa.z, xb.x, xb.y, xb.z, va.x, va.y, va.z, vb.x, vb.y, vb.z, cell.x, cell.y, cell.z);
 }
 
 // A quarter of the force of each cell next to point j of one component of a row (cells

@@ -73,7 +73,7 @@ inline void spring_stiffness(const Real (&d)[3], Real k, Real rest, Real (&g)[3]
 template <class Real, class Access>
 struct RowWindow {
   Access access;  // x(i), v(i), f(i): row i's pointers
-  std::uint32_t cols, read_lo, own_lo, own_hi;
+  std::uint32_t read_lo, own_lo, own_hi;
   Vec3Ptr<Real> scratch;  // one row of scratch per component, free for any term's use
 
   bool owns(std::uint32_t i) const { return i >= own_lo && i < own_hi; }
