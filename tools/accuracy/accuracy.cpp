@@ -347,12 +347,14 @@ void stiff_runs(std::ofstream& out, const std::vector<double>& ks, bool quick) {
       world.step(int(steps));
       ref = positions(world, id);
     }
-    std::vector<Stepping> steppings = {{Integrator::SemiImplicitEuler, -0.8, 1}, {Integrator::RK4, -0.8, 1}};
-    for (double dt : {1.0 / 60, 1.0 / 240}) steppings.push_back({Integrator::ImplicitEuler, dt, 1});
+    // RK4 is left out (the reference is RK4; at 0.8× its limit it costs several times
+    // semi-implicit Euler), and implicit Euler runs only at a frame's step: its 200-iteration
+    // solves on 16,384 points cost about a minute per k at smaller steps.
+    std::vector<Stepping> steppings = {{Integrator::SemiImplicitEuler, -0.8, 1}, {Integrator::ImplicitEuler, 1.0 / 60, 1}};
     for (double dt : {1.0 / 60, 1.0 / 240, 1.0 / 960})
       for (int it : {2, 10, 50})
         if (!(dt < 1.0 / 500 && it > 10)) steppings.push_back({Integrator::LocalGlobal, dt, it});
-    if (quick) steppings.resize(4);
+    if (quick) steppings.resize(3);
     for (const Stepping& s : steppings) {
       auto wd = world_def(s.integrator, 1e-3);
       wd.local_global_iterations = s.iterations;
