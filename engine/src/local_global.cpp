@@ -17,11 +17,17 @@ std::vector<double> widen(const AlignedArray<Real>& a) { return {a.begin(), a.en
 template <class Real>
 std::vector<double> widen(const std::vector<Real>& a) { return {a.begin(), a.end()}; }
 
+// Whether `wide` holds exactly the values of `a` (compared without a copy: this runs every step).
+template <class Array>
+bool same_values(const std::vector<double>& wide, const Array& a) {
+  return wide.size() == a.size() && std::equal(a.begin(), a.end(), wide.begin(), [](auto x, double y) { return double(x) == y; });
+}
+
 // Whether the factored matrix was built for this sheet and step.
 template <class Real>
 bool factor_current(const LocalGlobalScratch& sc, const Sheet<Real>& s, double dt) {
-  return sc.topology == s.topology && sc.dt == dt && sc.mass == widen(s.mass) && sc.damping == widen(s.damping) &&
-         sc.anchor_point == s.anchors.point && sc.anchor_stiffness == widen(s.anchors.stiffness) &&
+  return sc.topology == s.topology && sc.dt == dt && same_values(sc.mass, s.mass) && same_values(sc.damping, s.damping) &&
+         sc.anchor_point == s.anchors.point && same_values(sc.anchor_stiffness, s.anchors.stiffness) &&
          sc.pin_point == s.pins.point;
 }
 
@@ -37,6 +43,8 @@ void build_factor(LocalGlobalScratch& sc, const Sheet<Real>& s, double dt) {
   sc.damping = widen(s.damping);
   sc.anchor_point = s.anchors.point;
   sc.anchor_stiffness = widen(s.anchors.stiffness);
+  sc.rest = widen(t.rest_length);  // the topology is part of the key: these stay valid with it
+  sc.stiffness = widen(t.stiffness);
   sc.pin_point = s.pins.point;
   sc.pinned.assign(count, 0);
   for (std::uint32_t p : s.pins.point) sc.pinned[p] = 1;
@@ -167,7 +175,8 @@ void local_global_step(Sheet<Real>& s, const StepParams<Real>& p) {
   const auto& t = *s.topology;
   const std::size_t count = s.size();
   const std::uint32_t springs = t.springs();
-  const std::vector<double> rest = widen(t.rest_length), stiffness = widen(t.stiffness);
+  const std::vector<double>& rest = sc.rest;
+  const std::vector<double>& stiffness = sc.stiffness;
   const Real* x[3] = {s.position.x.data(), s.position.y.data(), s.position.z.data()};
   Real* v[3] = {s.velocity.x.data(), s.velocity.y.data(), s.velocity.z.data()};
   const double g[3] = {static_cast<double>(p.gx), static_cast<double>(p.gy), static_cast<double>(p.gz)};

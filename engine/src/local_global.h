@@ -29,6 +29,7 @@ struct LocalGlobalScratch {
   double dt = 0;
   std::vector<double> mass, damping, anchor_stiffness;
   std::vector<std::uint32_t> anchor_point, pin_point;
+  std::vector<double> rest, stiffness;  // per spring, from the topology
 
   // The Cholesky factor L (compressed columns, diagonal entry first in each column) and its
   // fill-reducing permutation, copied out of Eigen so the three axes share one pass over L.
