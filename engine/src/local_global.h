@@ -48,4 +48,14 @@ struct LocalGlobalScratch {
 template <class Real>
 void local_global_step(Sheet<Real>& sheet, const StepParams<Real>& params);
 
+// What local/global and vertex block descent share: begin sets up a backward-Euler step
+// (start state, the forces held explicit, M̃ x̂ into `inertia`, the first iterate x + dt·v
+// into `solution`, and with `factor` the factored matrix); finish measures the residual of
+// the backward-Euler equations at `solution`, records the solve and writes x and v.
+template <class Real>
+void backward_euler_begin(LocalGlobalScratch& scratch, Sheet<Real>& sheet, const StepParams<Real>& params, bool factor);
+template <class Real>
+void backward_euler_finish(LocalGlobalScratch& scratch, Sheet<Real>& sheet, const StepParams<Real>& params,
+                           int iterations);
+
 }  // namespace drape::detail
