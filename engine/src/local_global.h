@@ -9,8 +9,8 @@
 //           Laplacian weighted by k. That matrix depends only on the grid, the masses, the
 //           damping, the anchors, the pins and dt: it is factored once (sparse Cholesky) and
 //           refactored only when one of those changes, and it is the same for x, y and z.
-// The iteration count is fixed (the knob); fewer iterations leave the springs softer than
-// backward Euler would, never unstable (each iteration lowers the energy above).
+// The iteration count is fixed (the knob); fewer iterations leave the step short of
+// backward Euler, never unstable (each iteration lowers the energy above).
 #pragma once
 
 #include <Eigen/SparseCore>

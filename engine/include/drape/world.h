@@ -31,7 +31,7 @@ struct WorldDef {
   int cg_max_iterations = 200;
 
   // Local/global (Integrator::LocalGlobal): iterations per step, the method's one knob
-  // (more: stiffer springs, closer to the converged backward-Euler step; cost linear in it).
+  // (more: closer to the converged backward-Euler step; cost linear in it).
   // Its solve counts as converged when the step's backward-Euler residual is below cg_tolerance.
   int local_global_iterations = 10;
   // Vertex block descent (Integrator::VertexBlockDescent): Gauss–Seidel sweeps over the
