@@ -1,6 +1,8 @@
 // Vertex Block Descent (Chen et al. 2024): see vertex_block.h.
 #include "vertex_block.h"
 
+#include "spring_jacobian.h"
+
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -98,17 +100,14 @@ void vertex_block_step(Sheet<Real>& s, const StepParams<Real>& p) {
     for (std::uint32_t k = vb.neighbour_start[q]; k < vb.neighbour_start[q + 1]; ++k) {
       const std::uint32_t o = vb.neighbour[k], e = vb.neighbour_spring[k];
       const double ke = sc.stiffness[e], rest = sc.rest[e];
-      const Eigen::Vector3d d(xq[0] - x[0][o], xq[1] - x[1][o], xq[2] - x[2][o]);
-      const double len = d.norm();
-      if (len > 0) {
-        const Eigen::Vector3d u = d / len;
-        grad += ke * (len - rest) * u;
-        // the transverse factor clamped at 0, as in implicit Euler: the block stays positive definite
-        const double transverse = std::max(0.0, 1.0 - rest / len);
-        hess += ke * ((1.0 - transverse) * (u * u.transpose()) + transverse * Eigen::Matrix3d::Identity());
-      } else if (rest == 0) {
-        hess.diagonal().array() += ke;  // a zero-length spring with ℓ = 0 is linear; with ℓ > 0 it has no force
-      }
+      const double d[3] = {xq[0] - x[0][o], xq[1] - x[1][o], xq[2] - x[2][o]};
+      const double len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+      if (len > 0)  // eq (6): a zero-length spring applies no force
+        for (int r = 0; r < 3; ++r) grad[r] += ke * (len - rest) * d[r] / len;
+      double g[3][3];
+      spring_stiffness_block(d, ke, rest, g);
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) hess(r, c) += g[r][c];
     }
     const Eigen::Vector3d step = hess.llt().solve(grad);
     for (int r = 0; r < 3; ++r) x[r][q] -= step[r];
