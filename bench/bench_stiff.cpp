@@ -19,7 +19,7 @@ using drape::Integrator;
 struct Stepping {
   Integrator integrator;
   double dt;
-  int iterations;  // local_global_iterations
+  int iterations;  // local_global_iterations or vertex_block_iterations
   std::string label;
 };
 
@@ -30,6 +30,10 @@ const Stepping steppings[] = {
     {Integrator::LocalGlobal, 1.0 / 60, 5, "local_global/dt_1_60/it_5"},
     {Integrator::LocalGlobal, 1.0 / 60, 10, "local_global/dt_1_60/it_10"},
     {Integrator::LocalGlobal, 1.0 / 30, 2, "local_global/dt_1_30/it_2"},
+    {Integrator::VertexBlockDescent, 1.0 / 60, 2, "vertex_block_descent/dt_1_60/it_2"},
+    {Integrator::VertexBlockDescent, 1.0 / 60, 5, "vertex_block_descent/dt_1_60/it_5"},
+    {Integrator::VertexBlockDescent, 1.0 / 60, 10, "vertex_block_descent/dt_1_60/it_10"},
+    {Integrator::VertexBlockDescent, 1.0 / 30, 2, "vertex_block_descent/dt_1_30/it_2"},
 };
 
 // 64×64 points, 1 m square, 1 kg, corners pinned: the sheet.
@@ -74,6 +78,7 @@ void BM_StiffSheet(benchmark::State& state, Stepping s) {
   drape::WorldDef wd = drape::bench::world_def(1);
   wd.integrator = s.integrator;
   wd.local_global_iterations = s.iterations;
+  wd.vertex_block_iterations = s.iterations;
   drape::World world(wd);
   world.add_sheet(stiff_sheet(1e5));
   run_seconds(state, world, s, 64.0 * 64.0);
@@ -89,6 +94,7 @@ void BM_EqualStiffness48(benchmark::State& state, Stepping s) {
   drape::WorldDef wd = drape::bench::world_def(int(state.range(0)));
   wd.integrator = s.integrator;
   wd.local_global_iterations = s.iterations;
+  wd.vertex_block_iterations = s.iterations;
   wd.contact_strength = 0;  // apart, as in BM_Sheets48
   drape::World world(wd);
   for (int k = 0; k < 48; ++k) world.add_sheet(stiff_sheet(equal_stiffness, {2.0 * (k % 8), 2.0 * (k / 8), 0}));

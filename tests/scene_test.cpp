@@ -130,6 +130,7 @@ TEST(SceneFile, EngineKnobsReachTheWorldAndSheetDefinitions) {
   EXPECT_EQ(d.world.cg_tolerance, engine.cg_tolerance);
   EXPECT_EQ(d.world.cg_max_iterations, engine.cg_max_iterations);
   EXPECT_EQ(d.world.local_global_iterations, engine.local_global_iterations);
+  EXPECT_EQ(d.world.vertex_block_iterations, engine.vertex_block_iterations);
   EXPECT_EQ(d.world.adaptive, engine.adaptive);
   EXPECT_EQ(d.world.adaptive_safety, engine.adaptive_safety);
   EXPECT_EQ(d.world.guard, engine.guard);
@@ -141,7 +142,7 @@ TEST(SceneFile, EngineKnobsReachTheWorldAndSheetDefinitions) {
   EXPECT_EQ(d.world.block_points, engine.block_points);
   EXPECT_FALSE(d.sheets[0].self_collision);
 
-  const Scene s = parse_scene(R"({"frames": 1, "cg_tolerance": 1e-9, "cg_max_iterations": 17, "local_global_iterations": 7, "adaptive": true,
+  const Scene s = parse_scene(R"({"frames": 1, "cg_tolerance": 1e-9, "cg_max_iterations": 17, "local_global_iterations": 7, "vertex_block_iterations": 9, "adaptive": true,
     "adaptive_safety": 0.5, "guard": false, "guard_energy_growth": 3.5, "contact_thickness": 0.01,
     "contact_xi": 0.004, "contact_strength": 0, "contact_range": 4, "block_points": 1000,
     "sheets": [{"grid": [2, 2], "size": [1, 1], "stiffness": 5, "self_collision": true, "friction": 0.4},
@@ -150,6 +151,7 @@ TEST(SceneFile, EngineKnobsReachTheWorldAndSheetDefinitions) {
   EXPECT_EQ(s.world.cg_tolerance, 1e-9);
   EXPECT_EQ(s.world.cg_max_iterations, 17);
   EXPECT_EQ(s.world.local_global_iterations, 7);
+  EXPECT_EQ(s.world.vertex_block_iterations, 9);
   EXPECT_TRUE(s.world.adaptive);
   EXPECT_EQ(s.world.adaptive_safety, 0.5);
   EXPECT_FALSE(s.world.guard);
@@ -173,6 +175,7 @@ TEST(SceneFile, BadEngineKnobsNameTheirPath) {
       {R"("cg_max_iterations": 0)", "test.json: cg_max_iterations: must be between 1 and 2147483647 (got 0)"},
       {R"("cg_max_iterations": 2.5)", "test.json: cg_max_iterations: must be a whole number (got 2.5)"},
       {R"("local_global_iterations": 0)", "test.json: local_global_iterations: must be between 1 and 2147483647 (got 0)"},
+      {R"("vertex_block_iterations": 0)", "test.json: vertex_block_iterations: must be between 1 and 2147483647 (got 0)"},
       {R"("adaptive": 1)", "test.json: adaptive: must be true or false, got a number"},
       {R"("adaptive_safety": 1.5)", "test.json: adaptive_safety: must be in (0, 1] (got 1.5)"},
       {R"("adaptive_safety": 0)", "test.json: adaptive_safety: must be positive (got 0)"},

@@ -340,6 +340,9 @@ TEST(WorldDefValidation, NamesTheBadKnob) {
   wd = {};
   wd.local_global_iterations = 0;
   EXPECT_NE(drape::validate(wd).find("local_global_iterations"), std::string::npos);
+  wd = {};
+  wd.vertex_block_iterations = 0;
+  EXPECT_NE(drape::validate(wd).find("vertex_block_iterations"), std::string::npos);
   EXPECT_EQ(drape::validate(drape::WorldDef{}), "");
 }
 

@@ -274,7 +274,8 @@ TEST(Worlds, OneSheetMatchesDirectIntegrationBitForBit) {
   cloth.shear = ShearDef{100, std::nullopt};
   cloth.bending = BendingDef{1};
   for (const SheetDef& d : {lone_sheet(), cloth})
-    for (Integrator integrator : {Integrator::SemiImplicitEuler, Integrator::ForwardEuler, Integrator::LocalGlobal})
+    for (Integrator integrator : {Integrator::SemiImplicitEuler, Integrator::ForwardEuler, Integrator::LocalGlobal,
+                                  Integrator::VertexBlockDescent})
       for (std::uint32_t block_points : {1u << 30, 2000u}) {
         WorldDef wd;
         wd.dt = 2e-4;
@@ -384,11 +385,11 @@ TEST(Worlds, FramesOfClothChangeNoBit) { expect_frames_change_no_bit<World>(true
 TEST(Worlds, FramesOfClothChangeNoBitInFloat) { expect_frames_change_no_bit<WorldF>(true); }
 
 // The implicit integrators keep memory between substeps (implicit Euler's guess,
-// local/global's factor): one and two threads, and frames against single substeps, give
-// the same bits.
+// local/global's factor) and vertex block descent updates each colour in parallel: one and
+// two threads, and frames against single substeps, give the same bits.
 template <class W>
 void expect_implicit_runs_change_no_bit() {
-  for (Integrator integrator : {Integrator::ImplicitEuler, Integrator::LocalGlobal}) {
+  for (Integrator integrator : {Integrator::ImplicitEuler, Integrator::LocalGlobal, Integrator::VertexBlockDescent}) {
     const auto one_by_one = run_frames<W>(integrator, 1, 1u << 30, 6, 1);
     EXPECT_TRUE(run_frames<W>(integrator, 1, 1u << 30, 2, 3) == one_by_one) << integrator_name(integrator);
     EXPECT_TRUE(run_frames<W>(integrator, 2, 300u, 2, 3) == one_by_one) << integrator_name(integrator) << ", 2 threads";

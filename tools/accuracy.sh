@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Measures accuracy against speed for every integrator and precision and writes
 # docs/accuracy.md, docs/img/accuracy_*.png and the raw CSV files in docs/data/.
-# Usage: tools/accuracy.sh [--quick]   (about a minute on 2 cores; --quick: a smoke run into build/)
+# Usage: tools/accuracy.sh [--quick]   (a few minutes on 2 cores, most of it the stiff sheets; --quick: a smoke run into build/)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 tools/setup.sh

@@ -749,18 +749,26 @@ class Report:
                      "| stepping | dt (s) | simulated s per wall s | max stretch | unconverged solves |",
                      "|---|---|---|---|---|")
             best = None
+            def stepping(name):  # "BM_StiffSheet/local_global/dt_1_60/it_2/iterations:1" → "local_global/dt_1_60/it_2"
+                return re.sub(r"/iterations:\d+.*$", "", name.split("/", 1)[1])
+
+            def stretch(x):
+                return f"{100 * x:.1f} %"
+
             for n in sorted(sheet):
                 r = self.get(n)
                 c = r.counters
                 rate = c.get("sim_s_per_wall_s")
-                self.out(f"| {n[len('BM_StiffSheet/'):]} | {c.get('dt', float('nan')):.3g} | {rate:.3g}{cv_text(r)} | "
-                         f"{pct(c.get('max_stretch', float('nan')))} | {int(c.get('unconverged_solves', 0))} |")
-                if n.startswith("BM_StiffSheet/local_global") and (best is None or rate > best[1]):
+                self.out(f"| {stepping(n)} | {c.get('dt', float('nan')):.3g} | {rate:.3g}{cv_text(r)} | "
+                         f"{stretch(c.get('max_stretch', float('nan')))} | {int(c.get('unconverged_solves', 0))} |")
+                # the target counts an implicit stepping that keeps the sheet within 5 % stretch
+                implicit = n.startswith(("BM_StiffSheet/local_global", "BM_StiffSheet/vertex_block_descent"))
+                if implicit and c.get("max_stretch", 1) <= 0.05 and (best is None or rate > best[1]):
                     best = (n, rate)
             self.out("")
             if best:
-                self.target("stiff 64×64 sheet (k = 1e5, 1 kg, corners pinned), one core", f"{best[1]:.3g}× real time",
-                            "≥ 10× real time", best[1] >= 10, best[0][len("BM_StiffSheet/"):])
+                self.target("stiff 64×64 sheet (k = 1e5, 1 kg, corners pinned, stretch ≤ 5 %), one core",
+                            f"{best[1]:.3g}× real time", "≥ 10× real time", best[1] >= 10, stepping(best[0]))
         equal = {n: r for n, r in self.runs.items() if n.startswith("BM_EqualStiffness48/")}
         if equal:
             self.out("## Equal stiffness: 48 sheets of 64×64 stretching at most 5 %", "",
@@ -778,7 +786,7 @@ class Report:
                 r = self.get(n)
                 rate, stretch = r.counters.get("sim_s_per_wall_s"), r.counters.get("max_stretch", float("nan"))
                 meets = stretch <= 0.05
-                self.out(f"| {m.group(1)} | {m.group(2)} | {rate:.3g} | {pct(stretch)} | {'yes' if meets else 'no'} |")
+                self.out(f"| {m.group(1)} | {m.group(2)} | {rate:.3g} | {100 * stretch:.1f} % | {'yes' if meets else 'no'} |")
                 if meets and (m.group(2) not in cheapest or rate > cheapest[m.group(2)][1]):
                     cheapest[m.group(2)] = (m.group(1), rate)
             self.out("")

@@ -572,6 +572,8 @@ void read_world_knobs(const Node& top, WorldDef& w) {
   if (top.has("cg_max_iterations")) w.cg_max_iterations = int(top.child("cg_max_iterations").whole(1, 2147483647));
   if (top.has("local_global_iterations"))
     w.local_global_iterations = int(top.child("local_global_iterations").whole(1, 2147483647));
+  if (top.has("vertex_block_iterations"))
+    w.vertex_block_iterations = int(top.child("vertex_block_iterations").whole(1, 2147483647));
   if (top.has("adaptive")) w.adaptive = top.child("adaptive").boolean();
   if (top.has("adaptive_safety")) {
     const Node n = top.child("adaptive_safety");
@@ -627,7 +629,7 @@ Scene parse_scene(std::string_view text, const std::string& file, std::span<cons
   for (const auto& o : overrides) apply_override(root, o, file);
   const Node top(file, root, "");
   top.expect_object({"description", "dt", "substeps", "fps", "frames", "duration", "integrator", "precision",
-                     "gravity", "cg_tolerance", "cg_max_iterations", "local_global_iterations", "adaptive", "adaptive_safety", "guard",
+                     "gravity", "cg_tolerance", "cg_max_iterations", "local_global_iterations", "vertex_block_iterations", "adaptive", "adaptive_safety", "guard",
                      "guard_energy_growth", "contact_thickness", "contact_xi", "contact_strength", "contact_range",
                      "block_points", "wind", "sheets", "obstacles", "constraints", "output", "camera"});
   Scene scene;

@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "forces.h"
+#include "spring_jacobian.h"
 #include "terms/terms.h"
 
 namespace drape::detail {
@@ -122,6 +123,43 @@ SolveResult block_jacobi_cg(ImplicitScratch<Real>& sc, double tolerance, int max
   return {it, residual};
 }
 
+// Springs (eq 6, spring_jacobian.h): −dt²·∂f/∂x = dt²·G into the matrix and dt²·∂f/∂x·v
+// into the right-hand side. Every spring term's Jacobian enters the system here.
+template <class Real>
+void add_spring_terms(ImplicitScratch<Real>& sc, const Sheet<Real>& s, Real dt2) {
+  const auto& t = *s.topology;
+  const auto& x = s.position;
+  const auto& v = s.velocity;
+  Real* a = sc.system.valuePtr();
+  Real* b = sc.rhs.data();
+  for (std::uint32_t e = 0; e < t.springs(); ++e) {
+    const std::uint32_t pa = t.a[e], pb = t.b[e];
+    const Real d[3] = {x.x[pa] - x.x[pb], x.y[pa] - x.y[pb], x.z[pa] - x.z[pb]};
+    Real gm[3][3];
+    spring_stiffness_block(d, t.stiffness[e], t.rest_length[e], gm);
+    const Real fa = sc.free[pa], fb = sc.free[pb];
+    const Real dv[3] = {v.x[pa] - v.x[pb], v.y[pa] - v.y[pb], v.z[pa] - v.z[pb]};
+    for (int r = 0; r < 3; ++r) {
+      Real* da = a + sc.diagonal[3 * pa + r];
+      Real* db = a + sc.diagonal[3 * pb + r];
+      Real* ab = a + sc.upper[3 * e + r];
+      Real* ba = a + sc.lower[3 * e + r];
+      Real jv = 0;  // (G·(va − vb))_r
+      for (int c = 0; c < 3; ++c) {
+        const Real h = dt2 * gm[r][c];
+        da[c] += fa * h;
+        db[c] += fb * h;
+        ab[c] -= fa * fb * h;
+        ba[c] -= fa * fb * h;
+        jv += gm[r][c] * dv[c];
+      }
+      // dt²·∂f/∂x·v: −G(va − vb) on a, +G(va − vb) on b
+      b[3 * pa + r] -= fa * dt2 * jv;
+      b[3 * pb + r] += fb * dt2 * jv;
+    }
+  }
+}
+
 }  // namespace
 
 template <class Real>
@@ -131,10 +169,8 @@ void implicit_euler_step(Sheet<Real>& s, const StepParams<Real>& p) {
   auto& sc = *s.implicit_scratch;
   if (sc.topology != s.topology.get() || sc.pin_count != s.pins.point.size()) build_pattern(sc, s);
 
-  const auto& t = *s.topology;
   const std::size_t count = s.size();
   const Real dt = p.dt, dt2 = p.dt * p.dt;
-  const auto& x = s.position;
   const auto& v = s.velocity;
 
   // f(x, v) of every term, including those without a Jacobian (obstacles, contacts): they
@@ -165,35 +201,10 @@ void implicit_euler_step(Sheet<Real>& s, const StepParams<Real>& p) {
       b[3 * q + r] -= dt2 * kk * vq[r];
     }
   }
-  // Springs (eq 6): ∂fa/∂xa = −G (spring_stiffness, terms/rows.h, clamped where compressed).
-  // That only drops a destabilising part of the linearisation; the force itself on the
-  // right-hand side stays exact.
-  for (std::uint32_t e = 0; e < t.springs(); ++e) {
-    const std::uint32_t pa = t.a[e], pb = t.b[e];
-    const Real d[3] = {x.x[pa] - x.x[pb], x.y[pa] - x.y[pb], x.z[pa] - x.z[pb]};
-    Real gm[3][3];
-    spring_stiffness(d, t.stiffness[e], t.rest_length[e], gm);
-    const Real fa = sc.free[pa], fb = sc.free[pb];
-    const Real dv[3] = {v.x[pa] - v.x[pb], v.y[pa] - v.y[pb], v.z[pa] - v.z[pb]};
-    for (int r = 0; r < 3; ++r) {
-      Real* da = a + sc.diagonal[3 * pa + r];
-      Real* db = a + sc.diagonal[3 * pb + r];
-      Real* ab = a + sc.upper[3 * e + r];
-      Real* ba = a + sc.lower[3 * e + r];
-      Real jv = 0;  // (G·(va − vb))_r
-      for (int c = 0; c < 3; ++c) {
-        const Real h = dt2 * gm[r][c];
-        da[c] += fa * h;
-        db[c] += fb * h;
-        ab[c] -= fa * fb * h;
-        ba[c] -= fa * fb * h;
-        jv += gm[r][c] * dv[c];
-      }
-      // dt²·∂f/∂x·v: −G(va − vb) on a, +G(va − vb) on b
-      b[3 * pa + r] -= fa * dt2 * jv;
-      b[3 * pb + r] += fb * dt2 * jv;
-    }
-  }
+  // Springs (eq 6): ∂fa/∂xa = −G (spring_jacobian.h, clamped where compressed). That only
+  // drops a destabilising part of the linearisation; the force itself on the right-hand
+  // side stays exact.
+  add_spring_terms(sc, s, dt2);
   // The other terms (terms/terms.h): M − dt²·J on their blocks, dt²·J·v on the right-hand
   // side, with pinned points' rows and columns dropped as above.
   add_term_jacobians(s, cptr(s.position), [&](std::uint32_t p, std::uint32_t q, const Real (&j)[3][3]) {

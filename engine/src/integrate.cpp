@@ -7,6 +7,7 @@
 #include "forces.h"
 #include "implicit.h"
 #include "local_global.h"
+#include "vertex_block.h"
 
 #include <array>
 #include <cstdint>
@@ -235,6 +236,9 @@ constexpr IntegratorRow table[] = {
      false, unconditional, DRAPE_STEP(implicit_euler_step)},
     {{Integrator::LocalGlobal, "local_global", 1, false, "any step", "local_global_iterations (cg_tolerance: converged)"},
      false, unconditional, DRAPE_STEP(local_global_step)},
+    {{Integrator::VertexBlockDescent, "vertex_block_descent", 1, false, "any step",
+      "vertex_block_iterations (cg_tolerance: converged)"},
+     false, unconditional, DRAPE_STEP(vertex_block_step)},
 };
 #undef DRAPE_STEP
 

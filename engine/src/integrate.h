@@ -16,8 +16,9 @@ struct StepParams {
   // implicit Euler only: conjugate gradient's relative residual target and iteration cap
   double cg_tolerance = 1e-6;
   int cg_max_iterations = 200;
-  // local/global only: iterations per step
+  // local/global and vertex block descent: iterations per step
   int local_global_iterations = 10;
+  int vertex_block_iterations = 10;
 };
 
 // One integrator's step of a whole sheet, pins included.

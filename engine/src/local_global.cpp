@@ -17,18 +17,25 @@ std::vector<double> widen(const AlignedArray<Real>& a) { return {a.begin(), a.en
 template <class Real>
 std::vector<double> widen(const std::vector<Real>& a) { return {a.begin(), a.end()}; }
 
+// Whether `wide` holds exactly the values of `a` (compared without a copy: this runs every step).
+template <class Array>
+bool same_values(const std::vector<double>& wide, const Array& a) {
+  return wide.size() == a.size() && std::equal(a.begin(), a.end(), wide.begin(), [](auto x, double y) { return double(x) == y; });
+}
+
 // Whether the factored matrix was built for this sheet and step.
 template <class Real>
 bool factor_current(const LocalGlobalScratch& sc, const Sheet<Real>& s, double dt) {
-  return sc.topology == s.topology && sc.dt == dt && sc.mass == widen(s.mass) && sc.damping == widen(s.damping) &&
-         sc.anchor_point == s.anchors.point && sc.anchor_stiffness == widen(s.anchors.stiffness) &&
+  return sc.topology == s.topology && sc.dt == dt && same_values(sc.mass, s.mass) && same_values(sc.damping, s.damping) &&
+         sc.anchor_point == s.anchors.point && same_values(sc.anchor_stiffness, s.anchors.stiffness) &&
          sc.pin_point == s.pins.point;
 }
 
-// M̃ + dt²·L + dt²·K_anchor over the free points; a pinned point's row and column are the
-// identity (its springs to free points move to the right-hand side, assemble_inertia).
+// The key and the buffers of a step, and with factor_too the factored M̃ + dt²·L +
+// dt²·K_anchor over the free points; a pinned point's row and column are the identity (its
+// springs to free points move to the right-hand side, local_global_step).
 template <class Real>
-void build_factor(LocalGlobalScratch& sc, const Sheet<Real>& s, double dt) {
+void build_factor(LocalGlobalScratch& sc, const Sheet<Real>& s, double dt, bool factor_too) {
   const auto& t = *s.topology;
   const std::size_t count = s.size();
   sc.topology = s.topology;
@@ -37,9 +44,23 @@ void build_factor(LocalGlobalScratch& sc, const Sheet<Real>& s, double dt) {
   sc.damping = widen(s.damping);
   sc.anchor_point = s.anchors.point;
   sc.anchor_stiffness = widen(s.anchors.stiffness);
+  sc.rest = widen(t.rest_length);  // the topology is part of the key: these stay valid with it
+  sc.stiffness = widen(t.stiffness);
   sc.pin_point = s.pins.point;
   sc.pinned.assign(count, 0);
   for (std::uint32_t p : s.pins.point) sc.pinned[p] = 1;
+  for (int r = 0; r < 3; ++r) {
+    sc.inertia[r].resize(Eigen::Index(count));
+    sc.rhs[r].resize(Eigen::Index(count));
+    sc.solution[r].resize(Eigen::Index(count));
+    sc.start[r].resize(count);
+    sc.spring_force[r].resize(count);
+    sc.other_force[r].resize(count);
+    sc.direction[r].resize(t.springs());
+  }
+  sc.column_start.clear();
+  sc.inverse_diagonal.clear();
+  if (!factor_too) return;  // vertex block descent needs the key and the buffers only
 
   const double dt2 = dt * dt;
   std::vector<double> diagonal(count);
@@ -68,15 +89,6 @@ void build_factor(LocalGlobalScratch& sc, const Sheet<Real>& s, double dt) {
   const auto& indices = factor.permutationP().indices();
   sc.permutation.assign(indices.data(), indices.data() + count);
   sc.work.resize(3 * count);
-  for (int r = 0; r < 3; ++r) {
-    sc.inertia[r].resize(Eigen::Index(count));
-    sc.rhs[r].resize(Eigen::Index(count));
-    sc.solution[r].resize(Eigen::Index(count));
-    sc.start[r].resize(count);
-    sc.spring_force[r].resize(count);
-    sc.other_force[r].resize(count);
-    sc.direction[r].resize(t.springs());
-  }
 }
 
 // The local step at positions `x` (sc.solution): every spring's d_e; with `force`, also
@@ -157,19 +169,14 @@ void global_solve(LocalGlobalScratch& sc) {
 }  // namespace
 
 template <class Real>
-void local_global_step(Sheet<Real>& s, const StepParams<Real>& p) {
-  if (!s.local_global_scratch || s.local_global_scratch.use_count() > 1)
-    s.local_global_scratch = std::make_shared<LocalGlobalScratch>();
-  auto& sc = *s.local_global_scratch;
+void backward_euler_begin(LocalGlobalScratch& sc, Sheet<Real>& s, const StepParams<Real>& p, bool factor) {
   const double h = static_cast<double>(p.dt), h2 = h * h;
-  if (!factor_current(sc, s, h)) build_factor(sc, s, h);
+  if (!factor_current(sc, s, h) || (factor && sc.inverse_diagonal.size() != s.size())) build_factor(sc, s, h, factor);
 
   const auto& t = *s.topology;
   const std::size_t count = s.size();
-  const std::uint32_t springs = t.springs();
-  const std::vector<double> rest = widen(t.rest_length), stiffness = widen(t.stiffness);
   const Real* x[3] = {s.position.x.data(), s.position.y.data(), s.position.z.data()};
-  Real* v[3] = {s.velocity.x.data(), s.velocity.y.data(), s.velocity.z.data()};
+  const Real* v[3] = {s.velocity.x.data(), s.velocity.y.data(), s.velocity.z.data()};
   const double g[3] = {static_cast<double>(p.gx), static_cast<double>(p.gy), static_cast<double>(p.gz)};
   const auto& an = s.anchors;
   const bool damped = !sc.damping.empty();
@@ -181,7 +188,7 @@ void local_global_step(Sheet<Real>& s, const StepParams<Real>& p) {
     sc.start[r].assign(x[r], x[r] + count);
     std::copy(x[r], x[r] + count, sc.solution[r].data());
   }
-  local_step(sc, t.a, t.b, rest.data(), stiffness.data(), springs, true);
+  local_step(sc, t.a, t.b, sc.rest.data(), sc.stiffness.data(), t.springs(), true);
   sheet_forces(s, cptr(s.position), cptr(s.velocity), ptr(s.force));
   const Real* f[3] = {s.force.x.data(), s.force.y.data(), s.force.z.data()};
   for (int r = 0; r < 3; ++r)
@@ -192,9 +199,7 @@ void local_global_step(Sheet<Real>& s, const StepParams<Real>& p) {
     const double target[3] = {double(an.tx[k]), double(an.ty[k]), double(an.tz[k])};
     for (int r = 0; r < 3; ++r) sc.other_force[r][q] -= sc.anchor_stiffness[k] * (target[r] - sc.start[r][q]);
   }
-
-  // M̃ x̂ = M(x + h v) + h C x + h²(f_other + M g), plus the constant parts of the global
-  // step's right-hand side: h²·k·p0 of anchors, h²·k·x_pin of springs to pinned points.
+  // M̃ x̂ = M(x + h v) + h C x + h²(f_other + M g)
   for (int r = 0; r < 3; ++r) {
     double* in = sc.inertia[r].data();
     for (std::size_t q = 0; q < count; ++q) {
@@ -203,46 +208,29 @@ void local_global_step(Sheet<Real>& s, const StepParams<Real>& p) {
               h2 * (sc.other_force[r][q] + sc.mass[q] * g[r]);
     }
   }
-  for (std::size_t k = 0; k < an.point.size(); ++k) {
-    const double target[3] = {double(an.tx[k]), double(an.ty[k]), double(an.tz[k])};
-    for (int r = 0; r < 3; ++r) sc.inertia[r][an.point[k]] += h2 * sc.anchor_stiffness[k] * target[r];
-  }
+  // the first iterate: the inertial prediction x + h v, pins on their targets
+  for (int r = 0; r < 3; ++r)
+    for (std::size_t q = 0; q < count; ++q) sc.solution[r][Eigen::Index(q)] = sc.start[r][q] + h * double(v[r][q]);
   const auto& pins = s.pins;
   for (std::size_t k = 0; k < pins.point.size(); ++k) {
     const double target[3] = {double(pins.tx[k]), double(pins.ty[k]), double(pins.tz[k])};
-    for (int r = 0; r < 3; ++r) sc.inertia[r][pins.point[k]] = target[r];
+    for (int r = 0; r < 3; ++r) sc.solution[r][pins.point[k]] = target[r];
   }
-  for (std::uint32_t e = 0; e < springs; ++e) {
-    const std::uint32_t a = t.a[e], b = t.b[e];
-    if (sc.pinned[a] == sc.pinned[b]) continue;
-    const std::uint32_t pin = sc.pinned[a] ? a : b, free = sc.pinned[a] ? b : a;
-    for (int r = 0; r < 3; ++r) sc.inertia[r][free] += h2 * stiffness[e] * sc.inertia[r][pin];
-  }
+}
 
-  // Start from the inertial prediction x + h v (pins at their targets), then iterate.
-  for (int r = 0; r < 3; ++r)
-    for (std::size_t q = 0; q < count; ++q)
-      sc.solution[r][Eigen::Index(q)] = sc.pinned[q] ? sc.inertia[r][Eigen::Index(q)] : sc.start[r][q] + h * double(v[r][q]);
-  const int iterations = std::max(1, p.local_global_iterations);
-  for (int it = 0; it < iterations; ++it) {
-    local_step(sc, t.a, t.b, rest.data(), stiffness.data(), springs, false);
-    for (int r = 0; r < 3; ++r) {
-      sc.rhs[r] = sc.inertia[r];
-      double* rhs = sc.rhs[r].data();
-      const double* d = sc.direction[r].data();
-      for (std::uint32_t e = 0; e < springs; ++e) {
-        const double w = h2 * stiffness[e] * d[e];
-        if (!sc.pinned[t.a[e]]) rhs[t.a[e]] += w;
-        if (!sc.pinned[t.b[e]]) rhs[t.b[e]] -= w;
-      }
-    }
-    global_solve(sc);
-  }
-
+template <class Real>
+void backward_euler_finish(LocalGlobalScratch& sc, Sheet<Real>& s, const StepParams<Real>& p, int iterations) {
+  const double h = static_cast<double>(p.dt), h2 = h * h;
+  const auto& t = *s.topology;
+  const std::size_t count = s.size();
+  Real* v[3] = {s.velocity.x.data(), s.velocity.y.data(), s.velocity.z.data()};
+  const double g[3] = {static_cast<double>(p.gx), static_cast<double>(p.gy), static_cast<double>(p.gz)};
+  const auto& an = s.anchors;
+  const bool damped = !sc.damping.empty();
   // Residual of the backward-Euler equations at the result, over the free points:
   //   M(x − x0 − h v0) + h C (x − x0) − h²(f_spring(x) + f_anchor(x) + f_other + M g),
   // relative to the sizes of its two sides.
-  local_step(sc, t.a, t.b, rest.data(), stiffness.data(), springs, true);
+  local_step(sc, t.a, t.b, sc.rest.data(), sc.stiffness.data(), t.springs(), true);
   for (std::size_t k = 0; k < an.point.size(); ++k) {
     const double target[3] = {double(an.tx[k]), double(an.ty[k]), double(an.tz[k])};
     for (int r = 0; r < 3; ++r)
@@ -272,6 +260,58 @@ void local_global_step(Sheet<Real>& s, const StepParams<Real>& p) {
     }
 }
 
+template <class Real>
+void local_global_step(Sheet<Real>& s, const StepParams<Real>& p) {
+  if (!s.local_global_scratch || s.local_global_scratch.use_count() > 1)
+    s.local_global_scratch = std::make_shared<LocalGlobalScratch>();
+  auto& sc = *s.local_global_scratch;
+  backward_euler_begin(sc, s, p, true);
+  const double h2 = double(p.dt) * double(p.dt);
+  const auto& t = *s.topology;
+  const std::uint32_t springs = t.springs();
+  const std::vector<double>& stiffness = sc.stiffness;
+  const auto& an = s.anchors;
+
+  // The constant parts of the global step's right-hand side besides M̃ x̂: h²·k·p0 of
+  // anchors, and for springs to pinned points h²·k·x_pin (pinned rows hold the target).
+  for (std::size_t k = 0; k < an.point.size(); ++k) {
+    const double target[3] = {double(an.tx[k]), double(an.ty[k]), double(an.tz[k])};
+    for (int r = 0; r < 3; ++r) sc.inertia[r][an.point[k]] += h2 * sc.anchor_stiffness[k] * target[r];
+  }
+  const auto& pins = s.pins;
+  for (std::size_t k = 0; k < pins.point.size(); ++k) {
+    const double target[3] = {double(pins.tx[k]), double(pins.ty[k]), double(pins.tz[k])};
+    for (int r = 0; r < 3; ++r) sc.inertia[r][pins.point[k]] = target[r];
+  }
+  for (std::uint32_t e = 0; e < springs; ++e) {
+    const std::uint32_t a = t.a[e], b = t.b[e];
+    if (sc.pinned[a] == sc.pinned[b]) continue;
+    const std::uint32_t pin = sc.pinned[a] ? a : b, free = sc.pinned[a] ? b : a;
+    for (int r = 0; r < 3; ++r) sc.inertia[r][free] += h2 * stiffness[e] * sc.inertia[r][pin];
+  }
+
+  const int iterations = std::max(1, p.local_global_iterations);
+  for (int it = 0; it < iterations; ++it) {
+    local_step(sc, t.a, t.b, sc.rest.data(), stiffness.data(), springs, false);
+    for (int r = 0; r < 3; ++r) {
+      sc.rhs[r] = sc.inertia[r];
+      double* rhs = sc.rhs[r].data();
+      const double* d = sc.direction[r].data();
+      for (std::uint32_t e = 0; e < springs; ++e) {
+        const double w = h2 * stiffness[e] * d[e];
+        if (!sc.pinned[t.a[e]]) rhs[t.a[e]] += w;
+        if (!sc.pinned[t.b[e]]) rhs[t.b[e]] -= w;
+      }
+    }
+    global_solve(sc);
+  }
+  backward_euler_finish(sc, s, p, iterations);
+}
+
+template void backward_euler_begin<double>(LocalGlobalScratch&, Sheet<double>&, const StepParams<double>&, bool);
+template void backward_euler_begin<float>(LocalGlobalScratch&, Sheet<float>&, const StepParams<float>&, bool);
+template void backward_euler_finish<double>(LocalGlobalScratch&, Sheet<double>&, const StepParams<double>&, int);
+template void backward_euler_finish<float>(LocalGlobalScratch&, Sheet<float>&, const StepParams<float>&, int);
 template void local_global_step<double>(Sheet<double>&, const StepParams<double>&);
 template void local_global_step<float>(Sheet<float>&, const StepParams<float>&);
 

@@ -9,8 +9,8 @@
 //           Laplacian weighted by k. That matrix depends only on the grid, the masses, the
 //           damping, the anchors, the pins and dt: it is factored once (sparse Cholesky) and
 //           refactored only when one of those changes, and it is the same for x, y and z.
-// The iteration count is fixed (the knob); fewer iterations leave the springs softer than
-// backward Euler would, never unstable (each iteration lowers the energy above).
+// The iteration count is fixed (the knob); fewer iterations leave the step short of
+// backward Euler, never unstable (each iteration lowers the energy above).
 #pragma once
 
 #include <Eigen/SparseCore>
@@ -29,6 +29,7 @@ struct LocalGlobalScratch {
   double dt = 0;
   std::vector<double> mass, damping, anchor_stiffness;
   std::vector<std::uint32_t> anchor_point, pin_point;
+  std::vector<double> rest, stiffness;  // per spring, from the topology
 
   // The Cholesky factor L (compressed columns, diagonal entry first in each column) and its
   // fill-reducing permutation, copied out of Eigen so the three axes share one pass over L.
@@ -46,5 +47,15 @@ struct LocalGlobalScratch {
 
 template <class Real>
 void local_global_step(Sheet<Real>& sheet, const StepParams<Real>& params);
+
+// What local/global and vertex block descent share: begin sets up a backward-Euler step
+// (start state, the forces held explicit, M̃ x̂ into `inertia`, the first iterate x + dt·v
+// into `solution`, and with `factor` the factored matrix); finish measures the residual of
+// the backward-Euler equations at `solution`, records the solve and writes x and v.
+template <class Real>
+void backward_euler_begin(LocalGlobalScratch& scratch, Sheet<Real>& sheet, const StepParams<Real>& params, bool factor);
+template <class Real>
+void backward_euler_finish(LocalGlobalScratch& scratch, Sheet<Real>& sheet, const StepParams<Real>& params,
+                           int iterations);
 
 }  // namespace drape::detail

@@ -140,8 +140,10 @@ struct Vec3Array {
 // implicit step and reused by every later one.
 template <class Real>
 struct ImplicitScratch;
-// Local/global's factored system (local_global.h), rebuilt only when what it depends on changes.
+// Local/global's factored system (local_global.h), rebuilt only when what it depends on changes;
+// vertex block descent's adjacency and colours (vertex_block.h).
 struct LocalGlobalScratch;
+struct VertexBlockScratch;
 
 // The last solve of an implicit integrator on a sheet: iterations, relative residual,
 // whether it reached its tolerance, and how many of the sheet's solves so far did not.
@@ -169,6 +171,7 @@ struct Sheet {
   // integrator replaces a scratch it does not own alone (implicit.cpp).
   std::shared_ptr<ImplicitScratch<Real>> implicit_scratch;
   std::shared_ptr<LocalGlobalScratch> local_global_scratch;  // the same sharing rule
+  std::shared_ptr<VertexBlockScratch> vertex_block_scratch;  // the same sharing rule
   SolveStats last_solve;
   // Contact forces of this substep, gathered by the host stage in fixed pair order;
   // sheet_forces adds them only when has_contacts (a per-sheet, not per-point, choice).

@@ -46,6 +46,8 @@ std::string validate(const WorldDef& d) {
   if (d.cg_max_iterations < 1) return problem("cg_max_iterations", "must be at least 1", d.cg_max_iterations);
   if (d.local_global_iterations < 1)
     return problem("local_global_iterations", "must be at least 1", d.local_global_iterations);
+  if (d.vertex_block_iterations < 1)
+    return problem("vertex_block_iterations", "must be at least 1", d.vertex_block_iterations);
   if (!(d.adaptive_safety > 0 && d.adaptive_safety <= 1)) return problem("adaptive_safety", "must be in (0, 1]", d.adaptive_safety);
   if (!(d.guard_energy_growth > 1) || std::isnan(d.guard_energy_growth))
     return problem("guard_energy_growth", "must be greater than 1", d.guard_energy_growth);
@@ -609,7 +611,8 @@ struct BasicWorld<Real>::Impl {
 
   detail::StepParams<Real> step_params(double h) const {
     return {static_cast<Real>(h), static_cast<Real>(def.gravity.x), static_cast<Real>(def.gravity.y),
-            static_cast<Real>(def.gravity.z), def.cg_tolerance, def.cg_max_iterations, def.local_global_iterations};
+            static_cast<Real>(def.gravity.z), def.cg_tolerance, def.cg_max_iterations, def.local_global_iterations,
+            def.vertex_block_iterations};
   }
 
   void count_substeps(double h, std::uint64_t count) {

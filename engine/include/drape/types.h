@@ -59,6 +59,7 @@ enum class Integrator {
   RK4,                // classical Runge–Kutta on (x, v); four force evaluations per step. Order 4.
   ImplicitEuler,      // backward Euler linearised once per step (Baraff & Witkin 1998), PCG solve. Order 1.
   LocalGlobal,        // backward Euler by local/global iterations (Liu et al. 2013), fixed budget. Order 1.
+  VertexBlockDescent, // backward Euler by per-point Newton steps over colours (Chen et al. 2024), fixed budget. Order 1.
 };
 
 // One integrator's row of the table, as a caller may read it.
@@ -79,7 +80,7 @@ const IntegratorInfo& integrator_info(Integrator integrator);  // throws std::ou
 std::string_view integrator_name(Integrator integrator);  // "unknown" for a value not in the table
 std::optional<Integrator> integrator_from_name(std::string_view name);
 
-// Global order of accuracy of the integrator's positions at a fixed time (1, 1, 2, 4, 1, 1).
+// Global order of accuracy of the integrator's positions at a fixed time (1, 1, 2, 4, 1, 1, 1).
 int integrator_order(Integrator integrator);
 bool integrator_is_explicit(Integrator integrator);
 
@@ -90,7 +91,7 @@ bool integrator_is_explicit(Integrator integrator);
 //   forward Euler: no step is stable without damping (the amplification is √(1 + ω²dt²) > 1);
 //     it returns the step at which the stiffest mode's energy at most doubles per simulated
 //     second, ln 2 / ω² (from (1 + ω²dt²)^(1/dt) ≈ exp(ω²dt));
-//   implicit Euler and local/global: +inf (unconditionally stable).
+//   implicit Euler, local/global and vertex block descent: +inf (unconditionally stable).
 double integrator_critical_step(Integrator integrator, double omega_max);
 
 }  // namespace drape

@@ -33,9 +33,12 @@ struct WorldDef {
   int cg_max_iterations = 200;
 
   // Local/global (Integrator::LocalGlobal): iterations per step, the method's one knob
-  // (more: stiffer springs, closer to the converged backward-Euler step; cost linear in it).
+  // (more: closer to the converged backward-Euler step; cost linear in it).
   // Its solve counts as converged when the step's backward-Euler residual is below cg_tolerance.
   int local_global_iterations = 10;
+  // Vertex block descent (Integrator::VertexBlockDescent): Gauss–Seidel sweeps over the
+  // colours per step, its one knob; converged as for local/global.
+  int vertex_block_iterations = 10;
 
   // Adaptive stepping ("stable, as fast as possible"): an explicit integrator takes each
   // substep as adaptive_safety × its critical step (integrator_critical_step() on the

@@ -9,6 +9,7 @@
 #include <cstdint>
 
 #include "../sheet_data.h"
+#include "../spring_jacobian.h"
 
 namespace drape::detail {
 
@@ -41,28 +42,6 @@ inline Real spring_scale(Real dx, Real dy, Real dz, Real rest, Real k) {
   const Real len = std::sqrt(dx * dx + dy * dy + dz * dz);
   const Real inv = len > Real(0) ? Real(1) / len : Real(0);
   return -k * (len - rest) * inv;
-}
-
-// eq (6)'s stiffness block: with d = xa − xb, L = |d|, u = d/L, the Jacobian of the force
-// on a is ∂fa/∂xa = −G, G = k [u uᵀ + (1 − ℓ/L)(I − u uᵀ)], and ∂fa/∂xb = G. A compressed
-// spring (L < ℓ) makes (1 − ℓ/L) negative and G indefinite, so an implicit system could lose
-// the positive definiteness CG needs: the transverse term is clamped at 0 (Baraff & Witkin's
-// and Choi & Ko's remedy), which drops only a destabilising part of the linearisation. A
-// zero-length spring with ℓ = 0 is linear, G = k·I; with ℓ > 0 it has no direction and the
-// kernel applies no force, so G = 0.
-template <class Real>
-inline void spring_stiffness(const Real (&d)[3], Real k, Real rest, Real (&g)[3][3]) {
-  const Real len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-  Real u[3] = {0, 0, 0};
-  Real transverse;
-  if (len > Real(0)) {
-    for (int r = 0; r < 3; ++r) u[r] = d[r] / len;
-    transverse = std::max(Real(0), Real(1) - rest / len);
-  } else {
-    transverse = rest == Real(0) ? Real(1) : Real(0);
-  }
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) g[r][c] = k * ((Real(1) - transverse) * u[r] * u[c] + (r == c ? transverse : Real(0)));
 }
 
 // The rows one sweep works on. Rows [read_lo, ...) can be read (a wave has no state above

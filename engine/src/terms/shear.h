@@ -92,14 +92,14 @@ double energy(const Topology<Real>& t, ConstVec3Ptr<Real> x) {
   return e;
 }
 
-// eq (6)'s Jacobian per diagonal (spring_stiffness, clamped where compressed).
+// eq (6)'s Jacobian per diagonal (spring_stiffness_block, spring_jacobian.h, clamped where compressed).
 template <class Real, class Add>
 void add_jacobian(const Topology<Real>& t, ConstVec3Ptr<Real> x, Add add) {
   const Real k = t.shear->stiffness, rest = t.shear->rest;
   for_each_spring(t, [&](std::uint32_t a, std::uint32_t b) {
     const Real d[3] = {x.x[a] - x.x[b], x.y[a] - x.y[b], x.z[a] - x.z[b]};
     Real g[3][3], minus_g[3][3];
-    spring_stiffness(d, k, rest, g);
+    spring_stiffness_block(d, k, rest, g);
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 3; ++c) minus_g[r][c] = -g[r][c];
     add(a, a, minus_g);
