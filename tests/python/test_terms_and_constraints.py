@@ -39,10 +39,10 @@ def motion(doc):
                        rotation=rotation(k.get("rotation", [1, 0, 0, 0]))) for k in doc["keyframes"]])
 
 
-def world_from_json(doc, threads):
+def world_from_json(doc, threads, world_class=drape.World):
     """The scene's world built through the module's definitions alone (not its loader)."""
     known(doc, TOP_KEYS, "scene")
-    world = drape.World(dt=doc["dt"], threads=threads, contact_strength=doc.get("contact_strength", 1e-3),
+    world = world_class(dt=doc["dt"], threads=threads, contact_strength=doc.get("contact_strength", 1e-3),
                         wind=drape.Wind(**doc.get("wind", {})))
     sheets, shapes = {}, {}
     for s in doc["sheets"]:
@@ -116,18 +116,20 @@ def bits(world):
 
 # (scene, substeps): long enough that each scene's terms act (the tablecloth reaches the table
 # after about 290 substeps; the curtain's corner is pulled along from the first).
-SCENES = [("flag_wind.json", 300), ("tablecloth.json", 500), ("curtain_rail.json", 300), ("sewn_box.json", 300),
-          ("cape_sphere.json", 300)]
+SCENES = [("flag_wind.json", 300, None), ("tablecloth.json", 500, None), ("curtain_rail.json", 300, None),
+          ("curtain_rail.json", 300, "float32"), ("sewn_box.json", 300, None), ("cape_sphere.json", 300, None)]
 
 
-@pytest.mark.parametrize("scene_name,substeps", SCENES)
-def test_a_world_built_from_python_steps_as_the_scene_loader_s_bit_for_bit(source_dir, scene_name, substeps):
+@pytest.mark.parametrize("scene_name,substeps,precision", SCENES)
+def test_a_world_built_from_python_steps_as_the_scene_loader_s_bit_for_bit(source_dir, scene_name, substeps, precision):
     path = source_dir / "scenes" / scene_name
     doc = json.loads(path.read_text())
-    scene = drape.load_scene(path)
+    scene = drape.load_scene(path, overrides={"precision": precision} if precision else {})
+    world_class = drape.WorldF if precision == "float32" else drape.World
     loaded = scene.make_world(threads=1)
-    built = world_from_json(doc, threads=1)
-    split = world_from_json(doc, threads=2)  # two threads, the same bits
+    assert isinstance(loaded, world_class)
+    built = world_from_json(doc, 1, world_class)
+    split = world_from_json(doc, 2, world_class)  # two threads, the same bits
     assert built.constraint_count == len(scene.constraints) == len(doc.get("constraints", []))
     start = bits(built)
     assert bits(loaded) == start
