@@ -369,13 +369,21 @@ PYBIND11_MODULE(drape, m) {
   bind_id<SheetId>(m, "SheetId");
   bind_id<ObstacleId>(m, "ObstacleId");
   bind_id<ConstraintId>(m, "ConstraintId");
-  py::enum_<ConstraintKind>(m, "ConstraintKind")
-      .value("PointToPoint", ConstraintKind::PointToPoint)
-      .value("Path", ConstraintKind::Path)
-      .value("Frame", ConstraintKind::Frame)
-      .value("Rail", ConstraintKind::Rail)
+  // The kinds the engine names (constraint_kind_name), in the enum's order.
+  std::vector<ConstraintKind> kinds;
+  for (int k = 0; constraint_kind_name(ConstraintKind(k)) != "unknown"; ++k) kinds.push_back(ConstraintKind(k));
+  py::enum_<ConstraintKind> constraint_kind(m, "ConstraintKind");
+  for (ConstraintKind k : kinds) constraint_kind.value(python_name(constraint_kind_name(k)).c_str(), k);
+  constraint_kind
+      .def(py::init([kinds](const std::string& name) {
+             for (ConstraintKind k : kinds)
+               if (constraint_kind_name(k) == name) return k;
+             throw py::value_error("unknown constraint kind \"" + name + "\"");
+           }),
+           py::arg("name"), "From the scene format's name: \"point_to_point\", \"path\", \"frame\", \"rail\"")
       .def_property_readonly("label", [](ConstraintKind k) { return std::string(constraint_kind_name(k)); },
-                             "the scene format's name: \"point_to_point\", \"path\", \"frame\", \"rail\"");
+                             "the scene format's name");
+  py::implicitly_convertible<std::string, ConstraintKind>();
 
   Fields<StiffnessRegion>(m, "StiffnessRegion", "Springs inside rows/columns [begin, end] get this stiffness (§5.1).")
       .field("row_begin", &StiffnessRegion::row_begin, "")

@@ -87,10 +87,7 @@ def world_from_json(doc, threads, world_class=drape.World):
 
     for c in doc.get("constraints", []):
         known(c, CONSTRAINT_KEYS, c["type"])
-        kind = {"point_to_point": drape.ConstraintKind.PointToPoint, "path": drape.ConstraintKind.Path,
-                "frame": drape.ConstraintKind.Frame, "rail": drape.ConstraintKind.Rail}[c["type"]]
-        assert kind.label == c["type"]
-        d = drape.ConstraintDef(kind=kind, sheet=sheets[c["sheet"]], points=points(c["points"], c["sheet"]),
+        d = drape.ConstraintDef(kind=c["type"], sheet=sheets[c["sheet"]], points=points(c["points"], c["sheet"]),
                                 stiffness=c["stiffness"])
         if "other_sheet" in c:
             d.other_sheet = sheets[c["other_sheet"]]
@@ -213,6 +210,15 @@ def test_bending_energy_of_a_parabola_is_the_hand_computed_sum():
     e = world.energies()
     assert e.bending == pytest.approx(0.5 * k_b * (m + 1) * (n - 1) * (2 * c) ** 2, rel=1e-12)
     assert e.total == pytest.approx(e.kinetic + e.spring + e.bending + e.gravity + e.anchor + e.obstacle, rel=1e-15)
+
+
+def test_constraint_kinds_are_the_engine_s_names():
+    assert list(drape.ConstraintKind.__members__) == ["PointToPoint", "Path", "Frame", "Rail"]
+    for kind in drape.ConstraintKind.__members__.values():
+        assert drape.ConstraintKind(kind.label) == kind
+    assert drape.ConstraintDef(kind="point_to_point").kind == drape.ConstraintKind.PointToPoint
+    with pytest.raises(ValueError, match="unknown constraint kind"):
+        drape.ConstraintKind("glue")
 
 
 def test_integrators_come_from_the_engine_s_table():
