@@ -192,7 +192,10 @@ void bind_world(py::module_& m, const char* name, const char* doc) {
   w.def("remove_sheet", &W::remove_sheet, py::arg("sheet"), "Arrays from view()/state() are invalid afterwards.");
   w.def("add_obstacle",
         [](W& self, std::optional<ObstacleDef> def, const py::kwargs& kwargs) {
-          return self.add_obstacle(definition(def, kwargs));
+          const ObstacleDef d = definition(def, kwargs);
+          // A Python motion that raises does so here, before the world takes a pool slot for it.
+          if (d.motion && d.motion->kind == Motion::Kind::Callback && d.motion->callback) pose_at(*d.motion, self.time());
+          return self.add_obstacle(d);
         },
         py::arg("definition") = py::none(), "Adds an obstacle from an ObstacleDef and/or its fields as keywords.");
   w.def("remove_obstacle", &W::remove_obstacle, py::arg("obstacle"));

@@ -319,6 +319,10 @@ def test_a_callback_motion_steps_from_python_threads_and_its_errors_arrive():
     with pytest.raises(RuntimeError, match="motion failed"):
         world.step(100)
     assert world.step_count == 21 and world.all_finite()  # the substeps before the failing one
+    with pytest.raises(RuntimeError, match="motion failed"):
+        world.add_obstacle(motion=drape.Motion(kind=drape.Motion.Kind.Callback, callback=broken))
+    assert world.obstacle_count == 1  # path_world's sphere; the failed one left nothing behind
+    assert world.add_obstacle().index == 1
 
 
 def test_bad_constraints_are_value_errors_naming_the_field_and_unknown_keywords_type_errors():
