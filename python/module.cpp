@@ -3,14 +3,18 @@
 // definitions take keyword arguments; a sheet's state comes out as NumPy arrays that view
 // the world's buffers (docs/python.md).
 #include <drape/drape.h>
+#include <pybind11/functional.h>
 #include <pybind11/numpy.h>
 #include <pybind11/operators.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 #include <pybind11/stl/filesystem.h>
 
+#include <algorithm>
+#include <cctype>
 #include <sstream>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "run.h"
@@ -86,6 +90,8 @@ class Fields {
     return *this;
   }
 
+  py::class_<T>& cls() { return cls_; }
+
   py::class_<T>& done() {
     auto names = names_;
     cls_.def(py::init([](const py::kwargs& kwargs) { return with_fields(T{}, kwargs); }),
@@ -119,6 +125,24 @@ class Fields {
   py::class_<T> cls_;
   std::shared_ptr<std::vector<std::string>> names_ = std::make_shared<std::vector<std::string>>();
 };
+
+// The Python name of an integrator from its row of the table: "semi_implicit_euler" →
+// "SemiImplicitEuler"; a word with a digit is an acronym, all capitals ("rk4" → "RK4").
+std::string python_name(std::string_view table_name) {
+  std::string out;
+  std::size_t begin = 0;
+  while (begin <= table_name.size()) {
+    std::size_t end = table_name.find('_', begin);
+    if (end == std::string_view::npos) end = table_name.size();
+    std::string word(table_name.substr(begin, end - begin));
+    const bool acronym = std::any_of(word.begin(), word.end(), [](unsigned char c) { return std::isdigit(c); });
+    for (std::size_t k = 0; k < word.size(); ++k)
+      if (acronym || k == 0) word[k] = char(std::toupper(static_cast<unsigned char>(word[k])));
+    out += word;
+    begin = end + 1;
+  }
+  return out;
+}
 
 // A definition from an optional object of its type and keyword arguments that change it.
 template <class T>
@@ -168,17 +192,32 @@ void bind_world(py::module_& m, const char* name, const char* doc) {
   w.def("remove_sheet", &W::remove_sheet, py::arg("sheet"), "Arrays from view()/state() are invalid afterwards.");
   w.def("add_obstacle",
         [](W& self, std::optional<ObstacleDef> def, const py::kwargs& kwargs) {
-          return self.add_obstacle(definition(def, kwargs));
+          const ObstacleDef d = definition(def, kwargs);
+          // A Python motion that raises does so here, before the world takes a pool slot for it.
+          if (d.motion && d.motion->kind == Motion::Kind::Callback && d.motion->callback) pose_at(*d.motion, self.time());
+          return self.add_obstacle(d);
         },
         py::arg("definition") = py::none(), "Adds an obstacle from an ObstacleDef and/or its fields as keywords.");
   w.def("remove_obstacle", &W::remove_obstacle, py::arg("obstacle"));
+  w.def("add_constraint",
+        [](W& self, std::optional<ConstraintDef> def, const py::kwargs& kwargs) {
+          return self.add_constraint(definition(def, kwargs));
+        },
+        py::arg("definition") = py::none(),
+        "Adds a constraint (paper 5.2) from a ConstraintDef and/or its fields as keywords. ValueError naming the "
+        "field for a bad definition.");
+  w.def("remove_constraint", &W::remove_constraint, py::arg("constraint"));
   w.def("contains", py::overload_cast<SheetId>(&W::contains, py::const_), py::arg("sheet"));
   w.def("contains", py::overload_cast<ObstacleId>(&W::contains, py::const_), py::arg("obstacle"));
+  w.def("contains", py::overload_cast<ConstraintId>(&W::contains, py::const_), py::arg("constraint"));
   w.def_property_readonly("sheet_count", &W::sheet_count);
   w.def_property_readonly("obstacle_count", &W::obstacle_count);
+  w.def_property_readonly("constraint_count", &W::constraint_count);
   w.def("sheets", &W::sheets, "Sheet ids in the order they were added.");
   w.def("obstacles", &W::obstacles, "Obstacle ids in the order they were added.");
   w.def("obstacle", &W::obstacle, py::arg("obstacle"), "A copy of the obstacle's definition.");
+  w.def("constraints", &W::constraints, "Constraint ids in the order they were added.");
+  w.def("constraint", &W::constraint, py::arg("constraint"), "A copy of the constraint's definition.");
 
   w.def("view",
         [](py::object self, SheetId id) { return arrays<Real>(self.cast<const W&>().view(id), self, false); },
@@ -250,7 +289,9 @@ void bind_world(py::module_& m, const char* name, const char* doc) {
 
   py::class_<typename W::SolverStats>(w, "SolverStats")
       .def_readonly("iterations", &W::SolverStats::iterations)
-      .def_readonly("relative_residual", &W::SolverStats::relative_residual);
+      .def_readonly("relative_residual", &W::SolverStats::relative_residual)
+      .def_readonly("converged", &W::SolverStats::converged)
+      .def_readonly("unconverged_solves", &W::SolverStats::unconverged_solves);
 }
 
 template <class Id>
@@ -296,12 +337,11 @@ PYBIND11_MODULE(drape, m) {
   m.attr("__version__") = DRAPE_VERSION;
   py::register_exception<app::SceneError>(m, "SceneError", PyExc_ValueError);
 
-  py::enum_<Integrator>(m, "Integrator")
-      .value("ForwardEuler", Integrator::ForwardEuler)
-      .value("SemiImplicitEuler", Integrator::SemiImplicitEuler)
-      .value("VelocityVerlet", Integrator::VelocityVerlet)
-      .value("RK4", Integrator::RK4)
-      .value("ImplicitEuler", Integrator::ImplicitEuler)
+  // The values from the integrator table (types.h), so a new integrator needs no line here.
+  py::enum_<Integrator> integrator(m, "Integrator");
+  for (const IntegratorInfo& info : integrator_table())
+    integrator.value(python_name(info.name).c_str(), info.integrator, std::string(info.stability).c_str());
+  integrator
       .def(py::init([](const std::string& name) {
              const auto i = integrator_from_name(name);
              if (!i) throw py::value_error("unknown integrator \"" + name + "\"");
@@ -310,6 +350,10 @@ PYBIND11_MODULE(drape, m) {
            py::arg("name"), "From the scene format's name: \"semi_implicit_euler\", \"rk4\", ...")
       .def_property_readonly("label", [](Integrator i) { return std::string(integrator_name(i)); })
       .def_property_readonly("order", &integrator_order)
+      .def_property_readonly("stability", [](Integrator i) { return std::string(integrator_info(i).stability); },
+                             "the stability limit, in words")
+      .def_property_readonly("knobs", [](Integrator i) { return std::string(integrator_info(i).knobs); },
+                             "the WorldDef fields it reads beyond dt and gravity")
       .def_property_readonly("is_explicit", &integrator_is_explicit)
       .def("critical_step", &integrator_critical_step, py::arg("omega_max"));
   py::implicitly_convertible<std::string, Integrator>();
@@ -327,6 +371,22 @@ PYBIND11_MODULE(drape, m) {
 
   bind_id<SheetId>(m, "SheetId");
   bind_id<ObstacleId>(m, "ObstacleId");
+  bind_id<ConstraintId>(m, "ConstraintId");
+  // The kinds the engine names (constraint_kind_name), in the enum's order.
+  std::vector<ConstraintKind> kinds;
+  for (int k = 0; constraint_kind_name(ConstraintKind(k)) != "unknown"; ++k) kinds.push_back(ConstraintKind(k));
+  py::enum_<ConstraintKind> constraint_kind(m, "ConstraintKind");
+  for (ConstraintKind k : kinds) constraint_kind.value(python_name(constraint_kind_name(k)).c_str(), k);
+  constraint_kind
+      .def(py::init([kinds](const std::string& name) {
+             for (ConstraintKind k : kinds)
+               if (constraint_kind_name(k) == name) return k;
+             throw py::value_error("unknown constraint kind \"" + name + "\"");
+           }),
+           py::arg("name"), "From the scene format's name: \"point_to_point\", \"path\", \"frame\", \"rail\"")
+      .def_property_readonly("label", [](ConstraintKind k) { return std::string(constraint_kind_name(k)); },
+                             "the scene format's name");
+  py::implicitly_convertible<std::string, ConstraintKind>();
 
   Fields<StiffnessRegion>(m, "StiffnessRegion", "Springs inside rows/columns [begin, end] get this stiffness (§5.1).")
       .field("row_begin", &StiffnessRegion::row_begin, "")
@@ -339,6 +399,18 @@ PYBIND11_MODULE(drape, m) {
       .field("point", &AnchorDef::point, "point index i*(n+1)+j")
       .field("stiffness", &AnchorDef::stiffness, "N/m")
       .field("target", &AnchorDef::target, "m; None: the point's initial position")
+      .done();
+
+  Fields<ShearDef>(m, "ShearDef", "Shear springs on both diagonals of every cell (eq 6).")
+      .field("stiffness", &ShearDef::stiffness, "N/m")
+      .field("rest_length", &ShearDef::rest_length, "m; None: the rest cell's diagonal")
+      .done();
+  Fields<BendingDef>(m, "BendingDef", "Quadratic bending, 1/2 k_b sum |x_a - 2 x_b + x_c|^2 along grid lines.")
+      .field("stiffness", &BendingDef::stiffness, "k_b, N/m")
+      .done();
+  Fields<AirDef>(m, "AirDef", "Air pressure and skin friction per cell, against WorldDef.wind.")
+      .field("drag", &AirDef::drag, "C_n")
+      .field("friction", &AirDef::friction, "C_t")
       .done();
 
   Fields<SheetDef>(m, "SheetDef", "One elastic sheet: (m+1)x(n+1) points, row-major (eqs 2-3). SI units.")
@@ -355,11 +427,43 @@ PYBIND11_MODULE(drape, m) {
       .field("stiffness_regions", &SheetDef::stiffness_regions, "list of StiffnessRegion")
       .field("rest_length_h", &SheetDef::rest_length_h, "m; None: the spacing h1")
       .field("rest_length_v", &SheetDef::rest_length_v, "m; None: the spacing h2")
+      .field("shear", &SheetDef::shear, "ShearDef or None")
+      .field("bending", &SheetDef::bending, "BendingDef or None")
+      .field("air", &SheetDef::air, "AirDef or None")
       .field("damping", &SheetDef::damping, "C of eq (4), N*s/m per point")
       .field("point_damping", &SheetDef::point_damping, "per point; overrides damping when given")
       .field("anchors", &SheetDef::anchors, "list of AnchorDef")
       .field("pins", &SheetDef::pins, "point indices that never move")
       .field("self_collision", &SheetDef::self_collision, "contacts of the sheet with itself")
+      .field("friction", &SheetDef::friction, "mu, Coulomb, against obstacles and sheets")
+      .done();
+
+  Fields<Pose>(m, "Pose", "A rigid transform x -> rotation*x + translation.")
+      .field("rotation", &Pose::rotation, "unit quaternion (w, x, y, z)")
+      .field("translation", &Pose::translation, "m")
+      .done();
+  Fields<Keyframe>(m, "Keyframe", "At `time`, turned by `rotation` about the motion's pivot, then moved by `translation`.")
+      .field("time", &Keyframe::time, "s")
+      .field("translation", &Keyframe::translation, "m")
+      .field("rotation", &Keyframe::rotation, "unit quaternion (w, x, y, z)")
+      .done();
+  Fields<CirclePath>(m, "CirclePath", "A point carried round a circle about the axis through `center`.")
+      .field("center", &CirclePath::center, "m")
+      .field("axis", &CirclePath::axis, "")
+      .field("start", &CirclePath::start, "m; its distance from the axis is the radius")
+      .field("period", &CirclePath::period, "s, one turn")
+      .done();
+  Fields<Motion> motion(m, "Motion", "A prescribed rigid motion over time: keyframes, a circle, or a callback.");
+  py::enum_<Motion::Kind>(motion.cls(), "Kind")
+      .value("Keyframes", Motion::Kind::Keyframes)
+      .value("Circle", Motion::Kind::Circle)
+      .value("Callback", Motion::Kind::Callback);
+  motion.field("kind", &Motion::kind, "Motion.Kind")
+      .field("pivot", &Motion::pivot, "m, what keyframe rotations turn about")
+      .field("keyframes", &Motion::keyframes, "list of Keyframe, times increasing")
+      .field("repeat", &Motion::repeat, "keyframes loop")
+      .field("circle", &Motion::circle, "CirclePath")
+      .field("callback", &Motion::callback, "time (s) -> Pose; pure; called by step() with the GIL taken")
       .done();
 
   Fields<ObstacleDef>(m, "ObstacleDef", "A rigid obstacle with the repulsion potential c*exp(-f/xi) of eq (9).")
@@ -371,15 +475,37 @@ PYBIND11_MODULE(drape, m) {
       .field("xi", &ObstacleDef::xi, "m, decay length")
       .field("full_gradient", &ObstacleDef::full_gradient, "use -grad E instead of its normal projection")
       .field("max_exponent", &ObstacleDef::max_exponent, "cap of -f/xi")
+      .field("friction", &ObstacleDef::friction, "mu, Coulomb")
+      .field("motion", &ObstacleDef::motion, "Motion or None: a rigid part that moves")
+      .done();
+
+  Fields<ConstraintDef>(m, "ConstraintDef", "Points held by eq (8) springs to targets set every substep (5.2).")
+      .field("kind", &ConstraintDef::kind, "ConstraintKind")
+      .field("stiffness", &ConstraintDef::stiffness, "N/m per point")
+      .field("sheet", &ConstraintDef::sheet, "SheetId")
+      .field("points", &ConstraintDef::points, "point indices of `sheet`")
+      .field("other_sheet", &ConstraintDef::other_sheet, "PointToPoint: SheetId")
+      .field("other_points", &ConstraintDef::other_points, "PointToPoint: as many as points")
+      .field("rest_length", &ConstraintDef::rest_length, "PointToPoint: m; 0 welds")
+      .field("motion", &ConstraintDef::motion, "Path, Frame: Motion")
+      .field("carrier", &ConstraintDef::carrier, "Frame: ObstacleId whose motion carries the points, or None")
+      .field("rail", &ConstraintDef::rail, "Rail: polyline of at least two knots, m")
+      .done();
+
+  Fields<Wind>(m, "Wind", "The air sheets with SheetDef.air move in: uniform and steady.")
+      .field("velocity", &Wind::velocity, "m/s")
+      .field("density", &Wind::density, "rho, kg/m^3")
       .done();
 
   Fields<WorldDef>(m, "WorldDef", "The world's step, gravity, integrator, threads, guard and contact parameters.")
       .field("dt", &WorldDef::dt, "s, one substep")
       .field("gravity", &WorldDef::gravity, "m/s^2")
       .field("integrator", &WorldDef::integrator, "Integrator (or its name)")
+      .field("wind", &WorldDef::wind, "Wind")
       .field("threads", &WorldDef::threads, "worker threads of step(); 0: all cores")
       .field("cg_tolerance", &WorldDef::cg_tolerance, "implicit Euler's CG stop")
       .field("cg_max_iterations", &WorldDef::cg_max_iterations, "implicit Euler's CG stop")
+      .field("local_global_iterations", &WorldDef::local_global_iterations, "LocalGlobal's iterations per step")
       .field("adaptive", &WorldDef::adaptive, "explicit integrators take their largest stable substep")
       .field("adaptive_safety", &WorldDef::adaptive_safety, "in (0, 1]")
       .field("guard", &WorldDef::guard, "stability guard after every step()/advance()")
@@ -394,6 +520,7 @@ PYBIND11_MODULE(drape, m) {
   py::class_<Energies>(m, "Energies", "J")
       .def_readonly("kinetic", &Energies::kinetic)
       .def_readonly("spring", &Energies::spring)
+      .def_readonly("bending", &Energies::bending)
       .def_readonly("gravity", &Energies::gravity)
       .def_readonly("anchor", &Energies::anchor)
       .def_readonly("obstacle", &Energies::obstacle)
@@ -412,6 +539,7 @@ PYBIND11_MODULE(drape, m) {
       .def_readonly("dt", &StabilityReport::dt)
       .def_readonly("stable_dt", &StabilityReport::stable_dt)
       .def_readonly("stable_integrator", &StabilityReport::stable_integrator)
+      .def_readonly("unconverged_solves", &StabilityReport::unconverged_solves)
       .def_property_readonly("ok", &StabilityReport::ok)
       .def("__bool__", &StabilityReport::ok)
       .def("__str__", [](const StabilityReport& r) { return describe(r); });
@@ -439,6 +567,7 @@ PYBIND11_MODULE(drape, m) {
         "'' when usable, else one message naming the field.");
   m.def("validate", py::overload_cast<const WorldDef&>(&validate), py::arg("definition"));
   m.def("validate", py::overload_cast<const ObstacleDef&>(&validate), py::arg("definition"));
+  m.def("validate", py::overload_cast<const Motion&>(&validate), py::arg("definition"));
   m.def("corner_points", &corner_points, py::arg("m"), py::arg("n"));
   m.def("center_point", &center_point, py::arg("m"), py::arg("n"));
   m.def("anchors_at", [](const std::vector<std::uint32_t>& points, double k) { return anchors_at(points, k); },
@@ -446,6 +575,14 @@ PYBIND11_MODULE(drape, m) {
   m.def("point_index", &point_index, py::arg("n"), py::arg("i"), py::arg("j"));
   m.def("point_count", &point_count, py::arg("m"), py::arg("n"));
   m.def("spring_count", &spring_count, py::arg("m"), py::arg("n"));
+  m.def("row_points", &row_points, py::arg("m"), py::arg("n"), py::arg("i"), "every point of row i, columns 0..n");
+  m.def("column_points", &column_points, py::arg("m"), py::arg("n"), py::arg("j"), "every point of column j, rows 0..m");
+  m.def("pose_at", &pose_at, py::arg("motion"), py::arg("time"));
+  m.def("obstacle_at", &obstacle_at, py::arg("definition"), py::arg("time"));
+  m.def("apply", &apply, py::arg("pose"), py::arg("x"));
+  m.def("inverse", &inverse, py::arg("pose"));
+  m.def("compose", &compose, py::arg("outer"), py::arg("inner"), "x -> outer(inner(x))");
+  m.def("multiply", &multiply, py::arg("a"), py::arg("b"), "rotate by b, then by a");
   m.def("quat_from_axis_angle", &quat_from_axis_angle, py::arg("axis"), py::arg("radians"));
   m.def("rotate", &rotate, py::arg("q"), py::arg("v"));
 
@@ -460,6 +597,8 @@ PYBIND11_MODULE(drape, m) {
       .def_readonly("sheet_names", &app::Scene::sheet_names)
       .def_readonly("sheets", &app::Scene::sheets)
       .def_readonly("obstacles", &app::Scene::obstacles)
+      .def_readonly("constraints", &app::Scene::constraints,
+                    "ConstraintDefs whose sheet/other_sheet/carrier index is the position in sheets/obstacles")
       .def_readonly("fingerprint", &app::Scene::fingerprint)
       .def_property_readonly("frame_time", &app::Scene::frame_time)
       .def("make_world", &scene_world, py::arg("threads") = 0,
