@@ -13,33 +13,15 @@
 #include "bounds.h"
 #include "contacts.h"
 #include "sheet_data.h"
+#include "surface_distance.h"
 
 namespace drape::detail {
 namespace {
 
-using P3 = std::array<double, 3>;
-P3 sub(P3 a, P3 b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
-double dot(P3 a, P3 b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-P3 cross(P3 a, P3 b) { return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]}; }
-
-double segment_distance(P3 p, P3 a, P3 b) {
-  const P3 ab = sub(b, a);
-  const double t = std::clamp(dot(sub(p, a), ab) / dot(ab, ab), 0.0, 1.0);
-  const P3 q{a[0] + t * ab[0], a[1] + t * ab[1], a[2] + t * ab[2]};
-  return std::sqrt(dot(sub(p, q), sub(p, q)));
-}
-
-// Distance to a triangle by a different route than the engine's Voronoi-region walk:
-// the plane distance if p projects inside, else the nearest of the three edges.
-double triangle_distance(P3 p, P3 a, P3 b, P3 c) {
-  const P3 nrm = cross(sub(b, a), sub(c, a));
-  const double h = dot(sub(p, a), nrm) / dot(nrm, nrm);
-  const P3 q{p[0] - h * nrm[0], p[1] - h * nrm[1], p[2] - h * nrm[2]};
-  const bool inside = dot(cross(sub(b, a), sub(q, a)), nrm) >= 0 && dot(cross(sub(c, b), sub(q, b)), nrm) >= 0 &&
-                      dot(cross(sub(a, c), sub(q, c)), nrm) >= 0;
-  if (inside) return std::abs(h) * std::sqrt(dot(nrm, nrm));
-  return std::min({segment_distance(p, a, b), segment_distance(p, b, c), segment_distance(p, c, a)});
-}
+using test::cross;
+using test::dot;
+using test::P3;
+using test::sub;
 
 struct Potential {
   double h, xi, c, R;
@@ -57,18 +39,9 @@ P3 point(const Sheet<double>& s, std::uint32_t p) { return {s.position.x[p], s.p
 // triangles of s (every cell, no grid): the brute force.
 double brute_energy(const Sheet<double>& q, const Sheet<double>& s, const Potential& E) {
   const auto& t = *s.topology;
-  const std::uint32_t cols = t.cols();
   double sum = 0;
-  for (std::uint32_t p = 0; p < q.size(); ++p) {
-    double d_min = INFINITY;
-    for (std::uint32_t i = 0; i < t.m; ++i)
-      for (std::uint32_t j = 0; j < t.n; ++j) {
-        const std::uint32_t a = i * cols + j, b = a + 1, c = a + cols, d = c + 1;
-        d_min = std::min({d_min, triangle_distance(point(q, p), point(s, a), point(s, b), point(s, d)),
-                          triangle_distance(point(q, p), point(s, a), point(s, d), point(s, c))});
-      }
-    sum += E(d_min);
-  }
+  for (std::uint32_t p = 0; p < q.size(); ++p)
+    sum += E(test::surface_distance(point(q, p), t.m, t.n, [&](std::uint32_t k) { return point(s, k); }));
   return sum;
 }
 
