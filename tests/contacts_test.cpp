@@ -296,6 +296,70 @@ TEST(Contacts, FoldedSheetPushesItsHalvesApartAndConservesMomentum) {
   EXPECT_NEAR(up + down, 0.0, 1e-13 * scale);
 }
 
+// Candidate lists kept across substeps (contacts.h, PairContacts) find exactly what a fresh
+// grid finds: two rumpled sheets, and a folded sheet against itself, are jostled step by
+// step (points moving up to 0.5 mm a step, so the lists outlive a few steps and are then
+// remade), and every step's forces with the kept lists equal, bit for bit and entry for
+// entry, those of a PairContacts made afresh. It fails if the lists are kept while a point
+// has moved more than the skin allows, or if a list misses a cell within R.
+void expect_same_forces(const ContactForces<double>& kept, const ContactForces<double>& fresh, int step) {
+  ASSERT_EQ(kept.size(), fresh.size()) << "step " << step;
+  for (std::size_t e = 0; e < kept.size(); ++e) {
+    ASSERT_EQ(kept.point[e], fresh.point[e]) << "step " << step;
+    ASSERT_EQ(kept.fx[e], fresh.fx[e]) << "step " << step;
+    ASSERT_EQ(kept.fy[e], fresh.fy[e]) << "step " << step;
+    ASSERT_EQ(kept.fz[e], fresh.fz[e]) << "step " << step;
+  }
+}
+
+void jostle(Sheet<double>& s, std::mt19937& rng) {
+  std::uniform_real_distribution<double> u(-0.0003, 0.0003);
+  for (std::size_t p = 0; p < s.size(); ++p) {
+    s.position.x[p] += u(rng);
+    s.position.y[p] += u(rng);
+    s.position.z[p] += u(rng);
+  }
+}
+
+TEST(Contacts, KeptCandidatesFindWhatAFreshGridFindsBitForBit) {
+  auto [a, b] = close_sheets(4);
+  std::mt19937 rng(5);
+  PairContacts<double> kept;
+  ContactGrid<double> grid;
+  const int steps = 60;
+  std::size_t touching = 0;
+  for (int step = 0; step < steps; ++step) {
+    jostle(a, rng);
+    jostle(b, rng);
+    PairContacts<double> fresh;
+    pair_contacts(a, sheet_bounds(a), b, sheet_bounds(b), kParams, kept, grid);
+    pair_contacts(a, sheet_bounds(a), b, sheet_bounds(b), kParams, fresh, grid);
+    expect_same_forces(kept.on_a, fresh.on_a, step);
+    expect_same_forces(kept.on_b, fresh.on_b, step);
+    touching += kept.on_a.size();
+  }
+  EXPECT_GT(touching, 0u);
+  EXPECT_GT(kept.grid_builds, 2u);             // remade when points had moved far enough
+  EXPECT_LT(kept.grid_builds, std::uint64_t(steps) / 2);  // and kept in between
+
+  SheetDef d;
+  d.m = 20;
+  d.n = 10;
+  d.width = 0.2;
+  d.height = 0.4;
+  auto s = folded_sheet(d, 0.008);
+  PairContacts<double> own;
+  for (int step = 0; step < steps; ++step) {
+    jostle(s, rng);
+    PairContacts<double> fresh;
+    self_contacts(s, sheet_bounds(s), kParams, own, grid);
+    self_contacts(s, sheet_bounds(s), kParams, fresh, grid);
+    expect_same_forces(own.on_a, fresh.on_a, step);
+  }
+  EXPECT_GT(own.grid_builds, 2u);
+  EXPECT_LT(own.grid_builds, std::uint64_t(steps) / 2);
+}
+
 // The nearest point of triangle abc to p and its barycentric weights, by a route of its
 // own: the plane's foot if its area coordinates are all non-negative, else the nearest
 // point of the three edges (weights 1 − t and t on the edge's ends).
