@@ -512,12 +512,24 @@ Real moved2(const Sheet<Real>& s, const Vec3Array<Real>& then) {
 // Whether the lists kept in `w` were made for these sheets and still hold every cell
 // within R of every point (PairContacts): no point moved more than 0.45·skin since.
 template <class Real>
-bool lists_hold(const PairContacts<Real>& w, const Sheet<Real>& a, const Sheet<Real>& b, Real skin) {
+bool lists_hold(PairContacts<Real>& w, const Sheet<Real>& a, const Sheet<Real>& b) {
   if (w.kept_a != &a || w.kept_b != &b || w.kept_topology_a != a.topology.get() ||
       w.kept_topology_b != b.topology.get() || w.made_at_a.x.size() != a.size() || w.made_at_b.x.size() != b.size())
     return false;
-  const Real limit2 = (Real(0.45) * skin) * (Real(0.45) * skin);
-  return moved2(a, w.made_at_a) <= limit2 && moved2(b, w.made_at_b) <= limit2;
+  const Real limit2 = (Real(0.45) * w.skin) * (Real(0.45) * w.skin);
+  const bool hold = moved2(a, w.made_at_a) <= limit2 && (&a == &b || moved2(b, w.made_at_b) <= limit2);
+  w.kept_for += hold;
+  return hold;
+}
+
+// The skin for lists about to be made: R/4 at first, then following how long the last
+// lists served (PairContacts).
+template <class Real>
+Real next_skin(const PairContacts<Real>& w, const ContactParams<Real>& prm) {
+  if (!(w.skin > 0)) return prm.skin;
+  if (w.kept_for < 4) return std::min(w.skin * 2, prm.range);
+  if (w.kept_for > 32) return std::max(w.skin / 2, prm.range / 16);
+  return w.skin;
 }
 
 template <class Real>
@@ -528,7 +540,9 @@ void remember(Vec3Array<Real>& to, const Sheet<Real>& s) {
 }
 
 template <class Real>
-void keep_lists_for(PairContacts<Real>& w, const Sheet<Real>& a, const Sheet<Real>& b) {
+void keep_lists_for(PairContacts<Real>& w, const Sheet<Real>& a, const Sheet<Real>& b, Real skin) {
+  w.skin = skin;
+  w.kept_for = 0;
   w.kept_a = &a;
   w.kept_b = &b;
   w.kept_topology_a = a.topology.get();
@@ -547,12 +561,12 @@ void pair_contacts(const Sheet<Real>& a, const Aabb& box_a, const Sheet<Real>& b
   work.on_b.clear();
   const Aabb region = intersection(box_a.inflated(prm.range), box_b.inflated(prm.range));
   if (!overlaps(region, region)) return;
-  if (!lists_hold(work, a, b, prm.skin)) {
-    const Real reach = prm.range + prm.skin;
+  if (!lists_hold(work, a, b)) {
+    const Real skin = next_skin(work, prm), reach = prm.range + skin;
     const Aabb wide = intersection(box_a.inflated(reach), box_b.inflated(reach));
     candidates_in_grid(a, b, wide, reach, -1, work.a_near_b, grid);
     candidates_in_grid(b, a, wide, reach, -1, work.b_near_a, grid);
-    keep_lists_for(work, a, b);
+    keep_lists_for(work, a, b, skin);
   }
   ContactParams<Real> pair = prm;
   pair.friction = static_cast<Real>(std::max(a.friction, b.friction));
@@ -573,10 +587,10 @@ void self_contacts(const Sheet<Real>& s, const Aabb& box, const ContactParams<Re
                    ContactGrid<Real>& grid) {
   work.on_a.clear();
   work.on_b.clear();
-  if (!lists_hold(work, s, s, prm.skin)) {
-    const Real reach = prm.range + prm.skin;
+  if (!lists_hold(work, s, s)) {
+    const Real skin = next_skin(work, prm), reach = prm.range + skin;
     candidates_in_grid(s, s, box.inflated(reach), reach, int(self_contact_ring(s, prm)), work.a_near_b, grid);
-    keep_lists_for(work, s, s);
+    keep_lists_for(work, s, s, skin);
   }
   ContactParams<Real> own = prm;
   own.friction = static_cast<Real>(s.friction);

@@ -51,7 +51,7 @@ struct ContactParams {
   Real tail;       // exp(−(R − h)/ξ): the shift that makes the force vanish at R
   Real dt = 0;        // s, the substep (friction stops at most the slip of one)
   Real friction = 0;  // μ of the pair, max of the two sheets' (pair_contacts sets it)
-  Real skin;          // m, how much farther than R candidate cells are kept (PairContacts)
+  Real skin;          // m, the first skin of kept candidate lists (PairContacts): R/4
 
   static ContactParams make(double thickness, double xi, double strength, double range_in_xi);
 };
@@ -117,7 +117,9 @@ struct Candidates {
 // point is on its list (a box's gap to a point changes by at most the two displacements),
 // so reading the list finds exactly the cells the grid would: the forces are the same bit
 // for bit, and the grid is rebuilt only when a point has moved that far, or the pair's
-// sheets are not the ones the lists were made for.
+// sheets are not the ones the lists were made for. The skin follows the pair's motion:
+// doubled (up to R) when lists lasted fewer than 4 substeps, halved (down to R/16) when
+// they lasted more than 32.
 template <class Real>
 struct PairContacts {
   std::uint32_t a = 0, b = 0;  // positions in the world's sheet order
@@ -128,6 +130,8 @@ struct PairContacts {
   const Topology<Real>* kept_topology_b = nullptr;
   Vec3Array<Real> made_at_a, made_at_b;  // their positions then
   Candidates a_near_b, b_near_a;         // points of a against cells of b, and back
+  Real skin = 0;                         // of the kept lists (0: none made yet)
+  std::uint32_t kept_for = 0;            // substeps the kept lists have served
   std::uint64_t grid_builds = 0;         // how often the lists were made (for tests)
 };
 
