@@ -293,13 +293,43 @@ std::optional<GridLayout> bin_cells(const Sheet<Real>& s, const Aabb& region, do
   return layout;
 }
 
+// Point p of q (at x) against `near`, its cells of s within R in ascending cell order with
+// their boxes' squared gaps: the cell whose box is nearest (the first of equally near ones)
+// is tested first, then the others in order while their boxes are still nearer than the
+// best triangle (a cell whose box is no nearer cannot win); the nearest triangle repels.
+template <class Real>
+void repel_nearest(const Sheet<Real>& q, std::uint32_t p, V3<Real> x, const Sheet<Real>& s,
+                   const typename ContactGrid<Real>::Near* near, std::uint32_t found, const ContactParams<Real>& prm,
+                   ContactForces<Real>& on_q, ContactForces<Real>& on_s) {
+  const std::uint32_t cols = s.topology->cols();
+  auto test = [&](std::uint32_t p00, Nearest<Real>& best) {
+    const std::uint32_t p01 = p00 + 1, p10 = p00 + cols, p11 = p10 + 1;
+    const V3<Real> x00 = at(s, p00), x01 = at(s, p01), x10 = at(s, p10), x11 = at(s, p11);
+    consider(x, p00, p01, p11, x00, x01, x11, best);
+    consider(x, p00, p11, p10, x00, x11, x10, best);
+  };
+  std::uint32_t nearest = 0;
+  for (std::uint32_t e = 1; e < found; ++e)
+    if (near[e].gap2 < near[nearest].gap2) nearest = e;
+  const Real R2 = prm.range * prm.range;
+  Nearest<Real> best{};
+  best.dist2 = R2;
+  test(near[nearest].corner, best);
+  for (std::uint32_t e = 0; e < found; ++e)
+    if (e != nearest && near[e].gap2 < best.dist2) test(near[e].corner, best);
+  if (best.dist2 < R2) repel(q, p, x, s, best, prm, on_q, on_s);
+}
+
 // The candidates of every point of q inside `region`: the cells of s whose boxes are within
-// R of it, found through a uniform grid over the region, in ascending cell order, into
-// `out` (emptied first; points outside the region get none). `ring` < 0: no exclusion;
-// otherwise q == s and cells within `ring` rows/columns of the point are left out.
+// R (≥ prm.range) of it, found through a uniform grid over the region, in ascending cell
+// order, into `out` (emptied first; points outside the region get none). `ring` < 0: no
+// exclusion; otherwise q == s and cells within `ring` rows/columns of the point are left
+// out. In the same pass each point is repelled from its nearest triangle among the
+// candidates within prm.range, exactly as points_against_candidates would.
 template <class Real>
 void candidates_in_grid(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb& region, Real R, int ring,
-                        Candidates& out, ContactGrid<Real>& grid) {
+                        const ContactParams<Real>& prm, Candidates& out, ContactForces<Real>& on_q,
+                        ContactForces<Real>& on_s, ContactGrid<Real>& grid) {
   const std::uint32_t qsize = std::uint32_t(q.size());
   out.start.assign(qsize + 1, 0);
   out.cell.clear();
@@ -323,6 +353,8 @@ void candidates_in_grid(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb& 
   std::uint32_t* rcorner = grid.run_corner.data();
   Real* gap2 = grid.gap2.data();
   std::uint32_t* pick = grid.pick.data();
+  typename ContactGrid<Real>::Near* near = grid.near.data();
+  const Real inner2 = prm.range * prm.range;
   const std::uint32_t qcols = q.topology->cols();
   const auto& Q = q.position;
   auto inside = [&](std::uint32_t p) {
@@ -395,10 +427,17 @@ void candidates_in_grid(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb& 
       }
       // In ascending cell order, whichever grid cells they came from: the order in which
       // they are tested, and so which of two equally near triangles wins, is the sheet's.
-      const std::size_t first = out.cell.size();
-      for (std::uint32_t e = 0; e < found; ++e) out.cell.push_back(rcorner[pick[e]]);
-      std::sort(out.cell.begin() + std::ptrdiff_t(first), out.cell.end());
+      for (std::uint32_t e = 0; e < found; ++e) near[e] = {rcorner[pick[e]], gap2[pick[e]]};
+      for (std::uint32_t e = 1; e < found; ++e)
+        for (std::uint32_t f = e; f > 0 && near[f].corner < near[f - 1].corner; --f) std::swap(near[f], near[f - 1]);
+      std::uint32_t within = 0;
+      for (std::uint32_t e = 0; e < found; ++e) {
+        out.cell.push_back(near[e].corner);
+        near[within] = near[e];
+        within += near[e].gap2 < inner2;
+      }
       out.start[p + 1] = found;
+      if (within > 0) repel_nearest(q, p, x, s, near, within, prm, on_q, on_s);
     }
   }
   for (std::uint32_t p = 0; p < qsize; ++p) out.start[p + 1] += out.start[p];
@@ -461,24 +500,7 @@ void points_against_candidates(const Sheet<Real>& q, const Sheet<Real>& s, const
       near[found] = {cell[t], gap2[t]};
       found += gap2[t] < R2;
     }
-    if (found == 0) continue;
-    auto test = [&](std::uint32_t p00, Nearest<Real>& best) {
-      const std::uint32_t p01 = p00 + 1, p10 = p00 + cols, p11 = p10 + 1;
-      const V3<Real> x00 = at(s, p00), x01 = at(s, p01), x10 = at(s, p10), x11 = at(s, p11);
-      consider(x, p00, p01, p11, x00, x01, x11, best);
-      consider(x, p00, p11, p10, x00, x11, x10, best);
-    };
-    // The cell whose box is nearest (the first of equally near ones) goes first, so the
-    // bound below prunes the others.
-    std::uint32_t nearest = 0;
-    for (std::uint32_t e = 1; e < found; ++e)
-      if (near[e].gap2 < near[nearest].gap2) nearest = e;
-    Nearest<Real> best{};
-    best.dist2 = R2;
-    test(near[nearest].corner, best);
-    for (std::uint32_t e = 0; e < found; ++e)
-      if (e != nearest && near[e].gap2 < best.dist2) test(near[e].corner, best);
-    if (best.dist2 < R2) repel(q, p, x, s, best, prm, on_q, on_s);
+    if (found > 0) repel_nearest(q, p, x, s, near, found, prm, on_q, on_s);
   }
 }
 
@@ -495,18 +517,24 @@ Aabb intersection(const Aabb& a, const Aabb& b) {
 
 namespace {
 
-// The largest squared distance a point of s has moved from `then`.
+// Whether no point of s has moved farther than √limit2 from `then`: blocks of points, each
+// a vectorised maximum, stopping at the first block that has.
 template <class Real>
-Real moved2(const Sheet<Real>& s, const Vec3Array<Real>& then) {
+bool within(const Sheet<Real>& s, const Vec3Array<Real>& then, Real limit2) {
   const Real *x = s.position.x.data(), *y = s.position.y.data(), *z = s.position.z.data();
   const Real *tx = then.x.data(), *ty = then.y.data(), *tz = then.z.data();
-  Real most = 0;
+  constexpr std::size_t block = 512;
+  for (std::size_t p0 = 0; p0 < s.size(); p0 += block) {
+    const std::size_t p1 = std::min(s.size(), p0 + block);
+    Real most = 0;
 #pragma omp simd reduction(max : most)
-  for (std::size_t p = 0; p < s.size(); ++p) {
-    const Real dx = x[p] - tx[p], dy = y[p] - ty[p], dz = z[p] - tz[p];
-    most = std::max(most, dx * dx + dy * dy + dz * dz);
+    for (std::size_t p = p0; p < p1; ++p) {
+      const Real dx = x[p] - tx[p], dy = y[p] - ty[p], dz = z[p] - tz[p];
+      most = std::max(most, dx * dx + dy * dy + dz * dz);
+    }
+    if (!(most <= limit2)) return false;
   }
-  return most;
+  return true;
 }
 
 // Whether the lists kept in `w` were made for these sheets and still hold every cell
@@ -517,7 +545,7 @@ bool lists_hold(PairContacts<Real>& w, const Sheet<Real>& a, const Sheet<Real>& 
       w.kept_topology_b != b.topology.get() || w.made_at_a.x.size() != a.size() || w.made_at_b.x.size() != b.size())
     return false;
   const Real limit2 = (Real(0.45) * w.skin) * (Real(0.45) * w.skin);
-  const bool hold = moved2(a, w.made_at_a) <= limit2 && (&a == &b || moved2(b, w.made_at_b) <= limit2);
+  const bool hold = within(a, w.made_at_a, limit2) && (&a == &b || within(b, w.made_at_b, limit2));
   w.kept_for += hold;
   return hold;
 }
@@ -527,8 +555,8 @@ bool lists_hold(PairContacts<Real>& w, const Sheet<Real>& a, const Sheet<Real>& 
 template <class Real>
 Real next_skin(const PairContacts<Real>& w, const ContactParams<Real>& prm) {
   if (!(w.skin > 0)) return prm.skin;
-  if (w.kept_for < 4) return std::min(w.skin * 2, prm.range);
-  if (w.kept_for > 32) return std::max(w.skin / 2, prm.range / 16);
+  if (w.kept_for == 0 || w.kept_for > 32) return std::max(w.skin / 2, prm.range / 16);
+  if (w.kept_for < 4) return std::min(w.skin * 2, prm.range / 2);
   return w.skin;
 }
 
@@ -561,17 +589,18 @@ void pair_contacts(const Sheet<Real>& a, const Aabb& box_a, const Sheet<Real>& b
   work.on_b.clear();
   const Aabb region = intersection(box_a.inflated(prm.range), box_b.inflated(prm.range));
   if (!overlaps(region, region)) return;
-  if (!lists_hold(work, a, b)) {
-    const Real skin = next_skin(work, prm), reach = prm.range + skin;
-    const Aabb wide = intersection(box_a.inflated(reach), box_b.inflated(reach));
-    candidates_in_grid(a, b, wide, reach, -1, work.a_near_b, grid);
-    candidates_in_grid(b, a, wide, reach, -1, work.b_near_a, grid);
-    keep_lists_for(work, a, b, skin);
-  }
   ContactParams<Real> pair = prm;
   pair.friction = static_cast<Real>(std::max(a.friction, b.friction));
-  points_against_candidates(a, b, work.a_near_b, pair, work.on_a, work.on_b, grid);
-  points_against_candidates(b, a, work.b_near_a, pair, work.on_b, work.on_a, grid);
+  if (lists_hold(work, a, b)) {
+    points_against_candidates(a, b, work.a_near_b, pair, work.on_a, work.on_b, grid);
+    points_against_candidates(b, a, work.b_near_a, pair, work.on_b, work.on_a, grid);
+    return;
+  }
+  const Real skin = next_skin(work, prm), reach = prm.range + skin;
+  const Aabb wide = intersection(box_a.inflated(reach), box_b.inflated(reach));
+  candidates_in_grid(a, b, wide, reach, -1, pair, work.a_near_b, work.on_a, work.on_b, grid);
+  candidates_in_grid(b, a, wide, reach, -1, pair, work.b_near_a, work.on_b, work.on_a, grid);
+  keep_lists_for(work, a, b, skin);
 }
 
 template <class Real>
@@ -587,14 +616,16 @@ void self_contacts(const Sheet<Real>& s, const Aabb& box, const ContactParams<Re
                    ContactGrid<Real>& grid) {
   work.on_a.clear();
   work.on_b.clear();
-  if (!lists_hold(work, s, s)) {
-    const Real skin = next_skin(work, prm), reach = prm.range + skin;
-    candidates_in_grid(s, s, box.inflated(reach), reach, int(self_contact_ring(s, prm)), work.a_near_b, grid);
-    keep_lists_for(work, s, s, skin);
-  }
   ContactParams<Real> own = prm;
   own.friction = static_cast<Real>(s.friction);
-  points_against_candidates(s, s, work.a_near_b, own, work.on_a, work.on_a, grid);
+  if (lists_hold(work, s, s)) {
+    points_against_candidates(s, s, work.a_near_b, own, work.on_a, work.on_a, grid);
+    return;
+  }
+  const Real skin = next_skin(work, prm), reach = prm.range + skin;
+  candidates_in_grid(s, s, box.inflated(reach), reach, int(self_contact_ring(s, prm)), own, work.a_near_b, work.on_a,
+                     work.on_a, grid);
+  keep_lists_for(work, s, s, skin);
 }
 
 template <class Real>

@@ -117,9 +117,9 @@ struct Candidates {
 // point is on its list (a box's gap to a point changes by at most the two displacements),
 // so reading the list finds exactly the cells the grid would: the forces are the same bit
 // for bit, and the grid is rebuilt only when a point has moved that far, or the pair's
-// sheets are not the ones the lists were made for. The skin follows the pair's motion:
-// doubled (up to R) when lists lasted fewer than 4 substeps, halved (down to R/16) when
-// they lasted more than 32.
+// sheets are not the ones the lists were made for; that substep takes its forces in the
+// same pass. The skin follows the pair's motion: halved (down to R/16) when lists did not
+// outlive their substep or served more than 32, doubled (up to R/2) when fewer than 4.
 template <class Real>
 struct PairContacts {
   std::uint32_t a = 0, b = 0;  // positions in the world's sheet order
