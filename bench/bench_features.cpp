@@ -35,7 +35,8 @@ drape::WorldDef one_thread() {
 // substep (worst case), 33 once per frame as drape-demo does (30 frames/s at dt = 1 ms).
 constexpr int demo_frame = 33;
 
-void run(benchmark::State& state, Features f, int finite_check_every = 0, bool obstacle = false) {
+void run(benchmark::State& state, Features f, int finite_check_every = 0, bool obstacle = false,
+         double friction = 0.0) {
   drape::World world(one_thread());
   add_sheets(world, f);
   if (obstacle) {  // one floor 5 mm under every sheet: eq (9) acts on all of their points
@@ -44,6 +45,7 @@ void run(benchmark::State& state, Features f, int finite_check_every = 0, bool o
     floor.center = {0.0, 0.0, -0.005};
     floor.c = 0.01;
     floor.xi = 0.01;
+    floor.friction = friction;
     world.add_obstacle(floor);
   }
   int until_check = finite_check_every;
@@ -65,6 +67,8 @@ void BM_Feature_damping(benchmark::State& state) { run(state, {false, false, tru
 void BM_Feature_finite_check_per_frame(benchmark::State& state) { run(state, {false, false, false}, demo_frame); }
 void BM_Feature_finite_check_per_substep(benchmark::State& state) { run(state, {false, false, false}, 1); }
 void BM_Feature_obstacle(benchmark::State& state) { run(state, {false, false, false}, 0, true); }
+// The same floor with Coulomb friction (μ = 0.5): the friction term's price on every point.
+void BM_Feature_obstacle_friction(benchmark::State& state) { run(state, {false, false, false}, 0, true, 0.5); }
 void BM_Feature_all(benchmark::State& state) { run(state, {true, true, true}, demo_frame, true); }
 // The cloth terms of issue 12, each alone on the bare sheet, then all three together.
 void BM_Feature_shear(benchmark::State& state) { run(state, {false, false, false, true, false, false}); }
@@ -97,6 +101,7 @@ BENCHMARK(BM_Feature_damping);
 BENCHMARK(BM_Feature_finite_check_per_frame);
 BENCHMARK(BM_Feature_finite_check_per_substep);
 BENCHMARK(BM_Feature_obstacle);
+BENCHMARK(BM_Feature_obstacle_friction);
 BENCHMARK(BM_Feature_shear);
 BENCHMARK(BM_Feature_bending);
 BENCHMARK(BM_Feature_air);

@@ -13,33 +13,15 @@
 #include "bounds.h"
 #include "contacts.h"
 #include "sheet_data.h"
+#include "surface_distance.h"
 
 namespace drape::detail {
 namespace {
 
-using P3 = std::array<double, 3>;
-P3 sub(P3 a, P3 b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
-double dot(P3 a, P3 b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-P3 cross(P3 a, P3 b) { return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]}; }
-
-double segment_distance(P3 p, P3 a, P3 b) {
-  const P3 ab = sub(b, a);
-  const double t = std::clamp(dot(sub(p, a), ab) / dot(ab, ab), 0.0, 1.0);
-  const P3 q{a[0] + t * ab[0], a[1] + t * ab[1], a[2] + t * ab[2]};
-  return std::sqrt(dot(sub(p, q), sub(p, q)));
-}
-
-// Distance to a triangle by a different route than the engine's Voronoi-region walk:
-// the plane distance if p projects inside, else the nearest of the three edges.
-double triangle_distance(P3 p, P3 a, P3 b, P3 c) {
-  const P3 nrm = cross(sub(b, a), sub(c, a));
-  const double h = dot(sub(p, a), nrm) / dot(nrm, nrm);
-  const P3 q{p[0] - h * nrm[0], p[1] - h * nrm[1], p[2] - h * nrm[2]};
-  const bool inside = dot(cross(sub(b, a), sub(q, a)), nrm) >= 0 && dot(cross(sub(c, b), sub(q, b)), nrm) >= 0 &&
-                      dot(cross(sub(a, c), sub(q, c)), nrm) >= 0;
-  if (inside) return std::abs(h) * std::sqrt(dot(nrm, nrm));
-  return std::min({segment_distance(p, a, b), segment_distance(p, b, c), segment_distance(p, c, a)});
-}
+using test::cross;
+using test::dot;
+using test::P3;
+using test::sub;
 
 struct Potential {
   double h, xi, c, R;
@@ -57,18 +39,9 @@ P3 point(const Sheet<double>& s, std::uint32_t p) { return {s.position.x[p], s.p
 // triangles of s (every cell, no grid): the brute force.
 double brute_energy(const Sheet<double>& q, const Sheet<double>& s, const Potential& E) {
   const auto& t = *s.topology;
-  const std::uint32_t cols = t.cols();
   double sum = 0;
-  for (std::uint32_t p = 0; p < q.size(); ++p) {
-    double d_min = INFINITY;
-    for (std::uint32_t i = 0; i < t.m; ++i)
-      for (std::uint32_t j = 0; j < t.n; ++j) {
-        const std::uint32_t a = i * cols + j, b = a + 1, c = a + cols, d = c + 1;
-        d_min = std::min({d_min, triangle_distance(point(q, p), point(s, a), point(s, b), point(s, d)),
-                          triangle_distance(point(q, p), point(s, a), point(s, d), point(s, c))});
-      }
-    sum += E(d_min);
-  }
+  for (std::uint32_t p = 0; p < q.size(); ++p)
+    sum += E(test::surface_distance(point(q, p), t.m, t.n, [&](std::uint32_t k) { return point(s, k); }));
   return sum;
 }
 
@@ -321,6 +294,70 @@ TEST(Contacts, FoldedSheetPushesItsHalvesApartAndConservesMomentum) {
   EXPECT_GT(up, 0.0);
   EXPECT_LT(down, 0.0);
   EXPECT_NEAR(up + down, 0.0, 1e-13 * scale);
+}
+
+// Candidate lists kept across substeps (contacts.h, PairContacts) find exactly what a fresh
+// grid finds: two rumpled sheets, and a folded sheet against itself, are jostled step by
+// step (points moving up to 0.5 mm a step, so the lists outlive a few steps and are then
+// remade), and every step's forces with the kept lists equal, bit for bit and entry for
+// entry, those of a PairContacts made afresh. It fails if the lists are kept while a point
+// has moved more than the skin allows, or if a list misses a cell within R.
+void expect_same_forces(const ContactForces<double>& kept, const ContactForces<double>& fresh, int step) {
+  ASSERT_EQ(kept.size(), fresh.size()) << "step " << step;
+  for (std::size_t e = 0; e < kept.size(); ++e) {
+    ASSERT_EQ(kept.point[e], fresh.point[e]) << "step " << step;
+    ASSERT_EQ(kept.fx[e], fresh.fx[e]) << "step " << step;
+    ASSERT_EQ(kept.fy[e], fresh.fy[e]) << "step " << step;
+    ASSERT_EQ(kept.fz[e], fresh.fz[e]) << "step " << step;
+  }
+}
+
+void jostle(Sheet<double>& s, std::mt19937& rng) {
+  std::uniform_real_distribution<double> u(-0.0003, 0.0003);
+  for (std::size_t p = 0; p < s.size(); ++p) {
+    s.position.x[p] += u(rng);
+    s.position.y[p] += u(rng);
+    s.position.z[p] += u(rng);
+  }
+}
+
+TEST(Contacts, KeptCandidatesFindWhatAFreshGridFindsBitForBit) {
+  auto [a, b] = close_sheets(4);
+  std::mt19937 rng(5);
+  PairContacts<double> kept;
+  ContactGrid<double> grid;
+  const int steps = 60;
+  std::size_t touching = 0;
+  for (int step = 0; step < steps; ++step) {
+    jostle(a, rng);
+    jostle(b, rng);
+    PairContacts<double> fresh;
+    pair_contacts(a, sheet_bounds(a), b, sheet_bounds(b), kParams, kept, grid);
+    pair_contacts(a, sheet_bounds(a), b, sheet_bounds(b), kParams, fresh, grid);
+    expect_same_forces(kept.on_a, fresh.on_a, step);
+    expect_same_forces(kept.on_b, fresh.on_b, step);
+    touching += kept.on_a.size();
+  }
+  EXPECT_GT(touching, 0u);
+  EXPECT_GT(kept.grid_builds, 2u);             // remade when points had moved far enough
+  EXPECT_LT(kept.grid_builds, std::uint64_t(steps) / 2);  // and kept in between
+
+  SheetDef d;
+  d.m = 20;
+  d.n = 10;
+  d.width = 0.2;
+  d.height = 0.4;
+  auto s = folded_sheet(d, 0.008);
+  PairContacts<double> own;
+  for (int step = 0; step < steps; ++step) {
+    jostle(s, rng);
+    PairContacts<double> fresh;
+    self_contacts(s, sheet_bounds(s), kParams, own, grid);
+    self_contacts(s, sheet_bounds(s), kParams, fresh, grid);
+    expect_same_forces(own.on_a, fresh.on_a, step);
+  }
+  EXPECT_GT(own.grid_builds, 2u);
+  EXPECT_LT(own.grid_builds, std::uint64_t(steps) / 2);
 }
 
 // The nearest point of triangle abc to p and its barycentric weights, by a route of its

@@ -29,6 +29,11 @@ TARGET_SPEEDUP_SHEETS = 1.85
 TARGET_SPEEDUP_HUGE = 1.7
 TARGET_OVERHEAD = 0.05  # world with no obstacles/contacts vs the bare kernel
 TARGET_BROADPHASE_SHARE = 0.05
+# issue 13: contacts, obstacles and self-contact
+TARGET_CONTACT_OVER_APART = 4.0   # stacked sheets settling in contact vs apart, per substep
+TARGET_CONTACT_SPEEDUP = 1.8      # 2 threads vs 1, in contact
+TARGET_FLOOR_PRICE = 0.40         # a floor under every point, vs bare
+TARGET_SELF_CONTACT_RATIO = 3.0   # a 128×128 sheet folded onto itself, with vs without
 
 PAPER_INTEGRATOR = "semi_implicit_euler"
 SINGLE = " (step(1))"  # marks the Fig 13 series stepped one substep per call
@@ -478,6 +483,7 @@ class Report:
             "finite_check_per_frame": "+ all_finite() once per 33 substeps (a 30 frame/s frame)",
             "finite_check_per_substep": "+ all_finite() after every substep",
             "obstacle": "+ a floor (eq 9) under every sheet, acting on all points",
+            "obstacle_friction": "+ the same floor with Coulomb friction (μ = 0.5) on every point",
             "contacts": "+ contacts between sheets",
             "all": "pins + anchors + damping + floor + all_finite() per frame",
             "shear": "+ shear springs on both diagonals of every cell (issue 12)",
@@ -598,6 +604,62 @@ class Report:
             price = "–" if n in ("none", "none_frames") or base not in per_substep else \
                 f"{100 * (per_substep[n] / per_substep[base] - 1):+.1f} %"
             self.out(f"| {n} | {meaning.get(n, '')} | {us(per_substep[n])}{cv_text(r)} | {mrate(r.rate)} | {price} |")
+        self.out("")
+
+    def contacts(self):
+        """Issue 13: the stack settling in contact vs apart, the floor, self-contact."""
+        settle = {}
+        for name in self.runs:
+            m = re.fullmatch(r"BM_World48SheetsSettling/(\d)/(\d)/iterations:1/real_time", name)
+            if m:
+                settle[(int(m.group(1)), int(m.group(2)))] = self.get(name)
+        fold = {k: self.runs.get(f"BM_SelfCollisionFold/{k}/real_time") for k in (0, 1)}
+        bare, floor = self.runs.get("BM_Feature_bare"), self.runs.get("BM_Feature_obstacle")
+        rub = self.runs.get("BM_Feature_obstacle_friction")
+        if not settle and not all(fold.values()) and not (bare and floor):
+            return
+        self.out("## Contacts, obstacles and self-contact (issue 13)", "")
+        if settle:
+            self.out("48 sheets of 64×64 (corners pinned, 1 kg, k = 100 N/m) in 6 stacks of 8 layers, settling for "
+                     "one simulated second (1,000 substeps of 1 ms, stepped in frames of 10), layers 10 mm apart "
+                     "(in contact) or 2 m apart; wall time per substep, bench/bench_world.cpp.", "",
+                     "| threads | apart, µs | in contact, µs | in contact ÷ apart |", "|---|---|---|---|")
+            for threads in (1, 2):
+                apart, touch = settle.get((0, threads)), settle.get((1, threads))
+                if apart and touch:
+                    ratio = touch.step_seconds / apart.step_seconds
+                    self.out(f"| {threads} | {us(apart.step_seconds)} | {us(touch.step_seconds)} | {ratio:.1f}× |")
+                    self.target(f"Stack settling in contact ÷ apart, {threads} thread{'s' if threads > 1 else ''}",
+                                f"{ratio:.1f}×", f"≤ {TARGET_CONTACT_OVER_APART:.0f}×", ratio <= TARGET_CONTACT_OVER_APART,
+                                "" if ratio <= TARGET_CONTACT_OVER_APART else f"{ratio / TARGET_CONTACT_OVER_APART:.1f}× over")
+            one, two = settle.get((1, 1)), settle.get((1, 2))
+            if one and two:
+                speedup = one.step_seconds / two.step_seconds
+                self.target("Stack settling in contact, 2-thread speedup", f"{speedup:.2f}",
+                            f"≥ {TARGET_CONTACT_SPEEDUP:.1f}", speedup >= TARGET_CONTACT_SPEEDUP,
+                            "" if speedup >= TARGET_CONTACT_SPEEDUP else f"{TARGET_CONTACT_SPEEDUP - speedup:.2f} short")
+            self.out("")
+        if bare and floor:
+            price = floor.step_seconds / bare.step_seconds - 1
+            self.target("A floor (eq 9) under every point, vs bare", f"{100 * price:+.0f} %",
+                        f"≤ +{100 * TARGET_FLOOR_PRICE:.0f} %", price <= TARGET_FLOOR_PRICE,
+                        "" if price <= TARGET_FLOOR_PRICE else f"{100 * (price - TARGET_FLOOR_PRICE):.0f} points over")
+            text = (f"- A floor under every point of the 48 sheets (one thread, CPU time): {us(floor.step_seconds)} µs "
+                    f"per substep against {us(bare.step_seconds)} µs bare, {100 * price:+.0f} %")
+            if rub:
+                text += (f"; with Coulomb friction (μ = 0.5) on every point {us(rub.step_seconds)} µs, "
+                         f"{100 * (rub.step_seconds / floor.step_seconds - 1):+.0f} % over the frictionless floor")
+            self.out(text + ".")
+        if all(fold.values()):
+            self.used.update(r.name for r in fold.values())
+            ratio = fold[1].step_seconds / fold[0].step_seconds
+            self.target("Self-collision, 128×128 sheet folded onto itself, with ÷ without", f"{ratio:.1f}×",
+                        f"≤ {TARGET_SELF_CONTACT_RATIO:.0f}×", ratio <= TARGET_SELF_CONTACT_RATIO,
+                        "" if ratio <= TARGET_SELF_CONTACT_RATIO else f"{ratio / TARGET_SELF_CONTACT_RATIO:.1f}× over")
+            self.out(f"- Self-collision on one 128×128 sheet folded onto itself (its right half 12 mm over its left, "
+                     f"one thread, wall time): {us(fold[1].step_seconds)} µs per substep with it, "
+                     f"{us(fold[0].step_seconds)} µs without, {ratio:.1f}×.")
+        self.used.update(r.name for r in settle.values())
         self.out("")
 
     def broad_phase(self):
@@ -821,6 +883,7 @@ class Report:
         self.features()
         self.cloth_terms()
         self.constraints()
+        self.contacts()
         self.broad_phase()
         self.stiff()
         self.notes()
@@ -844,7 +907,7 @@ class Report:
                  + (" — other jobs were sharing the CPU, so these numbers are noisy; rerun on a quiet machine"
                     if load and load[0] > 0.5 else ""),
                  "- Each figure is the median of the repetitions; ± is their coefficient of variation.", "")
-        self.out("## Targets (issue 6)", "", "| target | measured | goal | verdict | by how much |", "|---|---|---|---|---|")
+        self.out("## Targets (issues 6 and 13)", "", "| target | measured | goal | verdict | by how much |", "|---|---|---|---|---|")
         for what, value, goal, v, by in self.targets:
             self.out(f"| {what} | {value} | {goal} | {v} | {by} |")
         self.out("")

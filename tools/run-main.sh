@@ -53,7 +53,7 @@ figures=(
 # pictures are drawn from its frames.
 # scene  frames  panel size
 many=(
-  "stack_sphere 0,10,20,43 400x400"
+  "stack_sphere 0,15,45,150 400x400"
   "rain_torus   0,15,30,75 400x400"
   "flag_wind    0,15,45,91 400x400"
   "tablecloth   0,5,10,90  400x400"

@@ -14,6 +14,7 @@ ContactParams<Real> ContactParams<Real>::make(double thickness, double xi, doubl
   p.strength = static_cast<Real>(strength);
   p.range = static_cast<Real>(thickness + range_in_xi * xi);
   p.tail = static_cast<Real>(std::exp(-range_in_xi));
+  p.skin = static_cast<Real>(0.25 * (thickness + range_in_xi * xi));
   return p;
 }
 
@@ -292,18 +293,50 @@ std::optional<GridLayout> bin_cells(const Sheet<Real>& s, const Aabb& region, do
   return layout;
 }
 
-// Points of q inside `region` against the cells of s binned in a uniform grid over the
-// region. `ring` < 0: no exclusion; otherwise q == s and cells within `ring` rows/columns
-// of the point are skipped.
+// Point p of q (at x) against `near`, its cells of s within R in ascending cell order with
+// their boxes' squared gaps: the cell whose box is nearest (the first of equally near ones)
+// is tested first, then the others in order while their boxes are still nearer than the
+// best triangle (a cell whose box is no nearer cannot win); the nearest triangle repels.
 template <class Real>
-void points_against_cells(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb& region,
-                          const ContactParams<Real>& prm, int ring, ContactForces<Real>& on_q,
-                          ContactForces<Real>& on_s, ContactGrid<Real>& grid) {
+void repel_nearest(const Sheet<Real>& q, std::uint32_t p, V3<Real> x, const Sheet<Real>& s,
+                   const typename ContactGrid<Real>::Near* near, std::uint32_t found, const ContactParams<Real>& prm,
+                   ContactForces<Real>& on_q, ContactForces<Real>& on_s) {
+  const std::uint32_t cols = s.topology->cols();
+  auto test = [&](std::uint32_t p00, Nearest<Real>& best) {
+    const std::uint32_t p01 = p00 + 1, p10 = p00 + cols, p11 = p10 + 1;
+    const V3<Real> x00 = at(s, p00), x01 = at(s, p01), x10 = at(s, p10), x11 = at(s, p11);
+    consider(x, p00, p01, p11, x00, x01, x11, best);
+    consider(x, p00, p11, p10, x00, x11, x10, best);
+  };
+  std::uint32_t nearest = 0;
+  for (std::uint32_t e = 1; e < found; ++e)
+    if (near[e].gap2 < near[nearest].gap2) nearest = e;
+  const Real R2 = prm.range * prm.range;
+  Nearest<Real> best{};
+  best.dist2 = R2;
+  test(near[nearest].corner, best);
+  for (std::uint32_t e = 0; e < found; ++e)
+    if (e != nearest && near[e].gap2 < best.dist2) test(near[e].corner, best);
+  if (best.dist2 < R2) repel(q, p, x, s, best, prm, on_q, on_s);
+}
+
+// The candidates of every point of q inside `region`: the cells of s whose boxes are within
+// R (≥ prm.range) of it, found through a uniform grid over the region, in ascending cell
+// order, into `out` (emptied first; points outside the region get none). `ring` < 0: no
+// exclusion; otherwise q == s and cells within `ring` rows/columns of the point are left
+// out. In the same pass each point is repelled from its nearest triangle among the
+// candidates within prm.range, exactly as points_against_candidates would.
+template <class Real>
+void candidates_in_grid(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb& region, Real R, int ring,
+                        const ContactParams<Real>& prm, Candidates& out, ContactForces<Real>& on_q,
+                        ContactForces<Real>& on_s, ContactGrid<Real>& grid) {
+  const std::uint32_t qsize = std::uint32_t(q.size());
+  out.start.assign(qsize + 1, 0);
+  out.cell.clear();
   if (s.topology->m == 0 || s.topology->n == 0) return;  // a line of points has no cells
   const std::uint32_t cols = s.topology->cols();
-  const double R = prm.range;
-  const Real R2 = prm.range * prm.range;
-  const std::optional<GridLayout> binned = bin_cells(s, region, R, grid);
+  const Real R2 = R * R;
+  const std::optional<GridLayout> binned = bin_cells(s, region, double(R), grid);
   if (!binned) return;
   const GridLayout layout = *binned;  // a copy no call can reach: it stays in registers
   const double* width = layout.width;
@@ -319,9 +352,10 @@ void points_against_cells(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb
   Real* rhi[3] = {grid.run_hi[0].data(), grid.run_hi[1].data(), grid.run_hi[2].data()};
   std::uint32_t* rcorner = grid.run_corner.data();
   Real* gap2 = grid.gap2.data();
-  typename ContactGrid<Real>::Near* near = grid.near.data();
   std::uint32_t* pick = grid.pick.data();
-  const std::uint32_t qcols = q.topology->cols(), qsize = std::uint32_t(q.size());
+  typename ContactGrid<Real>::Near* near = grid.near.data();
+  const Real inner2 = prm.range * prm.range;
+  const std::uint32_t qcols = q.topology->cols();
   const auto& Q = q.position;
   auto inside = [&](std::uint32_t p) {
     return !(Q.x[p] < region.lo[0] || Q.x[p] > region.hi[0] || Q.y[p] < region.lo[1] || Q.y[p] > region.hi[1] ||
@@ -344,8 +378,8 @@ void points_against_cells(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb
     int g0[3], g1[3];
     double keep_lo[3], keep_hi[3];  // a cell can be within R of a point of the run only
     for (int k = 0; k < 3; ++k) {   // if its box's low corner is below keep_hi and its
-      keep_lo[k] = lo[k] - R - margin[k];  // high corner above keep_lo, on every axis
-      keep_hi[k] = hi[k] + R + margin[k];
+      keep_lo[k] = lo[k] - double(R) - margin[k];  // high corner above keep_lo, on every axis
+      keep_hi[k] = hi[k] + double(R) + margin[k];
       g0[k] = layout.cell(k, keep_lo[k] - width[k]);
       g1[k] = layout.cell(k, keep_hi[k]);
     }
@@ -391,31 +425,82 @@ void points_against_cells(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb
         }
         found = kept;
       }
+      // In ascending cell order, whichever grid cells they came from: the order in which
+      // they are tested, and so which of two equally near triangles wins, is the sheet's.
       for (std::uint32_t e = 0; e < found; ++e) near[e] = {rcorner[pick[e]], gap2[pick[e]]};
-      if (found == 0) continue;  // (after the fill: GCC 12 makes the loop above 10 % faster so)
-      // In ascending cell order, whichever grid cells they came from: the order of the
-      // tests below, and so which of two equally near triangles wins, is the sheet's.
       for (std::uint32_t e = 1; e < found; ++e)
         for (std::uint32_t f = e; f > 0 && near[f].corner < near[f - 1].corner; --f) std::swap(near[f], near[f - 1]);
-      auto test = [&](std::uint32_t p00, Nearest<Real>& best) {
-        const std::uint32_t p01 = p00 + 1, p10 = p00 + cols, p11 = p10 + 1;
-        const V3<Real> x00 = at(s, p00), x01 = at(s, p01), x10 = at(s, p10), x11 = at(s, p11);
-        consider(x, p00, p01, p11, x00, x01, x11, best);
-        consider(x, p00, p11, p10, x00, x11, x10, best);
-      };
-      // The cell whose box is nearest (the first of equally near ones) goes first, so the
-      // bound below prunes the others: a cell whose box is no nearer than the nearest
-      // triangle so far cannot win.
-      std::uint32_t nearest = 0;
-      for (std::uint32_t e = 1; e < found; ++e)
-        if (near[e].gap2 < near[nearest].gap2) nearest = e;
-      Nearest<Real> best{};
-      best.dist2 = R2;
-      test(near[nearest].corner, best);
-      for (std::uint32_t e = 0; e < found; ++e)
-        if (e != nearest && near[e].gap2 < best.dist2) test(near[e].corner, best);
-      if (best.dist2 < R2) repel(q, p, x, s, best, prm, on_q, on_s);
+      std::uint32_t within = 0;
+      for (std::uint32_t e = 0; e < found; ++e) {
+        out.cell.push_back(near[e].corner);
+        near[within] = near[e];
+        within += near[e].gap2 < inner2;
+      }
+      out.start[p + 1] = found;
+      if (within > 0) repel_nearest(q, p, x, s, near, within, prm, on_q, on_s);
     }
+  }
+  for (std::uint32_t p = 0; p < qsize; ++p) out.start[p + 1] += out.start[p];
+}
+
+// Points of q against their candidate cells of s: each point measures its gap to every
+// candidate's box now, keeps those under R, and tests their triangles for the nearest one,
+// the nearest box first and then the others in ascending cell order while their boxes are
+// still nearer than the best triangle (a cell whose box is no nearer cannot win).
+template <class Real>
+void points_against_candidates(const Sheet<Real>& q, const Sheet<Real>& s, const Candidates& cand,
+                               const ContactParams<Real>& prm, ContactForces<Real>& on_q, ContactForces<Real>& on_s,
+                               ContactGrid<Real>& grid) {
+  if (cand.cell.empty()) return;
+  const std::uint32_t m = s.topology->m, n = s.topology->n, cols = s.topology->cols();
+  const Real R2 = prm.range * prm.range;
+  // every cell's box now, by its first corner: a cell is a candidate of many points
+  const auto& X = s.position;
+  for (int k = 0; k < 3; ++k) {
+    grid.cell_lo[k].resize(s.size());
+    grid.cell_hi[k].resize(s.size());
+  }
+  for (std::uint32_t i = 0; i < m; ++i)
+    for (int k = 0; k < 3; ++k) {
+      const Real* a = (k == 0 ? X.x : k == 1 ? X.y : X.z).data() + std::size_t(i) * cols;
+      const Real* b = a + cols;
+      Real* __restrict lo = grid.cell_lo[k].data() + std::size_t(i) * cols;
+      Real* __restrict hi = grid.cell_hi[k].data() + std::size_t(i) * cols;
+      for (std::uint32_t j = 0; j < n; ++j) {
+        lo[j] = std::min(std::min(a[j], a[j + 1]), std::min(b[j], b[j + 1]));
+        hi[j] = std::max(std::max(a[j], a[j + 1]), std::max(b[j], b[j + 1]));
+      }
+    }
+  std::uint32_t widest = 0;
+  for (std::size_t p = 0; p + 1 < cand.start.size(); ++p) widest = std::max(widest, cand.start[p + 1] - cand.start[p]);
+  for (int k = 0; k < 3; ++k) {
+    grid.run_lo[k].resize(widest);
+    grid.run_hi[k].resize(widest);
+  }
+  grid.gap2.resize(widest);
+  grid.near.resize(widest);
+  Real* rlo[3] = {grid.run_lo[0].data(), grid.run_lo[1].data(), grid.run_lo[2].data()};
+  Real* rhi[3] = {grid.run_hi[0].data(), grid.run_hi[1].data(), grid.run_hi[2].data()};
+  Real* gap2 = grid.gap2.data();
+  typename ContactGrid<Real>::Near* near = grid.near.data();
+  const std::uint32_t qsize = std::uint32_t(q.size());
+  for (std::uint32_t p = 0; p < qsize; ++p) {
+    const std::uint32_t b = cand.start[p], count = cand.start[p + 1] - b;
+    if (count == 0) continue;
+    const std::uint32_t* cell = cand.cell.data() + b;
+    for (int k = 0; k < 3; ++k)
+      for (std::uint32_t t = 0; t < count; ++t) {
+        rlo[k][t] = grid.cell_lo[k][cell[t]];
+        rhi[k][t] = grid.cell_hi[k][cell[t]];
+      }
+    const V3<Real> x = at(q, p);
+    box_gaps(x, rlo, rhi, count, gap2);
+    std::uint32_t found = 0;  // kept without a branch, in the list's ascending order
+    for (std::uint32_t t = 0; t < count; ++t) {
+      near[found] = {cell[t], gap2[t]};
+      found += gap2[t] < R2;
+    }
+    if (found > 0) repel_nearest(q, p, x, s, near, found, prm, on_q, on_s);
   }
 }
 
@@ -430,6 +515,73 @@ Aabb intersection(const Aabb& a, const Aabb& b) {
 
 }  // namespace
 
+namespace {
+
+// Whether no point of s has moved farther than √limit2 from `then`: blocks of points, each
+// a vectorised maximum, stopping at the first block that has.
+template <class Real>
+bool within(const Sheet<Real>& s, const Vec3Array<Real>& then, Real limit2) {
+  const Real *x = s.position.x.data(), *y = s.position.y.data(), *z = s.position.z.data();
+  const Real *tx = then.x.data(), *ty = then.y.data(), *tz = then.z.data();
+  constexpr std::size_t block = 512;
+  for (std::size_t p0 = 0; p0 < s.size(); p0 += block) {
+    const std::size_t p1 = std::min(s.size(), p0 + block);
+    Real most = 0;
+#pragma omp simd reduction(max : most)
+    for (std::size_t p = p0; p < p1; ++p) {
+      const Real dx = x[p] - tx[p], dy = y[p] - ty[p], dz = z[p] - tz[p];
+      most = std::max(most, dx * dx + dy * dy + dz * dz);
+    }
+    if (!(most <= limit2)) return false;
+  }
+  return true;
+}
+
+// Whether the lists kept in `w` were made for these sheets and still hold every cell
+// within R of every point (PairContacts): no point moved more than 0.45·skin since.
+template <class Real>
+bool lists_hold(PairContacts<Real>& w, const Sheet<Real>& a, const Sheet<Real>& b) {
+  if (w.kept_a != &a || w.kept_b != &b || w.kept_topology_a != a.topology.get() ||
+      w.kept_topology_b != b.topology.get() || w.made_at_a.x.size() != a.size() || w.made_at_b.x.size() != b.size())
+    return false;
+  const Real limit2 = (Real(0.45) * w.skin) * (Real(0.45) * w.skin);
+  const bool hold = within(a, w.made_at_a, limit2) && (&a == &b || within(b, w.made_at_b, limit2));
+  w.kept_for += hold;
+  return hold;
+}
+
+// The skin for lists about to be made: R/4 at first, then following how long the last
+// lists served (PairContacts).
+template <class Real>
+Real next_skin(const PairContacts<Real>& w, const ContactParams<Real>& prm) {
+  if (!(w.skin > 0)) return prm.skin;
+  if (w.kept_for == 0 || w.kept_for > 32) return std::max(w.skin / 2, prm.range / 16);
+  if (w.kept_for < 4) return std::min(w.skin * 2, prm.range / 2);
+  return w.skin;
+}
+
+template <class Real>
+void remember(Vec3Array<Real>& to, const Sheet<Real>& s) {
+  to.x.assign(s.position.x.begin(), s.position.x.end());
+  to.y.assign(s.position.y.begin(), s.position.y.end());
+  to.z.assign(s.position.z.begin(), s.position.z.end());
+}
+
+template <class Real>
+void keep_lists_for(PairContacts<Real>& w, const Sheet<Real>& a, const Sheet<Real>& b, Real skin) {
+  w.skin = skin;
+  w.kept_for = 0;
+  w.kept_a = &a;
+  w.kept_b = &b;
+  w.kept_topology_a = a.topology.get();
+  w.kept_topology_b = b.topology.get();
+  remember(w.made_at_a, a);
+  remember(w.made_at_b, b);
+  ++w.grid_builds;
+}
+
+}  // namespace
+
 template <class Real>
 void pair_contacts(const Sheet<Real>& a, const Aabb& box_a, const Sheet<Real>& b, const Aabb& box_b,
                    const ContactParams<Real>& prm, PairContacts<Real>& work, ContactGrid<Real>& grid) {
@@ -439,8 +591,16 @@ void pair_contacts(const Sheet<Real>& a, const Aabb& box_a, const Sheet<Real>& b
   if (!overlaps(region, region)) return;
   ContactParams<Real> pair = prm;
   pair.friction = static_cast<Real>(std::max(a.friction, b.friction));
-  points_against_cells(a, b, region, pair, -1, work.on_a, work.on_b, grid);
-  points_against_cells(b, a, region, pair, -1, work.on_b, work.on_a, grid);
+  if (lists_hold(work, a, b)) {
+    points_against_candidates(a, b, work.a_near_b, pair, work.on_a, work.on_b, grid);
+    points_against_candidates(b, a, work.b_near_a, pair, work.on_b, work.on_a, grid);
+    return;
+  }
+  const Real skin = next_skin(work, prm), reach = prm.range + skin;
+  const Aabb wide = intersection(box_a.inflated(reach), box_b.inflated(reach));
+  candidates_in_grid(a, b, wide, reach, -1, pair, work.a_near_b, work.on_a, work.on_b, grid);
+  candidates_in_grid(b, a, wide, reach, -1, pair, work.b_near_a, work.on_b, work.on_a, grid);
+  keep_lists_for(work, a, b, skin);
 }
 
 template <class Real>
@@ -458,8 +618,14 @@ void self_contacts(const Sheet<Real>& s, const Aabb& box, const ContactParams<Re
   work.on_b.clear();
   ContactParams<Real> own = prm;
   own.friction = static_cast<Real>(s.friction);
-  points_against_cells(s, s, box.inflated(prm.range), own, int(self_contact_ring(s, prm)), work.on_a, work.on_a,
-                       grid);
+  if (lists_hold(work, s, s)) {
+    points_against_candidates(s, s, work.a_near_b, own, work.on_a, work.on_a, grid);
+    return;
+  }
+  const Real skin = next_skin(work, prm), reach = prm.range + skin;
+  candidates_in_grid(s, s, box.inflated(reach), reach, int(self_contact_ring(s, prm)), own, work.a_near_b, work.on_a,
+                     work.on_a, grid);
+  keep_lists_for(work, s, s, skin);
 }
 
 template <class Real>

@@ -51,6 +51,7 @@ struct ContactParams {
   Real tail;       // exp(−(R − h)/ξ): the shift that makes the force vanish at R
   Real dt = 0;        // s, the substep (friction stops at most the slip of one)
   Real friction = 0;  // μ of the pair, max of the two sheets' (pair_contacts sets it)
+  Real skin;          // m, the first skin of kept candidate lists (PairContacts): R/4
 
   static ContactParams make(double thickness, double xi, double strength, double range_in_xi);
 };
@@ -98,18 +99,45 @@ struct ContactGrid {
   std::vector<Real> gap2;                  // one query point: squared gaps to those boxes
   std::vector<std::uint32_t> pick;         // one query point: which of them are within R,
   std::vector<Near> near;                  // and those cells
+  std::vector<Real> cell_lo[3], cell_hi[3];  // every cell's box now, by its first corner
+};
+
+// Candidate cells of one direction of a pair: for point p of the query sheet, the cells
+// (by first corner, ascending) cell[start[p]] … cell[start[p + 1] − 1] of the other sheet.
+struct Candidates {
+  std::vector<std::uint32_t> start, cell;
 };
 
 // The contact work of one overlapping pair of sheets (a < b), or of one sheet with itself
 // (a == b, only on_a used). Written by one task, read by the gather: no sharing.
+//
+// Candidates are kept from one substep to the next: each point's list holds the cells
+// whose boxes were within R + skin of it when the list was made (from the grid). While no
+// point of either sheet has moved more than 0.45·skin since, every cell now within R of a
+// point is on its list (a box's gap to a point changes by at most the two displacements),
+// so reading the list finds exactly the cells the grid would: the forces are the same bit
+// for bit, and the grid is rebuilt only when a point has moved that far, or the pair's
+// sheets are not the ones the lists were made for; that substep takes its forces in the
+// same pass. The skin follows the pair's motion: halved (down to R/16) when lists did not
+// outlive their substep or served more than 32, doubled (up to R/2) when fewer than 4.
 template <class Real>
 struct PairContacts {
   std::uint32_t a = 0, b = 0;  // positions in the world's sheet order
   ContactForces<Real> on_a, on_b;
+  const Sheet<Real>* kept_a = nullptr;  // the sheets the kept lists were made for
+  const Sheet<Real>* kept_b = nullptr;
+  const Topology<Real>* kept_topology_a = nullptr;
+  const Topology<Real>* kept_topology_b = nullptr;
+  Vec3Array<Real> made_at_a, made_at_b;  // their positions then
+  Candidates a_near_b, b_near_a;         // points of a against cells of b, and back
+  Real skin = 0;                         // of the kept lists (0: none made yet)
+  std::uint32_t kept_for = 0;            // substeps the kept lists have served
+  std::uint64_t grid_builds = 0;         // how often the lists were made (for tests)
 };
 
 // Points of `a` against the cells of `b` and points of `b` against the cells of `a`,
-// restricted to the overlap of the boxes grown by params.range. Clears and fills work.on_a/on_b.
+// restricted to the overlap of the boxes grown by params.range. Clears and fills work.on_a/on_b;
+// keeps or remakes the candidate lists in `work` (above).
 template <class Real>
 void pair_contacts(const Sheet<Real>& a, const Aabb& box_a, const Sheet<Real>& b, const Aabb& box_b,
                    const ContactParams<Real>& params, PairContacts<Real>& work, ContactGrid<Real>& grid);
