@@ -1,29 +1,18 @@
-// The World: a pool of sheets addressed by ids, and the substep that advances them.
+// The World: the public API of BasicWorld, the pools of sheets and obstacles addressed by
+// ids, and validate()/describe(). The substep is in step.cpp, runs of substeps in frames.cpp,
+// the stability guard in guard.cpp; world_impl.h holds the state they share.
 #include <drape/world.h>
-
-#include <oneapi/tbb/blocked_range.h>
-#include <oneapi/tbb/enumerable_thread_specific.h>
-#include <oneapi/tbb/parallel_for.h>
-#include <oneapi/tbb/task_arena.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
-#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <string>
 
-#include "bounds.h"
-#include "broad_phase.h"
-#include "constraints.h"
-#include "contacts.h"
 #include "diagnostics.h"
-#include "forces.h"
-#include "integrate.h"
-#include "obstacles.h"
-#include "sheet_data.h"
-#include "terms/terms.h"
+#include "world_impl.h"
 
 namespace drape {
 
@@ -84,702 +73,80 @@ std::string describe(const StabilityReport& r) {
   return out.str();
 }
 
-using detail::Sheet;
-using detail::Topology;
+template <class Real>
+void BasicWorld<Real>::Impl::make_arena() {
+  const int concurrency = def.threads > 0 ? def.threads : int(tbb::task_arena::automatic);
+  arena = std::make_unique<tbb::task_arena>(concurrency);
+}
 
 template <class Real>
-struct BasicWorld<Real>::Impl {
-  // The stability guard's memory of one sheet (see StabilityReport).
-  struct Guard {
-    bool has_reference = false;
-    double reference_energy = 0;  // E₀
-    double scale = 0;             // S: motion energy at the reference, ≥ floor
-    double floor = 0;             // work of gravity over the sheet's extent at the reference
-  };
+typename detail::ConstraintPool<Real>::Access BasicWorld<Real>::Impl::access() {
+  return {[this](SheetId id) { return contains(id) ? &sheet(id) : nullptr; },
+          [this](ObstacleId id) { return contains(id) ? &obstacle_slots[id.index].def : nullptr; }};
+}
 
-  struct Slot {
-    std::optional<Sheet<Real>> sheet;
-    std::uint32_t generation = 0;
-    double omega_max = 0;  // rad/s, Gershgorin bound; fixed by masses and stiffnesses
-    Guard guard;
-    double lightest_point = 0;  // kg, for the obstacle force bound (obstacles.h, exponent_cap)
-    // Moved by a prescribed motion (a path or frame constraint, a moving obstacle): its
-    // energy may grow, so the guard halts it only for a state that is not finite.
-    bool driven = false;
-    // The sheet's box after its last integration, taken while its positions were still in
-    // cache; stale after add_sheet, state() or a step that split the sheet into blocks.
-    detail::Aabb bounds;
-    bool bounds_fresh = false;
-  };
-  // A unit of the parallel stage: rows [row_begin, row_end) of one sheet. `split` blocks
-  // compute forces in the first pass and update in the second; a whole sheet does both
-  // in its one task.
-  struct Block {
-    std::uint32_t sheet;  // position in `active`
-    std::uint32_t row_begin, row_end, index;
-    bool split;
-  };
-
-  WorldDef def;
-  std::unique_ptr<tbb::task_arena> arena;
-  std::vector<Slot> slots;
-  std::vector<std::uint32_t> free_slots;
-  std::vector<std::uint32_t> active;  // live slots in the order sheets were added
-  std::vector<std::shared_ptr<const Topology<Real>>> topologies;
-  std::uint64_t steps = 0;
-  // time = time_base + (steps − steps_base)·current_h: exact for runs of equal substeps
-  double time_base = 0, current_h = 0;
-  std::uint64_t steps_base = 0;
-  std::optional<StabilityReport> failure;  // set when the guard halted the world
-
-  void set_def(const WorldDef& d);
-
-  // Host stage scratch, kept between substeps so a settled scene does not allocate.
-  std::vector<detail::Aabb> bounds, grown;
-  detail::TrackingBroadPhase broad_phase;  // reset when `active` changes
-  std::vector<detail::BoxPair> pairs;
-  std::vector<detail::PairContacts<Real>> pair_work;
-  tbb::enumerable_thread_specific<detail::ContactGrid<Real>> grids;  // narrow-phase scratch
-  std::vector<std::uint32_t> source_start;                  // per sheet, into sources (CSR)
-  std::vector<const detail::ContactForces<Real>*> sources;  // per sheet, in pair order
-  std::vector<std::uint32_t> source_cursor;                 // while filling sources
-  std::vector<Block> blocks;
-
-  explicit Impl(const WorldDef& d) : def(d) { make_arena(); }
-
-  void make_arena() {
-    const int concurrency = def.threads > 0 ? def.threads : int(tbb::task_arena::automatic);
-    arena = std::make_unique<tbb::task_arena>(concurrency);
+// Constraints add anchors (eq 8) to their sheets: the stable step and the guard's
+// energies change with them, and which sheets are driven.
+template <class Real>
+void BasicWorld<Real>::Impl::constraints_changed() {
+  for (std::uint32_t index : active) {
+    slots[index].omega_max = 2.0 / detail::sheet_stable_step(*slots[index].sheet);
+    slots[index].guard.has_reference = false;
   }
-  struct ObstacleSlot {
-    std::optional<detail::Obstacle> obstacle;  // without its motion; at its pose for this substep
-    ObstacleDef def;                           // the caller's definition
-    std::uint32_t generation = 0;
-  };
-  std::vector<ObstacleSlot> obstacle_slots;
-  std::vector<std::uint32_t> free_obstacle_slots;
-  std::vector<std::uint32_t> active_obstacles;  // live slots in the order obstacles were added
+  find_driven();
+}
 
-  detail::ConstraintPool<Real> constraints;
-  typename detail::ConstraintPool<Real>::Access access() {
-    return {[this](SheetId id) { return contains(id) ? &sheet(id) : nullptr; },
-            [this](ObstacleId id) { return contains(id) ? &obstacle_slots[id.index].def : nullptr; }};
-  }
-  // Constraints add anchors (eq 8) to their sheets: the stable step and the guard's
-  // energies change with them, and which sheets are driven.
-  void constraints_changed() {
-    for (std::uint32_t index : active) {
-      slots[index].omega_max = 2.0 / detail::sheet_stable_step(*slots[index].sheet);
-      slots[index].guard.has_reference = false;
-    }
-    find_driven();
-  }
-  // Slot::driven of every sheet: moved by a path or frame (or joined to such a sheet), or
-  // in a world with a moving obstacle.
-  void find_driven() {
-    const std::vector<SheetId> moved = constraints.driven_sheets();
-    const bool moving = obstacles_move();
-    for (std::uint32_t index : active)
-      slots[index].driven =
-          moving || std::find(moved.begin(), moved.end(), SheetId{index, slots[index].generation}) != moved.end();
-  }
-  bool obstacles_move() const {
-    return std::any_of(active_obstacles.begin(), active_obstacles.end(),
-                       [&](auto o) { return obstacle_slots[o].def.motion.has_value(); });
-  }
-  // Whether anything moves by itself or couples sheets outside the contact stage: then
-  // every substep needs the host stage (no runs of substeps, no contact-free frames).
-  bool driven() const { return !constraints.empty() || obstacles_move(); }
-  // Host stage, first: moving obstacles to their pose at the substep's start, and every
-  // constrained point's target from the positions at that start.
-  void move_rigid_parts() {
-    const double t = time();
-    for (std::uint32_t o : active_obstacles)
-      if (obstacle_slots[o].def.motion) detail::place_obstacle(*obstacle_slots[o].obstacle, obstacle_slots[o].def, t);
-    if (!constraints.empty()) constraints.set_targets(t, access());
-  }
+// Slot::driven of every sheet: moved by a path or frame (or joined to such a sheet), or
+// in a world with a moving obstacle.
+template <class Real>
+void BasicWorld<Real>::Impl::find_driven() {
+  const std::vector<SheetId> moved = constraints.driven_sheets();
+  const bool moving = obstacles_move();
+  for (std::uint32_t index : active)
+    slots[index].driven =
+        moving || std::find(moved.begin(), moved.end(), SheetId{index, slots[index].generation}) != moved.end();
+}
 
+template <class Real>
+bool BasicWorld<Real>::Impl::obstacles_move() const {
+  return std::any_of(active_obstacles.begin(), active_obstacles.end(),
+                     [&](auto o) { return obstacle_slots[o].def.motion.has_value(); });
+}
 
-  Sheet<Real>& sheet(SheetId id) {
-    if (!contains(id)) throw std::invalid_argument("drape: unknown or removed SheetId " + std::to_string(id.index));
-    return *slots[id.index].sheet;
-  }
-  const Sheet<Real>& sheet(SheetId id) const { return const_cast<Impl*>(this)->sheet(id); }
-  bool contains(SheetId id) const {
-    return id.index < slots.size() && slots[id.index].sheet && slots[id.index].generation == id.generation;
-  }
-  Sheet<Real>& at(std::size_t k) { return *slots[active[k]].sheet; }
+template <class Real>
+Sheet<Real>& BasicWorld<Real>::Impl::sheet(SheetId id) {
+  if (!contains(id)) throw std::invalid_argument("drape: unknown or removed SheetId " + std::to_string(id.index));
+  return *slots[id.index].sheet;
+}
 
-  detail::Obstacle& obstacle(ObstacleId id) {
-    if (!contains(id))
-      throw std::invalid_argument("drape: unknown or removed ObstacleId " + std::to_string(id.index));
-    return *obstacle_slots[id.index].obstacle;
-  }
-  bool contains(ObstacleId id) const {
-    return id.index < obstacle_slots.size() && obstacle_slots[id.index].obstacle &&
-           obstacle_slots[id.index].generation == id.generation;
-  }
-  // The sheets' obstacle lists point into obstacle_slots: drop them when the pool changes.
-  // The guard's energies include the obstacles' potentials, so its references are retaken too.
-  void forget_near_obstacles() {
-    for (std::uint32_t index : active) {
-      slots[index].sheet->near_obstacles.clear();
-      slots[index].guard.has_reference = false;
-    }
-  }
+template <class Real>
+detail::Obstacle& BasicWorld<Real>::Impl::obstacle(ObstacleId id) {
+  if (!contains(id))
+    throw std::invalid_argument("drape: unknown or removed ObstacleId " + std::to_string(id.index));
+  return *obstacle_slots[id.index].obstacle;
+}
 
-  // Host stage: each sheet's list of obstacles whose reach its bounding box overlaps, so a
-  // sheet far from every obstacle runs no obstacle term at all.
-  // A sheet's box now: the one its last integration took while the positions were in
-  // cache, unless something moved the points since.
-  detail::Aabb current_bounds(const Slot& slot) const {
-    return slot.bounds_fresh ? slot.bounds : detail::sheet_bounds(*slot.sheet);
+// The sheets' obstacle lists point into obstacle_slots: drop them when the pool changes.
+// The guard's energies include the obstacles' potentials, so its references are retaken too.
+template <class Real>
+void BasicWorld<Real>::Impl::forget_near_obstacles() {
+  for (std::uint32_t index : active) {
+    slots[index].sheet->near_obstacles.clear();
+    slots[index].guard.has_reference = false;
   }
+}
 
-  void assign_obstacles(double h) {
-    if (active_obstacles.empty()) return;
-    for (std::uint32_t index : active) {
-      Sheet<Real>& s = *slots[index].sheet;
-      const double lightest = slots[index].lightest_point;
-      s.near_obstacles.clear();
-      const detail::Aabb box = current_bounds(slots[index]);
-      for (std::uint32_t o : active_obstacles) {
-        const detail::Obstacle& obstacle = *obstacle_slots[o].obstacle;
-        if (detail::may_touch(obstacle, box))
-          s.near_obstacles.push_back({.obstacle = &obstacle,
-                                      .exponent_cap = detail::exponent_cap(obstacle.def, lightest, h),
-                                      .friction = std::max(s.friction, obstacle.def.friction),
-                                      .dt = h,
-                                      .gravity = {def.gravity.x, def.gravity.y, def.gravity.z}});
-      }
-    }
-  }
-
-  // Dozens of identical sheets keep one edge buffer between them.
-  void share_topology(Sheet<Real>& s) {
-    std::erase_if(topologies, [](const auto& t) { return t.use_count() == 1; });
-    for (const auto& t : topologies)
-      if (*t == *s.topology) {
-        s.topology = t;
-        return;
-      }
-    topologies.push_back(s.topology);
-  }
-
-  template <class Body>
-  void parallel(std::size_t count, Body body) const {
-    arena->execute([&] {
-      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 1), [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t k = r.begin(); k != r.end(); ++k) body(k);
-      });
-    });
-  }
-
-  bool contacts_possible() const {
-    if (!(def.contact_strength > 0)) return false;
-    return active.size() > 1 ||
-           std::any_of(active.begin(), active.end(), [&](auto i) { return slots[i].sheet->self_collision; });
-  }
-
-  // ---- The substep's stages, in the order substep() runs them ----------------------
-  //
-  // The host stage (serial decisions, parallel work inside), then the parallel stage over
-  // sheets and row blocks. The contact stages run only while contacts are possible (more
-  // than one sheet, or a self-colliding one, and contact_strength > 0); sheets whose boxes
-  // (grown by half the contact range each) do not meet never reach the narrow phase.
-  enum class Stage {
-    RigidParts,   // moving obstacles posed and constraint targets set for this substep's time
-    Bounds,       // every sheet's box, and the box grown by half the contact range
-    BroadPhase,   // pairs of sheets whose grown boxes meet, and self-colliding sheets with themselves
-    NarrowPhase,  // each pair's contact forces, into buffers only that pair owns (contacts.cpp)
-    GatherPlan,   // each sheet's list of the buffers aimed at it, in pair order; has_contacts
-    Obstacles,    // each sheet's list of obstacles within reach (assign_obstacles)
-    Integrate,    // per sheet or row block: gather contacts, force terms (terms/terms.h), integrator
-  };
-  static constexpr Stage substep_stages[] = {Stage::RigidParts, Stage::Bounds,    Stage::BroadPhase,
-                                             Stage::NarrowPhase, Stage::GatherPlan, Stage::Obstacles,
-                                             Stage::Integrate};
-
-  void run_stage(Stage stage, double h) {
-    switch (stage) {
-      case Stage::RigidParts: return move_rigid_parts();
-      case Stage::Bounds: return contact_bounds(h);
-      case Stage::BroadPhase: return find_pairs();
-      case Stage::NarrowPhase: return narrow_phase(h);
-      case Stage::GatherPlan: return plan_gather();
-      case Stage::Obstacles: return assign_obstacles(h);
-      case Stage::Integrate: return integrate_sheets(step_params(h));
-    }
-  }
-
-  bool contacting = false;  // this substep's contact stages run (set by contact_bounds)
-
-  // The contact parameters of a substep of length h (friction stops at most one substep's slip).
-  detail::ContactParams<Real> contact_params(double h) const {
-    auto params = detail::ContactParams<Real>::make(def.contact_thickness, def.contact_xi, def.contact_strength,
-                                                    def.contact_range);
-    params.dt = static_cast<Real>(h);
-    return params;
-  }
-
-  void contact_bounds(double h) {
-    const std::size_t count = active.size();
-    for (std::size_t k = 0; k < count; ++k) at(k).has_contacts = false;
-    contacting = contacts_possible();
-    if (!contacting) {
-      pairs.clear();
+// Dozens of identical sheets keep one edge buffer between them.
+template <class Real>
+void BasicWorld<Real>::Impl::share_topology(Sheet<Real>& s) {
+  std::erase_if(topologies, [](const auto& t) { return t.use_count() == 1; });
+  for (const auto& t : topologies)
+    if (*t == *s.topology) {
+      s.topology = t;
       return;
     }
-    const auto params = contact_params(h);
-    bounds.resize(count);
-    grown.resize(count);
-    parallel(count, [&](std::size_t k) {
-      bounds[k] = current_bounds(slots[active[k]]);
-      grown[k] = bounds[k].inflated(0.5 * double(params.range));
-    });
-  }
-
-  void find_pairs() {
-    if (!contacting) return;
-    const std::size_t count = active.size();
-    broad_phase.find_pairs(grown, pairs);
-    if (std::any_of(active.begin(), active.end(), [&](auto i) { return slots[i].sheet->self_collision; })) {
-      for (std::uint32_t k = 0; k < count; ++k)
-        if (at(k).self_collision) pairs.push_back({k, k});
-      std::sort(pairs.begin(), pairs.end());
-    }
-  }
-
-  void narrow_phase(double h) {
-    if (!contacting) return;
-    const auto params = contact_params(h);
-    if (pair_work.size() < pairs.size()) pair_work.resize(pairs.size());
-    parallel(pairs.size(), [&](std::size_t q) {
-      auto& w = pair_work[q];
-      w.a = pairs[q].first;
-      w.b = pairs[q].second;
-      auto& grid = grids.local();
-      if (w.a == w.b)
-        detail::self_contacts(at(w.a), bounds[w.a], params, w, grid);
-      else
-        detail::pair_contacts(at(w.a), bounds[w.a], at(w.b), bounds[w.b], params, w, grid);
-    });
-  }
-
-  // Each sheet's sources in pair order: the gather's order, fixed by the boxes alone.
-  void plan_gather() {
-    if (!contacting) return;
-    const std::size_t count = active.size();
-    source_start.assign(count + 1, 0);
-    for (std::size_t q = 0; q < pairs.size(); ++q) {
-      const auto& w = pair_work[q];
-      if (w.on_a.size()) ++source_start[w.a + 1];
-      if (w.a != w.b && w.on_b.size()) ++source_start[w.b + 1];
-    }
-    for (std::size_t k = 0; k < count; ++k) source_start[k + 1] += source_start[k];
-    sources.resize(source_start[count]);
-    source_cursor.assign(source_start.begin(), source_start.end() - 1);
-    for (std::size_t q = 0; q < pairs.size(); ++q) {
-      const auto& w = pair_work[q];
-      if (w.on_a.size()) sources[source_cursor[w.a]++] = &w.on_a;
-      if (w.a != w.b && w.on_b.size()) sources[source_cursor[w.b]++] = &w.on_b;
-    }
-    for (std::size_t k = 0; k < count; ++k) {
-      Sheet<Real>& s = at(k);
-      s.has_contacts = source_start[k + 1] > source_start[k];
-      if (s.has_contacts && s.contact_force.x.size() != s.size()) s.contact_force.resize(s.size());
-    }
-  }
-
-  // A sheet of at least 2·block_points points is cut into row blocks of about
-  // block_points points, so one large sheet among small ones keeps every core busy
-  // (with one thread there is no core to keep busy: sheets stay whole).
-  void plan_blocks() {
-    blocks.clear();
-    const bool can_split = detail::updates_per_point(def.integrator) && arena->max_concurrency() > 1;
-    for (std::uint32_t k = 0; k < active.size(); ++k) {
-      Sheet<Real>& s = at(k);
-      const std::uint32_t rows = s.topology->rows(), cols = s.topology->cols();
-      const std::uint64_t points = s.size();
-      std::uint32_t count = 1;
-      // The obstacle term works on whole sheets: a sheet near an obstacle is not split.
-      if (can_split && s.near_obstacles.empty() && points >= 2 * std::uint64_t(def.block_points))
-        count = static_cast<std::uint32_t>(std::min<std::uint64_t>(rows, points / def.block_points));
-      slots[active[k]].bounds_fresh = false;  // set again by a whole sheet's task
-      if (count == 1) {
-        blocks.push_back({k, 0, rows, 0, false});
-        continue;
-      }
-      if (s.row_scratch.x.size() < std::size_t(count) * cols) s.row_scratch.resize(std::size_t(count) * cols);
-      push_row_blocks(k, rows, count);
-    }
-  }
-
-  // Sheet k's rows cut into `count` blocks of equal size (± 1 row).
-  void push_row_blocks(std::uint32_t k, std::uint32_t rows, std::uint64_t count) {
-    for (std::uint64_t b = 0; b < count; ++b)
-      blocks.push_back({k, std::uint32_t(rows * b / count), std::uint32_t(rows * (b + 1) / count), std::uint32_t(b), true});
-  }
-
-  void gather(std::size_t k, std::size_t begin, std::size_t end) {
-    Sheet<Real>& s = at(k);
-    if (!s.has_contacts) return;
-    const std::span<const detail::ContactForces<Real>* const> src(sources.data() + source_start[k],
-                                                                   source_start[k + 1] - source_start[k]);
-    detail::gather_contacts(src, s.contact_force, begin, end);
-  }
-
-  // Parallel stage: every task writes only its own sheet's (or block's) buffers and reads
-  // the contact buffers the host stage finished, so the result does not depend on how TBB
-  // schedules them (bit-identical for any thread count).
-  void integrate_sheets(const detail::StepParams<Real>& params) {
-    plan_blocks();
-    bool any_split = false;
-    const bool keep_bounds = contacts_possible() || !active_obstacles.empty();  // someone reads the box next substep
-    parallel(blocks.size(), [&](std::size_t q) {
-      const Block& b = blocks[q];
-      Slot& slot = slots[active[b.sheet]];
-      Sheet<Real>& s = *slot.sheet;
-      const std::size_t cols = s.topology->cols();
-      gather(b.sheet, b.row_begin * cols, b.row_end * cols);
-      if (!b.split) {
-        detail::integrate(def.integrator, s, params);
-        if (keep_bounds) {  // for the next host stage, while the positions are in cache
-          slot.bounds = detail::sheet_bounds(s);
-          slot.bounds_fresh = true;
-        }
-        return;
-      }
-      auto row = detail::ptr(s.row_scratch);
-      const std::size_t off = b.index * cols;
-      detail::sheet_forces_rows(s, detail::cptr(s.position), detail::cptr(s.velocity), detail::ptr(s.force),
-                                {row.x + off, row.y + off, row.z + off}, b.row_begin, b.row_end);
-    });
-    for (const Block& b : blocks) any_split = any_split || b.split;
-    if (!any_split) return;
-    // Second pass, after every block's forces: a block's springs read its neighbours' rows.
-    parallel(blocks.size(), [&](std::size_t q) {
-      const Block& b = blocks[q];
-      if (!b.split) return;
-      Sheet<Real>& s = at(b.sheet);
-      const std::size_t cols = s.topology->cols();
-      detail::update_points(def.integrator, s, params, b.row_begin * cols, b.row_end * cols);
-    });
-  }
-
-  // One substep: the stages of substep_stages, in order.
-  void substep(double h) {
-    for (Stage stage : substep_stages) run_stage(stage, h);
-    count_substeps(h, 1);
-  }
-
-  // Several substeps with nothing between them: no contacts (their forces come from every
-  // sheet's positions at each substep) and no obstacles (each substep picks the ones near
-  // a sheet). Then sheets are independent for the whole run of substeps, and each task
-  // takes its sheet through many substeps while it is in cache.
-  bool sheets_independent() const { return !contacts_possible() && active_obstacles.empty(); }
-
-  // Blocks of a run of `levels` substeps: whole sheets, and row blocks of the large sheets
-  // a wave can split (forces.h, sheet_wave): one block per thread, since each block also
-  // steps `levels` rows beyond each edge (the same arithmetic, done twice), and no block
-  // shorter than 4·levels rows.
-  void plan_wave_blocks(std::uint32_t levels) {
-    blocks.clear();
-    const std::uint64_t threads = std::uint64_t(arena->max_concurrency());
-    for (std::uint32_t k = 0; k < active.size(); ++k) {
-      Sheet<Real>& s = at(k);
-      slots[active[k]].bounds_fresh = false;
-      const std::uint32_t rows = s.topology->rows();
-      const std::uint64_t points = s.size();
-      std::uint64_t count = 1;
-      if (threads > 1 && detail::updates_per_point(def.integrator) && detail::wave_ready(s) &&
-          points >= 2 * std::uint64_t(def.block_points))
-        count = std::min({threads, points / def.block_points, std::uint64_t(rows / (4 * levels))});
-      if (count <= 1) {
-        blocks.push_back({k, 0, rows, 0, false});
-        continue;
-      }
-      push_row_blocks(k, rows, count);
-    }
-  }
-
-  // `count` substeps of h on independent sheets, in runs of wave_levels substeps: a run
-  // takes every block (a whole sheet, or the rows of a split one) through all its
-  // substeps in one task, a sheet that fits the cache budget one whole substep after
-  // another, a larger one as a wave. Bit-identical to `count` calls of substep(h).
-  tbb::enumerable_thread_specific<detail::WaveScratch<Real>> wave_scratch;  // whole sheets
-  std::vector<detail::WaveScratch<Real>> block_scratch;                     // per split block, with its halo
-
-  // `swept`, when given, gets each sheet's box over all the substeps' states (in `active`
-  // order), for try_frame's check.
-  void integrate_runs(double h, std::uint64_t count, std::vector<detail::Aabb>* swept = nullptr) {
-    const detail::StepParams<Real> params = step_params(h);
-    std::uint32_t widest = 1, reach = 1;
-    for (std::size_t k = 0; k < active.size(); ++k) {
-      at(k).has_contacts = false;  // contact forces of an earlier substep no longer apply
-      at(k).near_obstacles.clear();
-      widest = std::max(widest, at(k).topology->cols());
-      reach = std::max(reach, detail::force_reach(at(k)));
-    }
-    const std::uint32_t max_levels = detail::wave_levels(widest, sizeof(Real), reach);
-    for (std::uint64_t done = 0; done < count;) {
-      const auto levels = static_cast<std::uint32_t>(std::min<std::uint64_t>(max_levels, count - done));
-      plan_wave_blocks(levels);
-      if (block_scratch.size() < blocks.size()) block_scratch.resize(blocks.size());
-      if (swept) block_swept.assign(blocks.size(), detail::empty_box());
-      // every split block copies its halo before any block moves a row
-      if (std::any_of(blocks.begin(), blocks.end(), [](const Block& b) { return b.split; }))
-        parallel(blocks.size(), [&](std::size_t q) {
-          const Block& b = blocks[q];
-          if (b.split) detail::wave_take_halo(at(b.sheet), levels, b.row_begin, b.row_end, block_scratch[q]);
-        });
-      parallel(blocks.size(), [&](std::size_t q) {
-        const Block& b = blocks[q];
-        Sheet<Real>& s = at(b.sheet);
-        detail::Aabb* box = swept ? &block_swept[q] : nullptr;
-        if (b.split) {
-          detail::integrate_wave(def.integrator, s, params, levels, b.row_begin, b.row_end, block_scratch[q], box);
-        } else if (detail::updates_per_point(def.integrator) && detail::wave_ready(s) && !detail::fits_cache_budget(s)) {
-          detail::integrate_wave(def.integrator, s, params, levels, 0, s.topology->rows(), wave_scratch.local(), box);
-        } else {
-          for (std::uint32_t k = 0; k < levels; ++k) {
-            detail::integrate(def.integrator, s, params);
-            if (box) detail::include_box(*box, detail::sheet_bounds(s));
-          }
-        }
-      });
-      if (swept)
-        for (std::size_t q = 0; q < blocks.size(); ++q) detail::include_box((*swept)[blocks[q].sheet], block_swept[q]);
-      done += levels;
-    }
-  }
-
-  // A frame of substeps on sheets that contacts or obstacles could couple, run as if
-  // nothing did, and kept only if nothing did: no two sheets' boxes over the whole frame
-  // came within contact range, and no box came within an obstacle's reach. Then the host
-  // stage of every substep would have found no pair and no obstacle, and the frame is
-  // bit-identical to substep-by-substep; otherwise the state before it is restored and
-  // the caller steps substep by substep. For integrators with no memory between substeps
-  // beyond x and v (forward and semi-implicit Euler), and no sheet with self-contact
-  // (always its own pair). A frame whose sheets are in contact at its start is not tried:
-  // only a frame in which a contact begins is computed twice.
-  std::vector<detail::Aabb> swept, swept_grown, block_swept;
-  detail::TrackingBroadPhase swept_broad_phase;  // over the frames' swept boxes; reset with broad_phase
-  std::vector<detail::Vec3Array<Real>> saved;  // positions, then velocities, per sheet
-
-  bool frame_may_be_contact_free() const {
-    return detail::updates_per_point(def.integrator) &&
-           std::none_of(active.begin(), active.end(), [&](auto i) { return slots[i].sheet->self_collision; });
-  }
-
-  // Whether sheets with these boxes are out of each other's contact range and out of
-  // every obstacle's reach (what the host stage would find for them).
-  bool apart(const std::vector<detail::Aabb>& boxes, detail::TrackingBroadPhase& tracker) {
-    if (contacts_possible()) {
-      const auto params = contact_params(def.dt);  // only its range is used here
-      swept_grown.resize(boxes.size());
-      for (std::size_t k = 0; k < boxes.size(); ++k) swept_grown[k] = boxes[k].inflated(0.5 * double(params.range));
-      tracker.find_pairs(swept_grown, pairs);
-      if (!pairs.empty()) return false;
-    }
-    for (const detail::Aabb& box : boxes)
-      for (std::uint32_t o : active_obstacles)
-        if (detail::may_touch(*obstacle_slots[o].obstacle, box)) return false;
-    return true;
-  }
-
-  bool try_frame(double h, std::uint64_t count) {
-    const std::size_t n = active.size();
-    swept.resize(n);
-    parallel(n, [&](std::size_t k) { swept[k] = current_bounds(slots[active[k]]); });
-    // Sheets already in contact, or at an obstacle, would only be undone: no try.
-    if (!apart(swept, broad_phase)) return false;
-    saved.resize(2 * n);
-    parallel(n, [&](std::size_t k) {
-      saved[2 * k] = at(k).position;
-      saved[2 * k + 1] = at(k).velocity;
-    });
-    integrate_runs(h, count, &swept);
-    if (apart(swept, swept_broad_phase)) return true;
-    parallel(n, [&](std::size_t k) {
-      Sheet<Real>& s = at(k);
-      s.position = saved[2 * k];
-      s.velocity = saved[2 * k + 1];
-    });
-    return false;
-  }
-
-  detail::StepParams<Real> step_params(double h) const {
-    return {static_cast<Real>(h), static_cast<Real>(def.gravity.x), static_cast<Real>(def.gravity.y),
-            static_cast<Real>(def.gravity.z), def.cg_tolerance, def.cg_max_iterations, def.local_global_iterations,
-            def.vertex_block_iterations};
-  }
-
-  void count_substeps(double h, std::uint64_t count) {
-    if (h != current_h) {
-      time_base = time();
-      steps_base = steps;
-      current_h = h;
-    }
-    steps += count;
-  }
-
-  // `count` substeps of h: in runs when the sheets are independent, or when a try shows
-  // they stayed apart; else one by one.
-  void substeps(double h, std::uint64_t count) {
-    if (count > 1 && !driven()) {
-      bool ran = false;
-      if (sheets_independent()) {
-        integrate_runs(h, count);
-        ran = true;
-      } else if (frame_may_be_contact_free()) {
-        ran = try_frame(h, count);
-      }
-      if (ran) {
-        pairs.clear();  // no substep of the run had a pair
-        count_substeps(h, count);
-        return;
-      }
-    }
-    for (std::uint64_t k = 0; k < count; ++k) substep(h);
-  }
-
-  double time() const { return time_base + static_cast<double>(steps - steps_base) * current_h; }
-
-  double omega_max() const {
-    double w = 0;
-    for (std::uint32_t index : active) w = std::max(w, slots[index].omega_max);
-    return w;
-  }
-
-  // The longest substep allowed now: dt, or in adaptive mode the explicit integrator's
-  // critical step on the stiffest sheet times the safety factor.
-  double max_substep() const {
-    if (!def.adaptive || !integrator_is_explicit(def.integrator)) return def.dt;
-    const double h = def.adaptive_safety * integrator_critical_step(def.integrator, omega_max());
-    return std::isfinite(h) ? h : std::numeric_limits<double>::infinity();
-  }
-
-  // `seconds` in equal substeps of at most max_substep(), ending exactly at time + seconds.
-  void advance(double seconds) {
-    const double h_max = max_substep();
-    const double count = std::isfinite(h_max) ? std::max(1.0, std::ceil(seconds / h_max * (1 - 1e-12))) : 1.0;
-    substeps(seconds / count, static_cast<std::uint64_t>(count));
-  }
-
-  // Motion energy: what an unstable step inflates.
-  static double motion_energy(const Energies& e) { return e.kinetic + e.spring + e.bending + e.anchor + e.obstacle; }
-
-  // The guard's energy of one sheet: its own terms and every obstacle's potential (as in
-  // diagnostics(): not only the near ones, so the value does not depend on the broad-phase).
-  Energies guard_energy(const Slot& slot) const {
-    Energies e = detail::sheet_energies(*slot.sheet, def.gravity);
-    if (!constraints.empty())
-      e.anchor -= constraints.join_energy_excess({std::uint32_t(&slot - slots.data()), slot.generation}, *slot.sheet);
-    for (std::uint32_t o : active_obstacles) {
-      const detail::Obstacle& obstacle = *obstacle_slots[o].obstacle;
-      e.obstacle += detail::obstacle_energy(*slot.sheet, obstacle, detail::exponent_cap(obstacle.def, slot.lightest_point, def.dt));
-    }
-    return e;
-  }
-
-  void take_reference(Slot& slot) {
-    const auto& s = *slot.sheet;
-    const Energies energy = guard_energy(slot);
-    const detail::Aabb box = detail::sheet_bounds(s);
-    double extent2 = 0, mass = 0;
-    for (int k = 0; k < 3; ++k) extent2 += (box.hi[k] - box.lo[k]) * (box.hi[k] - box.lo[k]);
-    for (Real m : s.mass) mass += m;
-    const double g = std::hypot(def.gravity.x, def.gravity.y, def.gravity.z);
-    slot.guard.has_reference = detail::sheet_finite(s) && std::isfinite(energy.total());
-    slot.guard.reference_energy = energy.total();
-    // The extent counts at least 1 mm so that a sheet collapsed to a point still has a
-    // scale under gravity. With no gravity, no stress and no motion the scale would be 0:
-    // the smallest normal number keeps the ratio defined (such a sheet cannot move, so
-    // E − E₀ stays 0).
-    const double extent = std::max(std::sqrt(extent2), 1e-3);
-    slot.guard.floor = std::max(mass * g * extent, std::numeric_limits<double>::min());
-    slot.guard.scale = std::max(motion_energy(energy), slot.guard.floor);
-  }
-
-  void take_references() {
-    for (std::uint32_t index : active)
-      if (!slots[index].guard.has_reference) take_reference(slots[index]);
-  }
-
-  // The guard: one pass over each sheet's points and springs.
-  StabilityReport check() const {
-    StabilityReport report;
-    report.step = steps;
-    report.time = time();
-    report.integrator = def.integrator;
-    report.dt = steps > 0 ? current_h : max_substep();
-    double largest_growth = 1;
-    bool any = false;
-    // Each sheet's energy in parallel (independent passes); the verdict below walks the
-    // sheets in order, so the report does not depend on scheduling.
-    std::vector<Energies> energies(active.size());
-    std::vector<char> finite(active.size());
-    parallel(active.size(), [&](std::size_t k) {
-      energies[k] = guard_energy(slots[active[k]]);
-      finite[k] = detail::sheet_finite(*slots[active[k]].sheet);
-    });
-    for (std::size_t k = 0; k < active.size(); ++k) {
-      const std::uint32_t index = active[k];
-      const Slot& slot = slots[index];
-      const Energies& energy = energies[k];
-      report.unconverged_solves += slot.sheet->last_solve.unconverged_solves;
-      StabilityStatus status = StabilityStatus::Stable;
-      double growth = 1;
-      if (!finite[k] || !std::isfinite(energy.total())) {
-        status = StabilityStatus::NonFinite;
-        growth = std::numeric_limits<double>::infinity();
-      } else if (slot.guard.has_reference) {
-        growth = 1 + (energy.total() - slot.guard.reference_energy) / slot.guard.scale;
-        // Implicit Euler cannot grow geometrically; its one linearised Newton step can inject
-        // energy for a step when a point moves a sizeable part of a spring in one step (the
-        // linearisation misses the geometric stiffening), which its damping then removes.
-        // That is reported in energy_growth but does not halt it.
-        if (growth > def.guard_energy_growth && integrator_is_explicit(def.integrator) && !slot.driven)
-          status = StabilityStatus::EnergyGrowth;
-      }
-      if (status == StabilityStatus::Stable) {
-        largest_growth = any ? std::max(largest_growth, growth) : growth;
-        any = true;
-      } else if (report.ok()) {
-        report.status = status;
-        report.sheet = {index, slot.generation};
-        report.energy_growth = growth;
-        report.stable_dt = def.adaptive_safety * integrator_critical_step(def.integrator, slot.omega_max);
-        // the cheapest integrator stable at this step; forward Euler is never suggested
-        report.stable_integrator = Integrator::ImplicitEuler;
-        for (Integrator i : {Integrator::SemiImplicitEuler, Integrator::RK4})
-          if (integrator_critical_step(i, slot.omega_max) > report.dt) {
-            report.stable_integrator = i;
-            break;
-          }
-      }
-    }
-    if (report.ok()) report.energy_growth = largest_growth;
-    return report;
-  }
-
-  StabilityReport finish_step() {
-    if (!def.guard) {
-      StabilityReport report;
-      report.step = steps;
-      report.time = time();
-      report.integrator = def.integrator;
-      report.dt = current_h;
-      for (std::uint32_t index : active) report.unconverged_solves += slots[index].sheet->last_solve.unconverged_solves;
-      return report;
-    }
-    StabilityReport report = check();
-    if (!report.ok()) failure = report;
-    return report;
-  }
-};
-
+  topologies.push_back(s.topology);
+}
 
 template <class Real>
 BasicWorld<Real>::BasicWorld(const WorldDef& def) {
@@ -1127,6 +494,7 @@ double BasicWorld<Real>::stable_step_estimate() const {
   return dt;
 }
 
+// Also instantiates the members of Impl defined in this file.
 template class BasicWorld<double>;
 template class BasicWorld<float>;
 

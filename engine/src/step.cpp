@@ -1,0 +1,255 @@
+// The substep: its list of stages (world_impl.h, Stage and substep_stages) and each stage,
+// from moving the rigid parts through the broad- and narrow phase to the parallel stage.
+
+#include <algorithm>
+#include <cstddef>
+#include <cstdint>
+#include <span>
+
+#include "terms/terms.h"
+#include "world_impl.h"
+
+namespace drape {
+
+// Host stage, first: moving obstacles to their pose at the substep's start, and every
+// constrained point's target from the positions at that start.
+template <class Real>
+void BasicWorld<Real>::Impl::move_rigid_parts() {
+  const double t = time();
+  for (std::uint32_t o : active_obstacles)
+    if (obstacle_slots[o].def.motion) detail::place_obstacle(*obstacle_slots[o].obstacle, obstacle_slots[o].def, t);
+  if (!constraints.empty()) constraints.set_targets(t, access());
+}
+
+// Host stage: each sheet's list of obstacles whose reach its bounding box overlaps, so a
+// sheet far from every obstacle runs no obstacle term at all.
+template <class Real>
+void BasicWorld<Real>::Impl::assign_obstacles(double h) {
+  if (active_obstacles.empty()) return;
+  for (std::uint32_t index : active) {
+    Sheet<Real>& s = *slots[index].sheet;
+    const double lightest = slots[index].lightest_point;
+    s.near_obstacles.clear();
+    const detail::Aabb box = current_bounds(slots[index]);
+    for (std::uint32_t o : active_obstacles) {
+      const detail::Obstacle& obstacle = *obstacle_slots[o].obstacle;
+      if (detail::may_touch(obstacle, box))
+        s.near_obstacles.push_back({.obstacle = &obstacle,
+                                    .exponent_cap = detail::exponent_cap(obstacle.def, lightest, h),
+                                    .friction = std::max(s.friction, obstacle.def.friction),
+                                    .dt = h,
+                                    .gravity = {def.gravity.x, def.gravity.y, def.gravity.z}});
+    }
+  }
+}
+
+template <class Real>
+bool BasicWorld<Real>::Impl::contacts_possible() const {
+  if (!(def.contact_strength > 0)) return false;
+  return active.size() > 1 ||
+         std::any_of(active.begin(), active.end(), [&](auto i) { return slots[i].sheet->self_collision; });
+}
+
+template <class Real>
+void BasicWorld<Real>::Impl::run_stage(Stage stage, double h) {
+  switch (stage) {
+    case Stage::RigidParts: return move_rigid_parts();
+    case Stage::Bounds: return contact_bounds(h);
+    case Stage::BroadPhase: return find_pairs();
+    case Stage::NarrowPhase: return narrow_phase(h);
+    case Stage::GatherPlan: return plan_gather();
+    case Stage::Obstacles: return assign_obstacles(h);
+    case Stage::Integrate: return integrate_sheets(step_params(h));
+  }
+}
+
+// The contact parameters of a substep of length h (friction stops at most one substep's slip).
+template <class Real>
+detail::ContactParams<Real> BasicWorld<Real>::Impl::contact_params(double h) const {
+  auto params = detail::ContactParams<Real>::make(def.contact_thickness, def.contact_xi, def.contact_strength,
+                                                  def.contact_range);
+  params.dt = static_cast<Real>(h);
+  return params;
+}
+
+template <class Real>
+void BasicWorld<Real>::Impl::contact_bounds(double h) {
+  const std::size_t count = active.size();
+  for (std::size_t k = 0; k < count; ++k) at(k).has_contacts = false;
+  contacting = contacts_possible();
+  if (!contacting) {
+    pairs.clear();
+    return;
+  }
+  const auto params = contact_params(h);
+  bounds.resize(count);
+  grown.resize(count);
+  parallel(count, [&](std::size_t k) {
+    bounds[k] = current_bounds(slots[active[k]]);
+    grown[k] = bounds[k].inflated(0.5 * double(params.range));
+  });
+}
+
+template <class Real>
+void BasicWorld<Real>::Impl::find_pairs() {
+  if (!contacting) return;
+  const std::size_t count = active.size();
+  broad_phase.find_pairs(grown, pairs);
+  if (std::any_of(active.begin(), active.end(), [&](auto i) { return slots[i].sheet->self_collision; })) {
+    for (std::uint32_t k = 0; k < count; ++k)
+      if (at(k).self_collision) pairs.push_back({k, k});
+    std::sort(pairs.begin(), pairs.end());
+  }
+}
+
+template <class Real>
+void BasicWorld<Real>::Impl::narrow_phase(double h) {
+  if (!contacting) return;
+  const auto params = contact_params(h);
+  if (pair_work.size() < pairs.size()) pair_work.resize(pairs.size());
+  parallel(pairs.size(), [&](std::size_t q) {
+    auto& w = pair_work[q];
+    w.a = pairs[q].first;
+    w.b = pairs[q].second;
+    auto& grid = grids.local();
+    if (w.a == w.b)
+      detail::self_contacts(at(w.a), bounds[w.a], params, w, grid);
+    else
+      detail::pair_contacts(at(w.a), bounds[w.a], at(w.b), bounds[w.b], params, w, grid);
+  });
+}
+
+// Each sheet's sources in pair order: the gather's order, fixed by the boxes alone.
+template <class Real>
+void BasicWorld<Real>::Impl::plan_gather() {
+  if (!contacting) return;
+  const std::size_t count = active.size();
+  source_start.assign(count + 1, 0);
+  for (std::size_t q = 0; q < pairs.size(); ++q) {
+    const auto& w = pair_work[q];
+    if (w.on_a.size()) ++source_start[w.a + 1];
+    if (w.a != w.b && w.on_b.size()) ++source_start[w.b + 1];
+  }
+  for (std::size_t k = 0; k < count; ++k) source_start[k + 1] += source_start[k];
+  sources.resize(source_start[count]);
+  source_cursor.assign(source_start.begin(), source_start.end() - 1);
+  for (std::size_t q = 0; q < pairs.size(); ++q) {
+    const auto& w = pair_work[q];
+    if (w.on_a.size()) sources[source_cursor[w.a]++] = &w.on_a;
+    if (w.a != w.b && w.on_b.size()) sources[source_cursor[w.b]++] = &w.on_b;
+  }
+  for (std::size_t k = 0; k < count; ++k) {
+    Sheet<Real>& s = at(k);
+    s.has_contacts = source_start[k + 1] > source_start[k];
+    if (s.has_contacts && s.contact_force.x.size() != s.size()) s.contact_force.resize(s.size());
+  }
+}
+
+// A sheet of at least 2·block_points points is cut into row blocks of about
+// block_points points, so one large sheet among small ones keeps every core busy
+// (with one thread there is no core to keep busy: sheets stay whole).
+template <class Real>
+void BasicWorld<Real>::Impl::plan_blocks() {
+  blocks.clear();
+  const bool can_split = detail::updates_per_point(def.integrator) && arena->max_concurrency() > 1;
+  for (std::uint32_t k = 0; k < active.size(); ++k) {
+    Sheet<Real>& s = at(k);
+    const std::uint32_t rows = s.topology->rows(), cols = s.topology->cols();
+    const std::uint64_t points = s.size();
+    std::uint32_t count = 1;
+    // The obstacle term works on whole sheets: a sheet near an obstacle is not split.
+    if (can_split && s.near_obstacles.empty() && points >= 2 * std::uint64_t(def.block_points))
+      count = static_cast<std::uint32_t>(std::min<std::uint64_t>(rows, points / def.block_points));
+    slots[active[k]].bounds_fresh = false;  // set again by a whole sheet's task
+    if (count == 1) {
+      blocks.push_back({k, 0, rows, 0, false});
+      continue;
+    }
+    if (s.row_scratch.x.size() < std::size_t(count) * cols) s.row_scratch.resize(std::size_t(count) * cols);
+    push_row_blocks(k, rows, count);
+  }
+}
+
+// Sheet k's rows cut into `count` blocks of equal size (± 1 row).
+template <class Real>
+void BasicWorld<Real>::Impl::push_row_blocks(std::uint32_t k, std::uint32_t rows, std::uint64_t count) {
+  for (std::uint64_t b = 0; b < count; ++b)
+    blocks.push_back({k, std::uint32_t(rows * b / count), std::uint32_t(rows * (b + 1) / count), std::uint32_t(b), true});
+}
+
+template <class Real>
+void BasicWorld<Real>::Impl::gather(std::size_t k, std::size_t begin, std::size_t end) {
+  Sheet<Real>& s = at(k);
+  if (!s.has_contacts) return;
+  const std::span<const detail::ContactForces<Real>* const> src(sources.data() + source_start[k],
+                                                                 source_start[k + 1] - source_start[k]);
+  detail::gather_contacts(src, s.contact_force, begin, end);
+}
+
+// Parallel stage: every task writes only its own sheet's (or block's) buffers and reads
+// the contact buffers the host stage finished, so the result does not depend on how TBB
+// schedules them (bit-identical for any thread count).
+template <class Real>
+void BasicWorld<Real>::Impl::integrate_sheets(const detail::StepParams<Real>& params) {
+  plan_blocks();
+  bool any_split = false;
+  const bool keep_bounds = contacts_possible() || !active_obstacles.empty();  // someone reads the box next substep
+  parallel(blocks.size(), [&](std::size_t q) {
+    const Block& b = blocks[q];
+    Slot& slot = slots[active[b.sheet]];
+    Sheet<Real>& s = *slot.sheet;
+    const std::size_t cols = s.topology->cols();
+    gather(b.sheet, b.row_begin * cols, b.row_end * cols);
+    if (!b.split) {
+      detail::integrate(def.integrator, s, params);
+      if (keep_bounds) {  // for the next host stage, while the positions are in cache
+        slot.bounds = detail::sheet_bounds(s);
+        slot.bounds_fresh = true;
+      }
+      return;
+    }
+    auto row = detail::ptr(s.row_scratch);
+    const std::size_t off = b.index * cols;
+    detail::sheet_forces_rows(s, detail::cptr(s.position), detail::cptr(s.velocity), detail::ptr(s.force),
+                              {row.x + off, row.y + off, row.z + off}, b.row_begin, b.row_end);
+  });
+  for (const Block& b : blocks) any_split = any_split || b.split;
+  if (!any_split) return;
+  // Second pass, after every block's forces: a block's springs read its neighbours' rows.
+  parallel(blocks.size(), [&](std::size_t q) {
+    const Block& b = blocks[q];
+    if (!b.split) return;
+    Sheet<Real>& s = at(b.sheet);
+    const std::size_t cols = s.topology->cols();
+    detail::update_points(def.integrator, s, params, b.row_begin * cols, b.row_end * cols);
+  });
+}
+
+// One substep: the stages of substep_stages, in order.
+template <class Real>
+void BasicWorld<Real>::Impl::substep(double h) {
+  for (Stage stage : substep_stages) run_stage(stage, h);
+  count_substeps(h, 1);
+}
+
+template <class Real>
+detail::StepParams<Real> BasicWorld<Real>::Impl::step_params(double h) const {
+  return {static_cast<Real>(h), static_cast<Real>(def.gravity.x), static_cast<Real>(def.gravity.y),
+          static_cast<Real>(def.gravity.z), def.cg_tolerance, def.cg_max_iterations, def.local_global_iterations,
+          def.vertex_block_iterations};
+}
+
+template <class Real>
+void BasicWorld<Real>::Impl::count_substeps(double h, std::uint64_t count) {
+  if (h != current_h) {
+    time_base = time();
+    steps_base = steps;
+    current_h = h;
+  }
+  steps += count;
+}
+
+template struct BasicWorld<double>::Impl;
+template struct BasicWorld<float>::Impl;
+
+}  // namespace drape

@@ -1,0 +1,219 @@
+// The World's private state, BasicWorld<Real>::Impl: the pools, the scratch of the host
+// stage and of frames, and the stability guard's references. Its member functions live
+// by concept: world.cpp (the pools and ids behind the public API), step.cpp (the
+// substep's stages, in order), frames.cpp (runs of substeps, contact-free frames, waves),
+// guard.cpp (the stability guard). Each of them instantiates the members it defines.
+#pragma once
+
+#include <drape/world.h>
+
+#include <oneapi/tbb/blocked_range.h>
+#include <oneapi/tbb/enumerable_thread_specific.h>
+#include <oneapi/tbb/parallel_for.h>
+#include <oneapi/tbb/task_arena.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "bounds.h"
+#include "broad_phase.h"
+#include "constraints.h"
+#include "contacts.h"
+#include "forces.h"
+#include "integrate.h"
+#include "obstacles.h"
+#include "sheet_data.h"
+
+namespace drape {
+
+using detail::Sheet;
+using detail::Topology;
+
+template <class Real>
+struct BasicWorld<Real>::Impl {
+  // The stability guard's memory of one sheet (see StabilityReport).
+  struct Guard {
+    bool has_reference = false;
+    double reference_energy = 0;  // E₀
+    double scale = 0;             // S: motion energy at the reference, ≥ floor
+    double floor = 0;             // work of gravity over the sheet's extent at the reference
+  };
+
+  struct Slot {
+    std::optional<Sheet<Real>> sheet;
+    std::uint32_t generation = 0;
+    double omega_max = 0;  // rad/s, Gershgorin bound; fixed by masses and stiffnesses
+    Guard guard;
+    double lightest_point = 0;  // kg, for the obstacle force bound (obstacles.h, exponent_cap)
+    // Moved by a prescribed motion (a path or frame constraint, a moving obstacle): its
+    // energy may grow, so the guard halts it only for a state that is not finite.
+    bool driven = false;
+    // The sheet's box after its last integration, taken while its positions were still in
+    // cache; stale after add_sheet, state() or a step that split the sheet into blocks.
+    detail::Aabb bounds;
+    bool bounds_fresh = false;
+  };
+  // A unit of the parallel stage: rows [row_begin, row_end) of one sheet. `split` blocks
+  // compute forces in the first pass and update in the second; a whole sheet does both
+  // in its one task.
+  struct Block {
+    std::uint32_t sheet;  // position in `active`
+    std::uint32_t row_begin, row_end, index;
+    bool split;
+  };
+
+  WorldDef def;
+  std::unique_ptr<tbb::task_arena> arena;
+  std::vector<Slot> slots;
+  std::vector<std::uint32_t> free_slots;
+  std::vector<std::uint32_t> active;  // live slots in the order sheets were added
+  std::vector<std::shared_ptr<const Topology<Real>>> topologies;
+  std::uint64_t steps = 0;
+  // time = time_base + (steps − steps_base)·current_h: exact for runs of equal substeps
+  double time_base = 0, current_h = 0;
+  std::uint64_t steps_base = 0;
+  std::optional<StabilityReport> failure;  // set when the guard halted the world
+
+  // Host stage scratch, kept between substeps so a settled scene does not allocate.
+  std::vector<detail::Aabb> bounds, grown;
+  detail::TrackingBroadPhase broad_phase;  // reset when `active` changes
+  std::vector<detail::BoxPair> pairs;
+  std::vector<detail::PairContacts<Real>> pair_work;
+  tbb::enumerable_thread_specific<detail::ContactGrid<Real>> grids;  // narrow-phase scratch
+  std::vector<std::uint32_t> source_start;                  // per sheet, into sources (CSR)
+  std::vector<const detail::ContactForces<Real>*> sources;  // per sheet, in pair order
+  std::vector<std::uint32_t> source_cursor;                 // while filling sources
+  std::vector<Block> blocks;
+
+  explicit Impl(const WorldDef& d) : def(d) { make_arena(); }
+
+  struct ObstacleSlot {
+    std::optional<detail::Obstacle> obstacle;  // without its motion; at its pose for this substep
+    ObstacleDef def;                           // the caller's definition
+    std::uint32_t generation = 0;
+  };
+  std::vector<ObstacleSlot> obstacle_slots;
+  std::vector<std::uint32_t> free_obstacle_slots;
+  std::vector<std::uint32_t> active_obstacles;  // live slots in the order obstacles were added
+
+  detail::ConstraintPool<Real> constraints;
+
+  bool contacting = false;  // this substep's contact stages run (set by contact_bounds)
+
+  // integrate_runs' scratch (frames.cpp)
+  tbb::enumerable_thread_specific<detail::WaveScratch<Real>> wave_scratch;  // whole sheets
+  std::vector<detail::WaveScratch<Real>> block_scratch;                     // per split block, with its halo
+  // try_frame's scratch (frames.cpp)
+  std::vector<detail::Aabb> swept, swept_grown, block_swept;
+  detail::TrackingBroadPhase swept_broad_phase;  // over the frames' swept boxes; reset with broad_phase
+  std::vector<detail::Vec3Array<Real>> saved;  // positions, then velocities, per sheet
+
+  // ---- The pools and ids behind the public API (world.cpp) --------------------------
+
+  void make_arena();
+  void set_def(const WorldDef& d);
+  typename detail::ConstraintPool<Real>::Access access();
+  void constraints_changed();
+  void find_driven();
+  bool obstacles_move() const;
+  // Whether anything moves by itself or couples sheets outside the contact stage: then
+  // every substep needs the host stage (no runs of substeps, no contact-free frames).
+  bool driven() const { return !constraints.empty() || obstacles_move(); }
+  Sheet<Real>& sheet(SheetId id);
+  const Sheet<Real>& sheet(SheetId id) const { return const_cast<Impl*>(this)->sheet(id); }
+  bool contains(SheetId id) const {
+    return id.index < slots.size() && slots[id.index].sheet && slots[id.index].generation == id.generation;
+  }
+  Sheet<Real>& at(std::size_t k) { return *slots[active[k]].sheet; }
+  detail::Obstacle& obstacle(ObstacleId id);
+  bool contains(ObstacleId id) const {
+    return id.index < obstacle_slots.size() && obstacle_slots[id.index].obstacle &&
+           obstacle_slots[id.index].generation == id.generation;
+  }
+  void forget_near_obstacles();
+  void share_topology(Sheet<Real>& s);
+
+  template <class Body>
+  void parallel(std::size_t count, Body body) const {
+    arena->execute([&] {
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 1), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t k = r.begin(); k != r.end(); ++k) body(k);
+      });
+    });
+  }
+
+  double time() const { return time_base + static_cast<double>(steps - steps_base) * current_h; }
+
+  // ---- The substep's stages, in the order substep() runs them (step.cpp) ------------
+  //
+  // The host stage (serial decisions, parallel work inside), then the parallel stage over
+  // sheets and row blocks. The contact stages run only while contacts are possible (more
+  // than one sheet, or a self-colliding one, and contact_strength > 0); sheets whose boxes
+  // (grown by half the contact range each) do not meet never reach the narrow phase.
+  enum class Stage {
+    RigidParts,   // moving obstacles posed and constraint targets set for this substep's time
+    Bounds,       // every sheet's box, and the box grown by half the contact range
+    BroadPhase,   // pairs of sheets whose grown boxes meet, and self-colliding sheets with themselves
+    NarrowPhase,  // each pair's contact forces, into buffers only that pair owns (contacts.cpp)
+    GatherPlan,   // each sheet's list of the buffers aimed at it, in pair order; has_contacts
+    Obstacles,    // each sheet's list of obstacles within reach (assign_obstacles)
+    Integrate,    // per sheet or row block: gather contacts, force terms (terms/terms.h), integrator
+  };
+  static constexpr Stage substep_stages[] = {Stage::RigidParts, Stage::Bounds,    Stage::BroadPhase,
+                                             Stage::NarrowPhase, Stage::GatherPlan, Stage::Obstacles,
+                                             Stage::Integrate};
+
+  bool contacts_possible() const;
+  void move_rigid_parts();
+  // A sheet's box now: the one its last integration took while the positions were in
+  // cache, unless something moved the points since.
+  detail::Aabb current_bounds(const Slot& slot) const {
+    return slot.bounds_fresh ? slot.bounds : detail::sheet_bounds(*slot.sheet);
+  }
+  void assign_obstacles(double h);
+  void run_stage(Stage stage, double h);
+  detail::ContactParams<Real> contact_params(double h) const;
+  void contact_bounds(double h);
+  void find_pairs();
+  void narrow_phase(double h);
+  void plan_gather();
+  void plan_blocks();
+  void push_row_blocks(std::uint32_t k, std::uint32_t rows, std::uint64_t count);
+  void gather(std::size_t k, std::size_t begin, std::size_t end);
+  void integrate_sheets(const detail::StepParams<Real>& params);
+  void substep(double h);
+  detail::StepParams<Real> step_params(double h) const;
+  void count_substeps(double h, std::uint64_t count);
+
+  // ---- Runs of substeps, contact-free frames, waves (frames.cpp) ------------------
+
+  // Several substeps with nothing between them: no contacts (their forces come from every
+  // sheet's positions at each substep) and no obstacles (each substep picks the ones near
+  // a sheet). Then sheets are independent for the whole run of substeps, and each task
+  // takes its sheet through many substeps while it is in cache.
+  bool sheets_independent() const { return !contacts_possible() && active_obstacles.empty(); }
+  void plan_wave_blocks(std::uint32_t levels);
+  void integrate_runs(double h, std::uint64_t count, std::vector<detail::Aabb>* swept = nullptr);
+  bool frame_may_be_contact_free() const;
+  bool apart(const std::vector<detail::Aabb>& boxes, detail::TrackingBroadPhase& tracker);
+  bool try_frame(double h, std::uint64_t count);
+  void substeps(double h, std::uint64_t count);
+  double omega_max() const;
+  double max_substep() const;
+  void advance(double seconds);
+
+  // ---- The stability guard (guard.cpp) ---------------------------------------------
+
+  // Motion energy: what an unstable step inflates.
+  static double motion_energy(const Energies& e) { return e.kinetic + e.spring + e.bending + e.anchor + e.obstacle; }
+  Energies guard_energy(const Slot& slot) const;
+  void take_reference(Slot& slot);
+  void take_references();
+  StabilityReport check() const;
+  StabilityReport finish_step();
+};
+
+}  // namespace drape
