@@ -19,8 +19,15 @@ if [[ -n "${DRAPE_EXTRA_PACKAGES:-}" ]]; then
   packages+=("${extra[@]}")
 fi
 
+# Packages whose command may come from another package: nodejs from NodeSource carries npm,
+# and Debian's npm package then conflicts with it. The command being there is enough.
+declare -A command_of=([npm]=npm [nodejs]=node)
+
 missing=()
 for p in "${packages[@]}"; do
+  if [[ -n "${command_of[$p]:-}" ]] && command -v "${command_of[$p]}" >/dev/null 2>&1; then
+    continue
+  fi
   if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
     missing+=("$p")
   fi
