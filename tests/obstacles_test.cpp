@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 #include <numbers>
 #include <random>
 
@@ -566,6 +567,91 @@ TEST(Obstacles, FrictionSlowsASlidingSheetToGTimesSinMinusMuCos) {
     const Incline r = slide_down(theta, sheet, obstacle, t);
     EXPECT_NEAR(r.speed, a * t, 5e-3 * a * t) << "mu " << sheet << ", " << obstacle;
     EXPECT_NEAR(r.along, 0.5 * a * t * t, 1e-2 * 0.5 * a * t * t) << "mu " << sheet << ", " << obstacle;
+  }
+}
+
+// Friction acts against the slip relative to a moving obstacle's surface (eq (9)'s
+// obstacle posed by its motion): a 4×4-cell sheet lying on a horizontal plane that moves
+// along x by `platform(t)`, started at rest at the height where eq (9) carries its weight.
+// Returns the sheet's mean velocity along x after `seconds`.
+double carried_along(const std::function<double(double)>& platform, double mu, double seconds) {
+  const double g = 9.81, point_mass = 0.01;
+  ObstacleDef plane;
+  plane.shape = ObstacleShape::Plane;
+  plane.c = 0.01;
+  plane.xi = 0.01;
+  plane.friction = mu;
+  plane.motion = drape::Motion{};
+  plane.motion->kind = drape::Motion::Kind::Callback;
+  plane.motion->callback = [platform](double t) { return drape::Pose{{}, {platform(t), 0, 0}}; };
+  const double rest = -plane.xi * std::log(point_mass * g * plane.xi / plane.c + std::exp(-16.0));
+  drape::WorldDef wd;
+  wd.dt = 1e-3;
+  drape::World world(wd);
+  drape::SheetDef s;
+  s.m = s.n = 4;
+  s.width = s.height = 0.1;
+  s.mass = 25 * point_mass;
+  s.center = {0, 0, rest};
+  const auto id = world.add_sheet(s);
+  world.add_obstacle(plane);
+  world.step(std::uint64_t(std::lround(seconds / wd.dt)));
+  EXPECT_TRUE(world.all_finite());
+  const auto v = world.view(id);
+  double vx = 0;
+  for (std::size_t p = 0; p < v.size(); ++p) vx += v.vx[p] / double(v.size());
+  return vx;
+}
+
+TEST(Obstacles, FrictionCarriesASheetAlongWithAPlatformMovingAtConstantSpeed) {
+  const double u = 0.5;
+  const auto platform = [u](double t) { return u * t; };
+  // μ·g = 9.8 m/s² brings it to u within about 0.05 s; at 0.5 s it moves with the platform
+  EXPECT_NEAR(carried_along(platform, 1.0, 0.5), u, 1e-3 * u);
+  // without friction the platform slides away beneath it
+  EXPECT_LT(std::abs(carried_along(platform, 0.0, 0.5)), 1e-9);
+}
+
+TEST(Obstacles, AcceleratingPlatformCarriesASheetBelowMuGAndDragsItAtMuGAbove) {
+  const double g = 9.81, mu = 0.4, t = 0.5;
+  // a < μ·g: no slip, the sheet keeps the platform's velocity a·t
+  const double slow = 0.5 * mu * g;
+  EXPECT_NEAR(carried_along([slow](double s) { return 0.5 * slow * s * s; }, mu, t), slow * t, 5e-3 * slow * t);
+  // a > μ·g: it slips, and kinetic friction gives it μ·g
+  const double fast = 2 * mu * g;
+  EXPECT_NEAR(carried_along([fast](double s) { return 0.5 * fast * s * s; }, mu, t), mu * g * t, 5e-3 * mu * g * t);
+}
+
+// A turntable: a horizontal plane turning about the z axis at ω. With friction the sheet
+// laid on it off the axis ends turning with it, each point at ω ẑ × x (the centripetal
+// ω²·r = 0.8 m/s² is well below μ·g); friction sees the rotation, not only a translation.
+TEST(Obstacles, FrictionTurnsASheetWithATurningPlatform) {
+  const double g = 9.81, point_mass = 0.01, omega = 2, r = 0.2;
+  ObstacleDef plane;
+  plane.shape = ObstacleShape::Plane;
+  plane.c = 0.01;
+  plane.xi = 0.01;
+  plane.friction = 1.0;
+  plane.motion = drape::Motion{};
+  plane.motion->kind = drape::Motion::Kind::Callback;
+  plane.motion->callback = [omega](double t) {
+    return drape::Pose{drape::quat_from_axis_angle({0, 0, 1}, omega * t), {}};
+  };
+  drape::WorldDef wd;
+  wd.dt = 1e-3;
+  drape::World world(wd);
+  drape::SheetDef s;
+  s.m = s.n = 4;
+  s.width = s.height = 0.1;
+  s.mass = 25 * point_mass;
+  s.center = {r, 0, -plane.xi * std::log(point_mass * g * plane.xi / plane.c + std::exp(-16.0))};
+  const auto id = world.add_sheet(s);
+  world.add_obstacle(plane);
+  world.step(500);
+  const auto v = world.view(id);
+  for (std::size_t p = 0; p < v.size(); ++p) {
+    EXPECT_NEAR(v.vx[p], -omega * v.y[p], 1e-2 * omega * r) << "point " << p;
+    EXPECT_NEAR(v.vy[p], omega * v.x[p], 1e-2 * omega * r) << "point " << p;
   }
 }
 

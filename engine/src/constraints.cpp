@@ -168,6 +168,27 @@ Pose frame_pose(const ConstraintDef& d, double time, const Access& world) {
 
 void place_obstacle(Obstacle& o, const ObstacleDef& def, double time) { o = make_obstacle(obstacle_at(def, time)); }
 
+void set_obstacle_velocity(NearObstacle& near, const ObstacleDef& def, double time, double h) {
+  if (!def.motion || !(h > 0)) return;
+  const ObstacleDef a = obstacle_at(def, time), b = obstacle_at(def, time + h);
+  near.center[0] = a.center.x;
+  near.center[1] = a.center.y;
+  near.center[2] = a.center.z;
+  near.linear[0] = (b.center.x - a.center.x) / h;
+  near.linear[1] = (b.center.y - a.center.y) / h;
+  near.linear[2] = (b.center.z - a.center.z) / h;
+  // the turn over the substep, q(t + h)·q(t)⁻¹, as axis·angle (the shorter way round)
+  const Quat qa = a.orientation, qb = b.orientation;
+  const Quat d = multiply(qb, Quat{qa.w, -qa.x, -qa.y, -qa.z});
+  const double sign = d.w < 0 ? -1.0 : 1.0;
+  const double s = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+  if (!(s > 0)) return;
+  const double per_unit = 2 * std::atan2(s, sign * d.w) / s / h;
+  near.angular[0] = sign * d.x * per_unit;
+  near.angular[1] = sign * d.y * per_unit;
+  near.angular[2] = sign * d.z * per_unit;
+}
+
 template <class Real>
 ConstraintId ConstraintPool<Real>::add(const ConstraintDef& def, double time, const Access& world) {
   const ConstraintContext context{[&](SheetId id) -> std::uint64_t {

@@ -20,6 +20,10 @@ namespace drape::detail {
 // Moves `o` to where def's motion has it at `time` (the world keeps the caller's `def`).
 void place_obstacle(Obstacle& o, const ObstacleDef& def, double time);
 
+// The rigid velocity def's motion gives the obstacle over [time, time + h] into near's
+// linear, angular and center (NearObstacle); left at zero for an obstacle without a motion.
+void set_obstacle_velocity(NearObstacle& near, const ObstacleDef& def, double time, double h);
+
 template <class Real>
 class ConstraintPool {
  public:

@@ -227,7 +227,8 @@ inline void project_on_normal(double ax, double ay, double az, double bx, double
 
 // Coulomb friction on one point (docs/scene-format.md, Friction): N the repulsion F's part
 // along g = ∇f, v* the velocity the substep would leave the point with (its total force
-// so far, F included, and gravity), and the force against v*'s tangential part, the smaller
+// so far, F included, and gravity) relative to the obstacle's surface there (v is passed
+// in relative already), and the force against v*'s tangential part, the smaller
 // of μ·N and m·|v*_t|/dt (what stops the slip within the substep). Adds it to F.
 struct Rub {
   double mu, dt, gravity[3];
@@ -282,7 +283,13 @@ void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near,
         if constexpr (rub) {
           const double g[3] = {c.gx[k], c.gy[k], c.gz[k]};
           const double total[3] = {f.x[p] + F[0], f.y[p] + F[1], f.z[p] + F[2]};
-          const double vel[3] = {double(v.x[p]), double(v.y[p]), double(v.z[p])};
+          // the slip relative to the obstacle's surface here: v − (linear + angular × (x − center))
+          const double* w = near.angular;
+          const double r[3] = {double(x.x[p]) - near.center[0], double(x.y[p]) - near.center[1],
+                               double(x.z[p]) - near.center[2]};
+          const double vel[3] = {double(v.x[p]) - (near.linear[0] + (w[1] * r[2] - w[2] * r[1])),
+                                 double(v.y[p]) - (near.linear[1] + (w[2] * r[0] - w[0] * r[2])),
+                                 double(v.z[p]) - (near.linear[2] + (w[0] * r[1] - w[1] * r[0]))};
           friction(g, F, total, vel, double(inv_mass[p]));
         }
         f.x[p] += static_cast<Real>(F[0]);

@@ -25,6 +25,12 @@ struct NearObstacle {
   double friction = 0;
   double dt = 0;
   double gravity[3] = {0, 0, 0};
+  // The obstacle's rigid velocity over the substep, so friction acts against the slip
+  // relative to its surface: v_surface(x) = linear + angular × (x − center). All zero for a
+  // still obstacle, where subtracting it leaves the point's velocity bit for bit.
+  double linear[3] = {0, 0, 0};   // m/s, its centre's motion over [t, t + dt]
+  double angular[3] = {0, 0, 0};  // rad/s, axis·angle of q(t + dt)·q(t)⁻¹ over dt
+  double center[3] = {0, 0, 0};   // m, its centre at t
 };
 
 // Edge buffer of a grid (paper Fig 1). Springs are stored in a fixed order so the force

@@ -33,12 +33,14 @@ void BasicWorld<Real>::Impl::assign_obstacles(double h) {
     const detail::Aabb box = current_bounds(slots[index]);
     for (std::uint32_t o : active_obstacles) {
       const detail::Obstacle& obstacle = *obstacle_slots[o].obstacle;
-      if (detail::may_touch(obstacle, box))
-        s.near_obstacles.push_back({.obstacle = &obstacle,
-                                    .exponent_cap = detail::exponent_cap(obstacle.def, lightest, h),
-                                    .friction = std::max(s.friction, obstacle.def.friction),
-                                    .dt = h,
-                                    .gravity = {def.gravity.x, def.gravity.y, def.gravity.z}});
+      if (!detail::may_touch(obstacle, box)) continue;
+      detail::NearObstacle near{.obstacle = &obstacle,
+                                .exponent_cap = detail::exponent_cap(obstacle.def, lightest, h),
+                                .friction = std::max(s.friction, obstacle.def.friction),
+                                .dt = h,
+                                .gravity = {def.gravity.x, def.gravity.y, def.gravity.z}};
+      if (near.friction > 0) detail::set_obstacle_velocity(near, obstacle_slots[o].def, time(), h);
+      s.near_obstacles.push_back(near);
     }
   }
 }
