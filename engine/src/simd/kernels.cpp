@@ -1,17 +1,8 @@
 // Highway's foreach_target re-includes this file once per target; everything between
 // HWY_BEFORE_NAMESPACE and HWY_AFTER_NAMESPACE is compiled for each, the HWY_ONCE part
 // (the dispatching entry points of kernels.h) once.
-// AVX3_DL (Ice Lake and later AVX-512) as a target of its own: Highway 1.0.3 leaves it out
-// unless asked, and then fails to build with -march=native on a CPU that has it (the baseline
-// target must be one of the targets).
-#ifndef HWY_WANT_AVX3_DL
-#define HWY_WANT_AVX3_DL
-#endif
-// Every target the compiler can emit, also those below a -march=native baseline and the
-// portable scalar target: the tests run each on this CPU, in either build.
-#ifndef HWY_COMPILE_ALL_ATTAINABLE
-#define HWY_COMPILE_ALL_ATTAINABLE
-#endif
+#include "simd/targets.h"
+
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "simd/kernels.cpp"
 #include <hwy/foreach_target.h>  // IWYU pragma: keep
