@@ -47,20 +47,8 @@ struct PlainSheet {
 void horizontal(std::uint32_t w, double k, double rest, const double* __restrict x, const double* __restrict y,
                 const double* __restrict z, double* __restrict sx, double* __restrict sy, double* __restrict sz,
                 double* __restrict fx, double* __restrict fy, double* __restrict fz) {
-  drape::detail::simd::SpringRun<double> run;
-  run.count = w - 1;
-  run.ax = x;
-  run.ay = y;
-  run.az = z;
-  run.bx = x + 1;
-  run.by = y + 1;
-  run.bz = z + 1;
-  run.rest_same = rest;
-  run.k_same = k;
-  run.store_x = sx;
-  run.store_y = sy;
-  run.store_z = sz;
-  drape::detail::simd::springs(run);
+  drape::detail::simd::springs(
+      drape::detail::simd::SpringRun<double>::between(w - 1, x, y, z, x + 1, y + 1, z + 1).same(rest, k).store(sx, sy, sz));
   fx[0] = sx[0];
   fy[0] = sy[0];
   fz[0] = sz[0];
@@ -78,43 +66,17 @@ void horizontal(std::uint32_t w, double k, double rest, const double* __restrict
 void vertical(std::uint32_t w, double k, double rest, const double* xa, const double* ya, const double* za,
               const double* xb, const double* yb, const double* zb, double* fxa, double* fya, double* fza,
               double* fxb, double* fyb, double* fzb) {
-  drape::detail::simd::SpringRun<double> run;
-  run.count = w;
-  run.ax = xa;
-  run.ay = ya;
-  run.az = za;
-  run.bx = xb;
-  run.by = yb;
-  run.bz = zb;
-  run.rest_same = rest;
-  run.k_same = k;
-  run.add_x = fxa;
-  run.add_y = fya;
-  run.add_z = fza;
-  run.sub_x = fxb;
-  run.sub_y = fyb;
-  run.sub_z = fzb;
-  drape::detail::simd::springs(run);
+  drape::detail::simd::springs(drape::detail::simd::SpringRun<double>::between(w, xa, ya, za, xb, yb, zb)
+                                   .same(rest, k)
+                                   .add(fxa, fya, fza)
+                                   .sub(fxb, fyb, fzb));
 }
 
 // Semi-implicit Euler on one row, through the engine's vector kernel.
 void integrate(std::uint32_t w, const PlainSheet& s, const double* inv_mass, double* x, double* y, double* z,
                double* vx, double* vy, double* vz, const double* fx, const double* fy, const double* fz) {
-  drape::detail::simd::PointUpdate<double> u;
-  u.count = w;
-  u.x = x;
-  u.y = y;
-  u.z = z;
-  u.vx = vx;
-  u.vy = vy;
-  u.vz = vz;
-  u.fx = fx;
-  u.fy = fy;
-  u.fz = fz;
-  u.inv_mass = inv_mass;
-  u.dt = s.dt;
-  u.gz = s.gz;
-  drape::detail::simd::update_points(u);
+  drape::detail::simd::update_points(
+      drape::detail::simd::PointUpdate<double>::of(w, x, y, z, vx, vy, vz, fx, fy, fz, inv_mass).step(s.dt, 0, 0, s.gz, true));
 }
 
 void plain_step(PlainSheet& s) {

@@ -77,20 +77,15 @@ void expect_springs_match_the_equation() {
         add[c].assign(count, Real(1));
         sub[c].assign(count, Real(2));
       }
-      detail::simd::SpringRun<Real> run;
-      run.count = count;
-      run.ax = a[0].data(), run.ay = a[1].data(), run.az = a[2].data();
-      run.bx = b[0].data(), run.by = b[1].data(), run.bz = b[2].data();
-      if (per_spring) {
-        run.rest = rest.data();
-        run.k = k.data();
-      } else {
-        run.rest_same = rest[0];
-        run.k_same = k[0];
-      }
-      run.store_x = store[0].data(), run.store_y = store[1].data(), run.store_z = store[2].data();
-      run.add_x = add[0].data(), run.add_y = add[1].data(), run.add_z = add[2].data();
-      run.sub_x = sub[0].data(), run.sub_y = sub[1].data(), run.sub_z = sub[2].data();
+      auto run = detail::simd::SpringRun<Real>::between(count, a[0].data(), a[1].data(), a[2].data(), b[0].data(),
+                                                        b[1].data(), b[2].data());
+      if (per_spring)
+        run.per_spring(rest.data(), k.data());
+      else
+        run.same(rest[0], k[0]);
+      run.store(store[0].data(), store[1].data(), store[2].data());
+      run.add(add[0].data(), add[1].data(), add[2].data());
+      run.sub(sub[0].data(), sub[1].data(), sub[2].data());
       detail::simd::springs(run);
       for (std::size_t e = 0; e < count; ++e) {
         long double d[3], len2 = 0;
@@ -131,15 +126,10 @@ TEST(Simd, PointUpdateOfEveryTargetIsTheEulerStepByHand) {
         }
       for (std::size_t i = 0; i < count; ++i) im[i] = i % 2 ? 2.0 : 0.5;
       const double dt = 0.125, g[3] = {0.0, 1.0, -8.0};
-      detail::simd::PointUpdate<double> u;
-      u.count = count;
-      u.x = x[0].data(), u.y = x[1].data(), u.z = x[2].data();
-      u.vx = v[0].data(), u.vy = v[1].data(), u.vz = v[2].data();
-      u.fx = f[0].data(), u.fy = f[1].data(), u.fz = f[2].data();
-      u.inv_mass = im.data();
-      u.dt = dt, u.gx = g[0], u.gy = g[1], u.gz = g[2];
-      u.semi_implicit = semi;
-      detail::simd::update_points(u);
+      detail::simd::update_points(detail::simd::PointUpdate<double>::of(count, x[0].data(), x[1].data(), x[2].data(),
+                                                                        v[0].data(), v[1].data(), v[2].data(),
+                                                                        f[0].data(), f[1].data(), f[2].data(), im.data())
+                                      .step(dt, g[0], g[1], g[2], semi));
       for (int c = 0; c < 3; ++c)
         for (std::size_t i = 0; i < count; ++i) {
           const double v0 = 0.5 * double(c) - 1.0, x0 = 0.25 * double(i) + c;

@@ -23,20 +23,14 @@ struct PerSpring {
   const Real* __restrict rest;
   const Real* __restrict k;
   PerSpring offset(std::size_t e) const { return {rest + e, k + e}; }
-  void into(simd::SpringRun<Real>& run) const {
-    run.rest = rest;
-    run.k = k;
-  }
+  simd::SpringRun<Real>& into(simd::SpringRun<Real>& run) const { return run.per_spring(rest, k); }
 };
 
 template <class Real>
 struct SameSpring {
   Real rest, k;
   SameSpring offset(std::size_t) const { return *this; }
-  void into(simd::SpringRun<Real>& run) const {
-    run.rest_same = rest;
-    run.k_same = k;
-  }
+  simd::SpringRun<Real>& into(simd::SpringRun<Real>& run) const { return run.same(rest, k); }
 };
 
 // Horizontal springs of one row: forces go to a scratch row first, so the scatter into
@@ -46,19 +40,8 @@ inline void row_springs(std::uint32_t n, const Real* __restrict x, const Real* _
                         Springs springs, Real* __restrict sx, Real* __restrict sy, Real* __restrict sz,
                         Real* __restrict fx, Real* __restrict fy, Real* __restrict fz) {
   // eq (6) in the vector kernels (simd/kernels.h): spring j joins points j and j + 1
-  simd::SpringRun<Real> run;
-  run.count = n;
-  run.ax = x;
-  run.ay = y;
-  run.az = z;
-  run.bx = x + 1;
-  run.by = y + 1;
-  run.bz = z + 1;
-  springs.into(run);
-  run.store_x = sx;
-  run.store_y = sy;
-  run.store_z = sz;
-  simd::springs(run);
+  auto run = simd::SpringRun<Real>::between(n, x, y, z, x + 1, y + 1, z + 1);
+  simd::springs(springs.into(run).store(sx, sy, sz));
   // point j gets +s[j] from the spring on its right and −s[j−1] from the one on its left
   if (n == 0) {
     fx[0] = fy[0] = fz[0] = Real(0);
@@ -86,25 +69,10 @@ inline void column_springs(std::uint32_t cols, const Real* __restrict xa, const 
                            const Real* __restrict za, const Real* __restrict xb, const Real* __restrict yb,
                            const Real* __restrict zb, Springs springs, Real* __restrict fxa, Real* __restrict fya,
                            Real* __restrict fza, Real* __restrict fxb, Real* __restrict fyb, Real* __restrict fzb) {
-  simd::SpringRun<Real> run;
-  run.count = cols;
-  run.ax = xa;
-  run.ay = ya;
-  run.az = za;
-  run.bx = xb;
-  run.by = yb;
-  run.bz = zb;
+  auto run = simd::SpringRun<Real>::between(cols, xa, ya, za, xb, yb, zb);
   springs.into(run);
-  if constexpr (ToA) {
-    run.add_x = fxa;
-    run.add_y = fya;
-    run.add_z = fza;
-  }
-  if constexpr (ToB) {
-    run.sub_x = fxb;
-    run.sub_y = fyb;
-    run.sub_z = fzb;
-  }
+  if constexpr (ToA) run.add(fxa, fya, fza);
+  if constexpr (ToB) run.sub(fxb, fyb, fzb);
   simd::springs(run);
 }
 

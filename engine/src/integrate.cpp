@@ -49,24 +49,8 @@ struct FirstOrderArrays {
 // kernel of simd/kernels.h does the arithmetic.
 template <class Real, bool SemiImplicit>
 void first_order_update(std::size_t count, const StepParams<Real>& p, FirstOrderArrays<Real> a) {
-  simd::PointUpdate<Real> u;
-  u.count = count;
-  u.x = a.x;
-  u.y = a.y;
-  u.z = a.z;
-  u.vx = a.vx;
-  u.vy = a.vy;
-  u.vz = a.vz;
-  u.fx = a.fx;
-  u.fy = a.fy;
-  u.fz = a.fz;
-  u.inv_mass = a.inv_mass;
-  u.dt = p.dt;
-  u.gx = p.gx;
-  u.gy = p.gy;
-  u.gz = p.gz;
-  u.semi_implicit = SemiImplicit;
-  simd::update_points(u);
+  simd::update_points(simd::PointUpdate<Real>::of(count, a.x, a.y, a.z, a.vx, a.vy, a.vz, a.fx, a.fy, a.fz, a.inv_mass)
+                          .step(p.dt, p.gx, p.gy, p.gz, SemiImplicit));
 }
 
 // Each row is updated as soon as its force is final (sheet_forces_by_rows), so forces

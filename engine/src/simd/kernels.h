@@ -28,6 +28,49 @@ struct SpringRun {
   Real *store_x = nullptr, *store_y = nullptr, *store_z = nullptr;
   Real *add_x = nullptr, *add_y = nullptr, *add_z = nullptr;
   Real *sub_x = nullptr, *sub_y = nullptr, *sub_z = nullptr;
+
+  // A run is set up as between(...) then where k and ℓ come from, then its outputs:
+  // SpringRun::between(n, a…, b…).same(rest, k).store(x, y, z)
+  static SpringRun between(std::size_t count, const Real* ax, const Real* ay, const Real* az, const Real* bx,
+                           const Real* by, const Real* bz) {
+    SpringRun r;
+    r.count = count;
+    r.ax = ax;
+    r.ay = ay;
+    r.az = az;
+    r.bx = bx;
+    r.by = by;
+    r.bz = bz;
+    return r;
+  }
+  SpringRun& per_spring(const Real* rest_of, const Real* k_of) {
+    rest = rest_of;
+    k = k_of;
+    return *this;
+  }
+  SpringRun& same(Real rest_all, Real k_all) {
+    rest_same = rest_all;
+    k_same = k_all;
+    return *this;
+  }
+  SpringRun& store(Real* x, Real* y, Real* z) {
+    store_x = x;
+    store_y = y;
+    store_z = z;
+    return *this;
+  }
+  SpringRun& add(Real* x, Real* y, Real* z) {
+    add_x = x;
+    add_y = y;
+    add_z = z;
+    return *this;
+  }
+  SpringRun& sub(Real* x, Real* y, Real* z) {
+    sub_x = x;
+    sub_y = y;
+    sub_z = z;
+    return *this;
+  }
 };
 
 void springs(const SpringRun<double>& run);
@@ -45,6 +88,32 @@ struct PointUpdate {
   const Real* inv_mass = nullptr;
   Real dt = 0, gx = 0, gy = 0, gz = 0;
   bool semi_implicit = true;
+
+  // PointUpdate::of(n, x…, v…, f…, 1/m).step(dt, g…, semi_implicit)
+  static PointUpdate of(std::size_t count, Real* x, Real* y, Real* z, Real* vx, Real* vy, Real* vz, const Real* fx,
+                        const Real* fy, const Real* fz, const Real* inv_mass) {
+    PointUpdate u;
+    u.count = count;
+    u.x = x;
+    u.y = y;
+    u.z = z;
+    u.vx = vx;
+    u.vy = vy;
+    u.vz = vz;
+    u.fx = fx;
+    u.fy = fy;
+    u.fz = fz;
+    u.inv_mass = inv_mass;
+    return u;
+  }
+  PointUpdate& step(Real step_dt, Real g_x, Real g_y, Real g_z, bool semi) {
+    dt = step_dt;
+    gx = g_x;
+    gy = g_y;
+    gz = g_z;
+    semi_implicit = semi;
+    return *this;
+  }
 };
 
 void update_points(const PointUpdate<double>& u);
