@@ -15,47 +15,82 @@ namespace drape::detail::simd {
 namespace HWY_NAMESPACE {
 namespace hn = hwy::HWY_NAMESPACE;
 
-// eq (6) on the springs [e, e + Lanes(d)): the same operations, in the same order, as
+// Loads and stores of whole vectors, or of the first lanes of one (a row's remainder):
+// masked lanes load zero and are never stored, and every lane that is computes exactly
+// as in a whole vector.
+template <class D>
+struct Whole {
+  D d;
+  template <class Real>
+  HWY_INLINE auto load(const Real* p) const { return hn::LoadU(d, p); }
+  template <class V, class Real>
+  HWY_INLINE void store(V v, Real* p) const { hn::StoreU(v, d, p); }
+};
+template <class D>
+struct FirstLanes {
+  D d;
+  decltype(hn::FirstN(D(), 0)) mask;
+  template <class Real>
+  HWY_INLINE auto load(const Real* p) const { return hn::MaskedLoad(mask, d, p); }
+  template <class V, class Real>
+  HWY_INLINE void store(V v, Real* p) const { hn::BlendedStore(v, mask, d, p); }
+};
+
+// Runs kernel(lanes, i) over [0, count) in whole vectors, then the remainder: as one
+// masked vector where the target's masked loads cannot touch memory beyond the mask
+// (AVX2 and AVX-512), else one lane at a time through the same code. Either way each
+// element gets the same bits wherever the run starts, so a row split between blocks
+// changes nothing.
+template <class Real, class Kernel>
+HWY_INLINE void over_lanes(std::size_t count, Kernel kernel) {
+  const hn::ScalableTag<Real> d;
+  const std::size_t lanes = hn::Lanes(d);
+  std::size_t i = 0;
+  for (; i + lanes <= count; i += lanes) kernel(Whole<decltype(d)>{d}, i);
+  if (i == count) return;
+#if HWY_ARCH_X86 && HWY_TARGET <= HWY_AVX2
+  kernel(FirstLanes<decltype(d)>{d, hn::FirstN(d, count - i)}, i);
+#else
+  const hn::CappedTag<Real, 1> one;
+  for (; i < count; ++i) kernel(Whole<decltype(one)>{one}, i);
+#endif
+}
+
+// eq (6) on the springs of one vector from e: the same operations, in the same order, as
 // spring_scale in terms/rows.h, so a lane gives the scalar kernel's bits.
-template <class D, bool PerSpring, bool Store, bool Add, bool Sub, class Real>
-HWY_INLINE void springs_at(D d, const SpringRun<Real>& r, std::size_t e) {
-  const auto dx = hn::Sub(hn::LoadU(d, r.ax + e), hn::LoadU(d, r.bx + e));
-  const auto dy = hn::Sub(hn::LoadU(d, r.ay + e), hn::LoadU(d, r.by + e));
-  const auto dz = hn::Sub(hn::LoadU(d, r.az + e), hn::LoadU(d, r.bz + e));
-  const auto rest = PerSpring ? hn::LoadU(d, r.rest + e) : hn::Set(d, r.rest_same);
-  const auto k = PerSpring ? hn::LoadU(d, r.k + e) : hn::Set(d, r.k_same);
+template <bool PerSpring, bool Store, bool Add, bool Sub, class Real, class Lanes>
+HWY_INLINE void springs_at(Lanes l, const SpringRun<Real>& r, std::size_t e) {
+  const auto d = l.d;
+  const auto dx = hn::Sub(l.load(r.ax + e), l.load(r.bx + e));
+  const auto dy = hn::Sub(l.load(r.ay + e), l.load(r.by + e));
+  const auto dz = hn::Sub(l.load(r.az + e), l.load(r.bz + e));
+  const auto rest = PerSpring ? l.load(r.rest + e) : hn::Set(d, r.rest_same);
+  const auto k = PerSpring ? l.load(r.k + e) : hn::Set(d, r.k_same);
   const auto len = hn::Sqrt(hn::Add(hn::Add(hn::Mul(dx, dx), hn::Mul(dy, dy)), hn::Mul(dz, dz)));
   // a zero-length spring has no direction: its lane's 1/0 is dropped, not used
   const auto inv = hn::IfThenElseZero(hn::Gt(len, hn::Zero(d)), hn::Div(hn::Set(d, Real(1)), len));
   const auto s = hn::Mul(hn::Mul(hn::Neg(k), hn::Sub(len, rest)), inv);
   const auto fx = hn::Mul(s, dx), fy = hn::Mul(s, dy), fz = hn::Mul(s, dz);
   if constexpr (Store) {
-    hn::StoreU(fx, d, r.store_x + e);
-    hn::StoreU(fy, d, r.store_y + e);
-    hn::StoreU(fz, d, r.store_z + e);
+    l.store(fx, r.store_x + e);
+    l.store(fy, r.store_y + e);
+    l.store(fz, r.store_z + e);
   }
   if constexpr (Add) {
-    hn::StoreU(hn::Add(hn::LoadU(d, r.add_x + e), fx), d, r.add_x + e);
-    hn::StoreU(hn::Add(hn::LoadU(d, r.add_y + e), fy), d, r.add_y + e);
-    hn::StoreU(hn::Add(hn::LoadU(d, r.add_z + e), fz), d, r.add_z + e);
+    l.store(hn::Add(l.load(r.add_x + e), fx), r.add_x + e);
+    l.store(hn::Add(l.load(r.add_y + e), fy), r.add_y + e);
+    l.store(hn::Add(l.load(r.add_z + e), fz), r.add_z + e);
   }
   if constexpr (Sub) {
-    hn::StoreU(hn::Sub(hn::LoadU(d, r.sub_x + e), fx), d, r.sub_x + e);
-    hn::StoreU(hn::Sub(hn::LoadU(d, r.sub_y + e), fy), d, r.sub_y + e);
-    hn::StoreU(hn::Sub(hn::LoadU(d, r.sub_z + e), fz), d, r.sub_z + e);
+    l.store(hn::Sub(l.load(r.sub_x + e), fx), r.sub_x + e);
+    l.store(hn::Sub(l.load(r.sub_y + e), fy), r.sub_y + e);
+    l.store(hn::Sub(l.load(r.sub_z + e), fz), r.sub_z + e);
   }
 }
 
-// Whole vectors, then the remainder one lane at a time with the same code: every spring
-// gets the same bits wherever the run starts, so a row split between blocks changes nothing.
 template <bool PerSpring, bool Store, bool Add, bool Sub, class Real>
 HWY_INLINE void springs_loop(const SpringRun<Real>& r) {
-  const hn::ScalableTag<Real> d;
-  const std::size_t lanes = hn::Lanes(d);
-  std::size_t e = 0;
-  for (; e + lanes <= r.count; e += lanes) springs_at<decltype(d), PerSpring, Store, Add, Sub>(d, r, e);
-  const hn::CappedTag<Real, 1> one;
-  for (; e < r.count; ++e) springs_at<decltype(one), PerSpring, Store, Add, Sub>(one, r, e);
+  over_lanes<Real>(r.count, [&](auto lanes, std::size_t e) { springs_at<PerSpring, Store, Add, Sub>(lanes, r, e); });
 }
 
 // The outputs and the parameters' source picked once per run, not per spring.
@@ -77,34 +112,30 @@ HWY_INLINE void springs_run(const SpringRun<Real>& r) {
     with_outputs.template operator()<false>();
 }
 
-// eq (4), first order, on the points [i, i + Lanes(d)).
-template <class D, bool SemiImplicit, class Real>
-HWY_INLINE void update_at(D d, const PointUpdate<Real>& u, std::size_t i) {
+// eq (4), first order, on the points of one vector from i.
+template <bool SemiImplicit, class Real, class Lanes>
+HWY_INLINE void update_at(Lanes l, const PointUpdate<Real>& u, std::size_t i) {
+  const auto d = l.d;
   const auto dt = hn::Set(d, u.dt);
-  const auto im = hn::LoadU(d, u.inv_mass + i);
+  const auto im = l.load(u.inv_mass + i);
   Real* const xs[3] = {u.x, u.y, u.z};
   Real* const vs[3] = {u.vx, u.vy, u.vz};
   const Real* const fs[3] = {u.fx, u.fy, u.fz};
   const Real gs[3] = {u.gx, u.gy, u.gz};
   for (int c = 0; c < 3; ++c) {
-    auto x = hn::LoadU(d, xs[c] + i);
-    auto v = hn::LoadU(d, vs[c] + i);
+    auto x = l.load(xs[c] + i);
+    auto v = l.load(vs[c] + i);
     if constexpr (!SemiImplicit) x = hn::Add(x, hn::Mul(dt, v));
-    v = hn::Add(v, hn::Mul(dt, hn::Add(hn::Mul(hn::LoadU(d, fs[c] + i), im), hn::Set(d, gs[c]))));
+    v = hn::Add(v, hn::Mul(dt, hn::Add(hn::Mul(l.load(fs[c] + i), im), hn::Set(d, gs[c]))));
     if constexpr (SemiImplicit) x = hn::Add(x, hn::Mul(dt, v));
-    hn::StoreU(x, d, xs[c] + i);
-    hn::StoreU(v, d, vs[c] + i);
+    l.store(x, xs[c] + i);
+    l.store(v, vs[c] + i);
   }
 }
 
 template <bool SemiImplicit, class Real>
 HWY_INLINE void update_loop(const PointUpdate<Real>& u) {
-  const hn::ScalableTag<Real> d;
-  const std::size_t lanes = hn::Lanes(d);
-  std::size_t i = 0;
-  for (; i + lanes <= u.count; i += lanes) update_at<decltype(d), SemiImplicit>(d, u, i);
-  const hn::CappedTag<Real, 1> one;
-  for (; i < u.count; ++i) update_at<decltype(one), SemiImplicit>(one, u, i);
+  over_lanes<Real>(u.count, [&](auto lanes, std::size_t i) { update_at<SemiImplicit>(lanes, u, i); });
 }
 
 template <class Real>
