@@ -171,6 +171,8 @@ void update_points(const PointUpdate<double>& u) { HWY_DYNAMIC_DISPATCH(UpdateF6
 void update_points(const PointUpdate<float>& u) { HWY_DYNAMIC_DISPATCH(UpdateF32)(u); }
 const char* target_name() { return HWY_DYNAMIC_DISPATCH(Name)(); }
 
+bool engine_uses_kernels() { return DRAPE_SIMD_DISPATCH; }
+
 std::vector<std::int64_t> supported_targets() { return hwy::SupportedAndGeneratedTargets(); }
 
 void use_target(std::int64_t target) { hwy::SetSupportedTargetsForTest(target); }

@@ -119,6 +119,10 @@ struct PointUpdate {
 void update_points(const PointUpdate<double>& u);
 void update_points(const PointUpdate<float>& u);
 
+// Whether the engine's row sweep and explicit integrators call these kernels (a
+// DRAPE_SIMD_DISPATCH build, the portable default) or their inline loops (a native build).
+bool engine_uses_kernels();
+
 // The instruction set the kernels run with now, e.g. "AVX3" (Highway's name for AVX-512),
 // "AVX3_DL", "AVX2", "SSE4", "SCALAR" (portable, one lane).
 const char* target_name();
