@@ -1,6 +1,9 @@
 // The machine ceiling: the simplest explicit spring step this machine can run for the same
 // sheets, with no engine around it. Plain arrays, one structured grid, one stiffness, one
-// rest length, one mass, semi-implicit Euler, corners pinned. Every engine figure in the
+// rest length, one mass, semi-implicit Euler, corners pinned; the arithmetic runs as the
+// engine of this build runs it: in its vector kernels (simd/kernels.h) on the widest
+// instruction set the CPU has when the build dispatches them, else in the same plain loops
+// the engine compiles for this CPU. Every engine figure in the
 // report is printed as a fraction of these rates, measured in the same run.
 #include <algorithm>
 #include <cmath>
@@ -9,6 +12,7 @@
 
 #include "bench_common.h"
 #include "sheet_data.h"
+#include "simd/kernels.h"
 
 namespace {
 
@@ -18,6 +22,7 @@ struct PlainSheet {
   using Array = std::vector<double, drape::detail::CacheAligned<double>>;
   Array x, y, z, vx, vy, vz, fx, fy, fz;
   Array sx, sy, sz;  // one row of horizontal spring forces
+  Array inv_mass_row;  // one mass for all points: one row of it, for the kernel's per-point 1/m
   double k = 100.0, rest = 0, inv_mass = 0, dt = 0, gz = -9.81;
 
   PlainSheet(std::uint32_t points_per_side, double offset_z) : side(points_per_side) {
@@ -33,9 +38,14 @@ struct PlainSheet {
       }
     const double mass = 1.0 / double(count);
     inv_mass = 1.0 / mass;
+    inv_mass_row.assign(side, inv_mass);
     dt = 0.5 * 2.0 / std::sqrt(2.0 * 4.0 * k / mass);  // same rule as the engine's scenes
   }
 };
+
+// The loops as the engine writes them when it is built without run-time dispatch (a native
+// build: GCC vectorises them for this CPU).
+namespace loops {
 
 // −k(|d| − ℓ)/|d|, zero for a zero-length spring: eq (6) with one k and one ℓ.
 inline double scale(double dx, double dy, double dz, double k, double rest) {
@@ -99,7 +109,7 @@ void integrate(std::uint32_t w, double dt, double im, double gz, double* __restr
   }
 }
 
-void plain_step(PlainSheet& s) {
+void step(PlainSheet& s) {
   const std::uint32_t w = s.side;
   double *x = s.x.data(), *y = s.y.data(), *z = s.z.data();
   double *vx = s.vx.data(), *vy = s.vy.data(), *vz = s.vz.data();
@@ -128,6 +138,87 @@ void plain_step(PlainSheet& s) {
     z[p] = 0.0;
     vx[p] = vy[p] = vz[p] = 0.0;
   }
+}
+
+}  // namespace loops
+
+// The engine's vector kernels (simd/kernels.h), as a build with run-time dispatch runs them.
+namespace kernels {
+
+// Horizontal springs of one row of w points through the engine's vector kernel (eq 6, one
+// k and ℓ): assign the row's forces. s is scratch.
+void horizontal(std::uint32_t w, double k, double rest, const double* __restrict x, const double* __restrict y,
+                const double* __restrict z, double* __restrict sx, double* __restrict sy, double* __restrict sz,
+                double* __restrict fx, double* __restrict fy, double* __restrict fz) {
+  drape::detail::simd::springs(
+      drape::detail::simd::SpringRun<double>::between(w - 1, x, y, z, x + 1, y + 1, z + 1).same(rest, k).store(sx, sy, sz));
+  fx[0] = sx[0];
+  fy[0] = sy[0];
+  fz[0] = sz[0];
+  for (std::uint32_t j = 1; j + 1 < w; ++j) {
+    fx[j] = sx[j] - sx[j - 1];
+    fy[j] = sy[j] - sy[j - 1];
+    fz[j] = sz[j] - sz[j - 1];
+  }
+  fx[w - 1] = -sx[w - 2];
+  fy[w - 1] = -sy[w - 2];
+  fz[w - 1] = -sz[w - 2];
+}
+
+// Vertical springs between row a and row b below it, added to both rows' forces.
+void vertical(std::uint32_t w, double k, double rest, const double* xa, const double* ya, const double* za,
+              const double* xb, const double* yb, const double* zb, double* fxa, double* fya, double* fza,
+              double* fxb, double* fyb, double* fzb) {
+  drape::detail::simd::springs(drape::detail::simd::SpringRun<double>::between(w, xa, ya, za, xb, yb, zb)
+                                   .same(rest, k)
+                                   .add(fxa, fya, fza)
+                                   .sub(fxb, fyb, fzb));
+}
+
+// Semi-implicit Euler on one row, through the engine's vector kernel.
+void integrate(std::uint32_t w, const PlainSheet& s, const double* inv_mass, double* x, double* y, double* z,
+               double* vx, double* vy, double* vz, const double* fx, const double* fy, const double* fz) {
+  drape::detail::simd::update_points(
+      drape::detail::simd::PointUpdate<double>::of(w, x, y, z, vx, vy, vz, fx, fy, fz, inv_mass).step(s.dt, 0, 0, s.gz, true));
+}
+
+void step(PlainSheet& s) {
+  const std::uint32_t w = s.side;
+  double *x = s.x.data(), *y = s.y.data(), *z = s.z.data();
+  double *vx = s.vx.data(), *vy = s.vy.data(), *vz = s.vz.data();
+  double *fx = s.fx.data(), *fy = s.fy.data(), *fz = s.fz.data();
+  double *sx = s.sx.data(), *sy = s.sy.data(), *sz = s.sz.data();
+  const double* im = s.inv_mass_row.data();
+  horizontal(w, s.k, s.rest, x, y, z, sx, sy, sz, fx, fy, fz);
+  for (std::uint32_t i = 0; i + 1 < w; ++i) {
+    const std::size_t a = std::size_t(i) * w, b = a + w;
+    horizontal(w, s.k, s.rest, x + b, y + b, z + b, sx, sy, sz, fx + b, fy + b, fz + b);
+    // row i is complete once its vertical springs are in, and no later spring reads it
+    vertical(w, s.k, s.rest, x + a, y + a, z + a, x + b, y + b, z + b, fx + a, fy + a, fz + a, fx + b, fy + b,
+             fz + b);
+    integrate(w, s, im, x + a, y + a, z + a, vx + a, vy + a, vz + a, fx + a, fy + a, fz + a);
+  }
+  const std::size_t last = std::size_t(w - 1) * w;
+  integrate(w, s, im, x + last, y + last, z + last, vx + last, vy + last, vz + last, fx + last, fy + last, fz + last);
+  // hard pins at the four corners: back on the pin, at rest
+  for (std::size_t p : {std::size_t(0), std::size_t(w - 1), last, last + w - 1}) {
+    const std::uint32_t i = std::uint32_t(p / w), j = std::uint32_t(p % w);
+    x[p] = j * s.rest - 0.5;
+    y[p] = i * s.rest - 0.5;
+    z[p] = 0.0;
+    vx[p] = vy[p] = vz[p] = 0.0;
+  }
+}
+
+}  // namespace kernels
+
+// The ceiling runs the kind of code the engine of this build runs (DRAPE_SIMD_DISPATCH), so
+// "fraction of the ceiling" compares like with like.
+void plain_step(PlainSheet& s) {
+  if (drape::detail::simd::engine_uses_kernels())
+    kernels::step(s);
+  else
+    loops::step(s);
 }
 
 // One sheet of side×side points: the ceiling of BM_Fig13.

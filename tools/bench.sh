@@ -40,5 +40,17 @@ mv "$json.tmp" "$json"
 # drape sweep at 1 and 2 MPI ranks × 1 and 2 threads: mpirun cannot run inside Google Benchmark,
 # so a script times the program (docs/sweep_ranks.json, read by the report).
 "$python" tools/bench_ranks.py --drape "$build/apps/drape" --out docs/sweep_ranks.json
+# The portable build (issue 15): no -march=native, as a distribution ships drape; its kernels
+# pick their instruction set at run time. Only the figures the report compares with the
+# native run (docs/benchmarks-portable.json).
+portable_json=docs/benchmarks-portable.json
+cmake -S . -B "$build-portable" -DCMAKE_BUILD_TYPE=Release -DDRAPE_NATIVE=OFF -DDRAPE_WERROR=ON \
+  -DDRAPE_BUILD_TESTS=OFF -DDRAPE_BUILD_APPS=OFF -DDRAPE_BUILD_PYTHON=OFF -DDRAPE_BUILD_TOOLS=OFF >/dev/null
+cmake --build "$build-portable" --target drape_bench -j"$(nproc)"
+"$build-portable/bench/drape_bench" "--benchmark_min_time=$min_time" "--benchmark_repetitions=$repetitions" \
+  --benchmark_enable_random_interleaving=true --benchmark_report_aggregates_only=true \
+  "--benchmark_filter=^BM_(Sheets48_f|Fig13/semi_implicit_euler/f64/|Paper1000Points|CeilingSheets48|ArithmeticBound)" \
+  --benchmark_out="$portable_json.tmp" --benchmark_out_format=json >/dev/null
+mv "$portable_json.tmp" "$portable_json"
 "$python" tools/bench_report.py --json "$json" --build-dir "$build" --out docs/BENCHMARKS.md --img docs/img \
-  --command "tools/bench.sh (${command[*]:1})"
+  --portable-json "$portable_json" --command "tools/bench.sh (${command[*]:1})"

@@ -34,6 +34,7 @@ TARGET_CONTACT_OVER_APART = 4.0   # stacked sheets settling in contact vs apart,
 TARGET_CONTACT_SPEEDUP = 1.8      # 2 threads vs 1, in contact
 TARGET_FLOOR_PRICE = 0.40         # a floor under every point, vs bare
 TARGET_SELF_CONTACT_RATIO = 3.0   # a 128×128 sheet folded onto itself, with vs without
+TARGET_PORTABLE_FRACTION = 0.90  # issue 15: a DRAPE_NATIVE=OFF build within 10 % of the native one
 
 PAPER_INTEGRATOR = "semi_implicit_euler"
 SINGLE = " (step(1))"  # marks the Fig 13 series stepped one substep per call
@@ -150,8 +151,9 @@ def verdict(met):
 
 
 class Report:
-    def __init__(self, context, runs, build_dir, img_dir, md_dir, sweep_ranks=None):
+    def __init__(self, context, runs, build_dir, img_dir, md_dir, sweep_ranks=None, portable=None):
         self.context, self.runs = context, runs
+        self.portable = portable  # (context, runs) of a DRAPE_NATIVE=OFF build's run, or None
         self.sweep_ranks = sweep_ranks  # tools/bench_ranks.py's JSON, or None
         self.build_dir, self.img_dir, self.md_dir = build_dir, img_dir, md_dir
         self.lines, self.targets, self.used = [], [], set()
@@ -440,11 +442,71 @@ class Report:
             self.out(f"| {label} | {clock} | {mrate(r.rate)}{cv_text(r)} | {mrate(c.rate)}{cv_text(c)} | "
                      f"{pct(r.rate / c.rate)} |")
         self.out("")
+        self.arithmetic_bound(ceil_cpu)
         label, clock, r, c = pairs[0]
         frac = r.rate / c.rate
         self.target(f"48 sheets of 64×64, engine ÷ ceiling ({clock} time)", pct(frac), f"≥ {pct(TARGET_CEILING_FRACTION)}",
                     frac >= TARGET_CEILING_FRACTION,
                     "" if frac >= TARGET_CEILING_FRACTION else f"{100 * (TARGET_CEILING_FRACTION - frac):.0f} points short")
+
+    def simd_text(self, context, others_too=True):
+        target = context.get("simd_target")
+        if not target:
+            return "unknown (a run from before issue 15)"
+        others = [t for t in context.get("simd_targets", "").split() if t != target] if others_too else []
+        return f"`{target}`" + (f" (the build also carries {', '.join(others)})" if others else "")
+
+    def arithmetic_bound(self, ceil_cpu):
+        """Issue 15: how close the ceiling is to the square roots and divisions it cannot avoid."""
+        rows = []
+        for precision in ("f64", "f32"):
+            b = self.get(f"BM_ArithmeticBound/{precision}")
+            if b is None:
+                continue
+            per_s = b.counters.get("sqrt_div_per_s")
+            c = ceil_cpu if precision == "f64" else None
+            rows.append(f"| {precision} | {mrate(per_s) if per_s else '–'} | {mrate(b.rate)}{cv_text(b)} | "
+                        + (f"{mrate(c.rate)} | {pct(c.rate / b.rate)} |" if c else "– | – |"))
+        if not rows:
+            return
+        self.out("### The arithmetic bound", "",
+                 "Every spring of eq (6) needs one square root and one division, and a 64×64 sheet has "
+                 "2·64·63 springs on 64² points (1.97 per point). BM_ArithmeticBound runs only 1/√x with the "
+                 f"kernels' instruction set, {self.simd_text(self.context, False)}, over an L1-resident array: its rate "
+                 "is the most springs per second this CPU's divider allows, and divided by 1.97 the most point-steps "
+                 "per second any code can reach on these sheets (bench/bench_simd.cpp).", "",
+                 "| precision | M √ and ÷ pairs/s | bound, M point-steps/s | ceiling (CPU time), M point-steps/s "
+                 "| ceiling ÷ bound |", "|---|---|---|---|---|", *rows, "")
+
+    def portable_build(self):
+        """Issue 15: the portable build (no -march=native) against this, the native one."""
+        if self.portable is None:
+            return
+        pctx, pruns = self.portable
+        names = [n for n in sorted(pruns) if n in self.runs]
+        if not names:
+            return
+        self.out("## Portable build against native", "",
+                 "The same benchmarks from a `-DDRAPE_NATIVE=OFF` build (no `-march=native`: what a distribution "
+                 "or a Python wheel ships), run right after the native run. Kernels ran with "
+                 f"{self.simd_text(pctx)} in the portable build and {self.simd_text(self.context, False)} in the native "
+                 "one.", "", "| benchmark | native, M point-steps/s | portable, M point-steps/s | portable ÷ native |",
+                 "|---|---|---|---|")
+        worst = None
+        for n in names:
+            nat, por = self.get(n), pruns[n]
+            if not nat.rate or not por.rate:
+                continue
+            ratio = por.rate / nat.rate
+            self.out(f"| {n} | {mrate(nat.rate)}{cv_text(nat)} | {mrate(por.rate)}{cv_text(por)} | {pct(ratio)} |")
+            if n.startswith("BM_Sheets48") or n.startswith("BM_Fig13"):
+                worst = ratio if worst is None else min(worst, ratio)
+        self.out("")
+        if worst is not None:
+            self.target("portable build ÷ native (worst of BM_Sheets48, BM_Fig13)", pct(worst),
+                        f"≥ {pct(TARGET_PORTABLE_FRACTION)}", worst >= TARGET_PORTABLE_FRACTION,
+                        "" if worst >= TARGET_PORTABLE_FRACTION else
+                        f"{100 * (TARGET_PORTABLE_FRACTION - worst):.0f} points short")
 
     def precision(self):
         rows = []
@@ -877,6 +939,7 @@ class Report:
         self.fig13()
         self.against_bullet()
         self.ceiling()
+        self.portable_build()
         self.threads()
         self.ranks()
         self.precision()
@@ -902,6 +965,7 @@ class Report:
                  f"- Caches: {caches}" if caches else "- Caches: unknown",
                  f"- Compiler: {compiler}",
                  f"- Flags (engine, bench): `{flags}`",
+                 f"- SIMD kernels (engine/src/simd, chosen at run time): {self.simd_text(ctx)}",
                  f"- Run: {ctx.get('date', '?')}, `{command}`",
                  f"- Load average when the run started: {', '.join(f'{x:.2f}' for x in load) if load else 'unknown'}"
                  + (" — other jobs were sharing the CPU, so these numbers are noisy; rerun on a quiet machine"
@@ -922,6 +986,8 @@ def main():
     ap.add_argument("--out", default="docs/BENCHMARKS.md")
     ap.add_argument("--img", default="docs/img")
     ap.add_argument("--command", default="tools/bench.sh", help="how the run was made, for the report")
+    ap.add_argument("--portable-json", default=None,
+                    help="drape_bench JSON of a DRAPE_NATIVE=OFF build, compared with --json (section left out if absent)")
     ap.add_argument("--sweep-ranks", default="docs/sweep_ranks.json",
                     help="tools/bench_ranks.py's JSON (the section is left out when the file is missing)")
     args = ap.parse_args()
@@ -933,7 +999,9 @@ def main():
                 sweep_ranks = json.load(f)
         except (OSError, json.JSONDecodeError) as e:
             fail(f"cannot read {args.sweep_ranks}: {e}")
-    report = Report(context, runs, args.build_dir, args.img, os.path.dirname(os.path.abspath(args.out)), sweep_ranks)
+    portable = load_runs(args.portable_json) if args.portable_json and os.path.exists(args.portable_json) else None
+    report = Report(context, runs, args.build_dir, args.img, os.path.dirname(os.path.abspath(args.out)), sweep_ranks,
+                    portable)
     text = report.render(args.command)
     tmp = args.out + ".tmp"
     with open(tmp, "w") as f:

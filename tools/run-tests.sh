@@ -5,7 +5,10 @@
 #   2. the tests again, built with AddressSanitizer + UndefinedBehaviorSanitizer (build-asan),
 #      and with every optional package left out (-DDRAPE_OPTIONAL_PACKAGES=OFF: Bullet, ...), so
 #      this stage also proves that a machine with only what tools/setup.sh installs builds
-#      everything, the benchmarks included, whatever else this machine has;
+#      everything, the benchmarks included, whatever else this machine has; it is also the
+#      portable build (-DDRAPE_NATIVE=OFF, so DRAPE_SIMD_DISPATCH is on): its engine steps with
+#      the Highway kernels dispatched at run time, where stage 1's native build runs the
+#      inline loops, so CI tests both paths;
 #   3. a short libFuzzer run of every reader (build-fuzz, clang), seeded with valid files.
 # Environment: DRAPE_BUILD_DIR (default build), DRAPE_SKIP_SANITIZE=1, DRAPE_SKIP_FUZZ=1,
 # DRAPE_FUZZ_SECONDS (default 15 per target).
@@ -26,7 +29,7 @@ if [[ "${DRAPE_SKIP_SANITIZE:-0}" != 1 ]]; then
   # -O1 keeps sanitized tests quick while the stack traces stay readable. The benchmarks are
   # built (not run) so that their optional sources are proved gated too.
   cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g" \
-    -DDRAPE_SANITIZE=ON -DDRAPE_WERROR=ON -DDRAPE_OPTIONAL_PACKAGES=OFF | grep "optional packages"
+    -DDRAPE_SANITIZE=ON -DDRAPE_WERROR=ON -DDRAPE_OPTIONAL_PACKAGES=OFF -DDRAPE_NATIVE=OFF | grep "optional packages"
   cmake --build build-asan -j"$jobs"
   ASAN_OPTIONS=abort_on_error=1:detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
     ctest --test-dir build-asan --output-on-failure -j"$jobs"

@@ -5,7 +5,7 @@ set -euo pipefail
 
 packages=(
   build-essential cmake pkg-config
-  libeigen3-dev libtbb-dev libgtest-dev libgmock-dev libbenchmark-dev
+  libeigen3-dev libtbb-dev libhwy-dev libgtest-dev libgmock-dev libbenchmark-dev
   nlohmann-json3-dev libcli11-dev libfmt-dev libpng-dev
   python3 python3-matplotlib
   python3-dev python3-numpy python3-pytest pybind11-dev python3-pybind11  # the Python module and its tests

@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "obstacles.h"
+#include "simd/kernels.h"
 #include "terms/terms.h"
 
 namespace drape::detail {
@@ -24,6 +25,7 @@ struct PerSpring {
   Real rest_at(std::size_t e) const { return rest[e]; }
   Real k_at(std::size_t e) const { return k[e]; }
   PerSpring offset(std::size_t e) const { return {rest + e, k + e}; }
+  simd::SpringRun<Real>& into(simd::SpringRun<Real>& run) const { return run.per_spring(rest, k); }
 };
 
 template <class Real>
@@ -32,20 +34,29 @@ struct SameSpring {
   Real rest_at(std::size_t) const { return rest; }
   Real k_at(std::size_t) const { return k; }
   SameSpring offset(std::size_t) const { return *this; }
+  simd::SpringRun<Real>& into(simd::SpringRun<Real>& run) const { return run.same(rest, k); }
 };
 
 // Horizontal springs of one row: forces go to a scratch row first, so the scatter into
 // both endpoints becomes a dependency-free second loop the compiler can vectorise.
+// eq (6) runs in the Highway kernels (simd/kernels.h) in a DRAPE_SIMD_DISPATCH build, else
+// in the inline loop, which -march=native vectorises fused with its neighbours.
 template <class Real, class Springs>
 inline void row_springs(std::uint32_t n, const Real* __restrict x, const Real* __restrict y, const Real* __restrict z,
                         Springs springs, Real* __restrict sx, Real* __restrict sy, Real* __restrict sz,
                         Real* __restrict fx, Real* __restrict fy, Real* __restrict fz) {
-  for (std::uint32_t j = 0; j < n; ++j) {
-    const Real dx = x[j] - x[j + 1], dy = y[j] - y[j + 1], dz = z[j] - z[j + 1];
-    const Real s = spring_scale(dx, dy, dz, springs.rest_at(j), springs.k_at(j));
-    sx[j] = s * dx;
-    sy[j] = s * dy;
-    sz[j] = s * dz;
+  if constexpr (DRAPE_SIMD_DISPATCH) {
+    // spring j joins points j and j + 1
+    auto run = simd::SpringRun<Real>::between(n, x, y, z, x + 1, y + 1, z + 1);
+    simd::springs(springs.into(run).store(sx, sy, sz));
+  } else {
+    for (std::uint32_t j = 0; j < n; ++j) {
+      const Real dx = x[j] - x[j + 1], dy = y[j] - y[j + 1], dz = z[j] - z[j + 1];
+      const Real s = spring_scale(dx, dy, dz, springs.rest_at(j), springs.k_at(j));
+      sx[j] = s * dx;
+      sy[j] = s * dy;
+      sz[j] = s * dz;
+    }
   }
   // point j gets +s[j] from the spring on its right and −s[j−1] from the one on its left
   if (n == 0) {
@@ -66,7 +77,8 @@ inline void row_springs(std::uint32_t n, const Real* __restrict x, const Real* _
 }
 
 // Vertical springs between row `a` and the row below it, `b`: no two iterations touch
-// the same point, so it vectorises as it stands. A block of rows that does not own row a
+// the same point, so it vectorises as it stands, and the kernel adds to both rows directly
+// (which of the two runs: as in row_springs). A block of rows that does not own row a
 // (or b) still evaluates the spring, with the same arithmetic, and adds only to its own
 // row: forces of a row are then bit-identical however the sheet is split.
 template <bool ToA, bool ToB, class Real, class Springs>
@@ -74,18 +86,26 @@ inline void column_springs(std::uint32_t cols, const Real* __restrict xa, const 
                            const Real* __restrict za, const Real* __restrict xb, const Real* __restrict yb,
                            const Real* __restrict zb, Springs springs, Real* __restrict fxa, Real* __restrict fya,
                            Real* __restrict fza, Real* __restrict fxb, Real* __restrict fyb, Real* __restrict fzb) {
-  for (std::uint32_t j = 0; j < cols; ++j) {
-    const Real dx = xa[j] - xb[j], dy = ya[j] - yb[j], dz = za[j] - zb[j];
-    const Real s = spring_scale(dx, dy, dz, springs.rest_at(j), springs.k_at(j));
-    if constexpr (ToA) {
-      fxa[j] += s * dx;
-      fya[j] += s * dy;
-      fza[j] += s * dz;
-    }
-    if constexpr (ToB) {
-      fxb[j] -= s * dx;
-      fyb[j] -= s * dy;
-      fzb[j] -= s * dz;
+  if constexpr (DRAPE_SIMD_DISPATCH) {
+    auto run = simd::SpringRun<Real>::between(cols, xa, ya, za, xb, yb, zb);
+    springs.into(run);
+    if constexpr (ToA) run.add(fxa, fya, fza);
+    if constexpr (ToB) run.sub(fxb, fyb, fzb);
+    simd::springs(run);
+  } else {
+    for (std::uint32_t j = 0; j < cols; ++j) {
+      const Real dx = xa[j] - xb[j], dy = ya[j] - yb[j], dz = za[j] - zb[j];
+      const Real s = spring_scale(dx, dy, dz, springs.rest_at(j), springs.k_at(j));
+      if constexpr (ToA) {
+        fxa[j] += s * dx;
+        fya[j] += s * dy;
+        fza[j] += s * dz;
+      }
+      if constexpr (ToB) {
+        fxb[j] -= s * dx;
+        fyb[j] -= s * dy;
+        fzb[j] -= s * dz;
+      }
     }
   }
 }

@@ -8,6 +8,7 @@
 #include "implicit.h"
 #include "local_global.h"
 #include "vertex_block.h"
+#include "simd/kernels.h"
 
 #include <array>
 #include <cstdint>
@@ -46,32 +47,40 @@ struct FirstOrderArrays {
 
 // Forward Euler (SemiImplicit = false): x and v both advance from the old state.
 // Semi-implicit Euler (SemiImplicit = true): the new velocity moves the point.
+// A DRAPE_SIMD_DISPATCH build runs the Highway kernel of simd/kernels.h, any other the
+// inline loop, which -march=native vectorises.
 template <class Real, bool SemiImplicit>
 void first_order_update(std::size_t count, const StepParams<Real>& p, FirstOrderArrays<Real> a) {
-  Real* __restrict x = a.x;
-  Real* __restrict y = a.y;
-  Real* __restrict z = a.z;
-  Real* __restrict vx = a.vx;
-  Real* __restrict vy = a.vy;
-  Real* __restrict vz = a.vz;
-  const Real* __restrict fx = a.fx;
-  const Real* __restrict fy = a.fy;
-  const Real* __restrict fz = a.fz;
-  const Real* __restrict im = a.inv_mass;
-  const Real dt = p.dt, gx = p.gx, gy = p.gy, gz = p.gz;
-  for (std::size_t i = 0; i < count; ++i) {
-    if constexpr (!SemiImplicit) {
-      x[i] += dt * vx[i];
-      y[i] += dt * vy[i];
-      z[i] += dt * vz[i];
-    }
-    vx[i] += dt * (fx[i] * im[i] + gx);
-    vy[i] += dt * (fy[i] * im[i] + gy);
-    vz[i] += dt * (fz[i] * im[i] + gz);
-    if constexpr (SemiImplicit) {
-      x[i] += dt * vx[i];
-      y[i] += dt * vy[i];
-      z[i] += dt * vz[i];
+  if constexpr (DRAPE_SIMD_DISPATCH) {
+    simd::update_points(simd::PointUpdate<Real>::of(count, a.x, a.y, a.z, a.vx, a.vy, a.vz, a.fx, a.fy, a.fz,
+                                                    a.inv_mass)
+                            .step(p.dt, p.gx, p.gy, p.gz, SemiImplicit));
+  } else {
+    Real* __restrict x = a.x;
+    Real* __restrict y = a.y;
+    Real* __restrict z = a.z;
+    Real* __restrict vx = a.vx;
+    Real* __restrict vy = a.vy;
+    Real* __restrict vz = a.vz;
+    const Real* __restrict fx = a.fx;
+    const Real* __restrict fy = a.fy;
+    const Real* __restrict fz = a.fz;
+    const Real* __restrict im = a.inv_mass;
+    const Real dt = p.dt, gx = p.gx, gy = p.gy, gz = p.gz;
+    for (std::size_t i = 0; i < count; ++i) {
+      if constexpr (!SemiImplicit) {
+        x[i] += dt * vx[i];
+        y[i] += dt * vy[i];
+        z[i] += dt * vz[i];
+      }
+      vx[i] += dt * (fx[i] * im[i] + gx);
+      vy[i] += dt * (fy[i] * im[i] + gy);
+      vz[i] += dt * (fz[i] * im[i] + gz);
+      if constexpr (SemiImplicit) {
+        x[i] += dt * vx[i];
+        y[i] += dt * vy[i];
+        z[i] += dt * vz[i];
+      }
     }
   }
 }

@@ -1,0 +1,139 @@
+// The hot loops' vector kernels (issue 15): eq (6) over a run of springs and the explicit
+// integrators' per-point update, written once with Google Highway and compiled for every
+// instruction set Highway targets on this architecture (SSE4, AVX2, AVX-512, … or NEON/SVE);
+// each call runs the widest one the CPU has, picked at run time. The kernels use no fused
+// multiply-add and the same operations in the same order as the scalar spring_scale
+// (terms/rows.h), so every target gives the same bits; sqrt and division are IEEE on all.
+// Plain pointers only: this file sits below the row sweep and the integrators.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace drape::detail::simd {
+
+// Springs e in [0, count) between points a[e] and b[e], d = a − b: the force on a is
+// s·d with s = −k(|d| − ℓ)/|d| (eq 6, zero for |d| = 0). rest and k point to per-spring
+// values, or are null and every spring has rest_same and k_same. Each non-null output
+// array set takes s·d: `store` is assigned, `add` added to, `sub` subtracted from.
+template <class Real>
+struct SpringRun {
+  std::size_t count = 0;
+  const Real *ax = nullptr, *ay = nullptr, *az = nullptr;
+  const Real *bx = nullptr, *by = nullptr, *bz = nullptr;
+  const Real* rest = nullptr;
+  const Real* k = nullptr;
+  Real rest_same = 0, k_same = 0;
+  Real *store_x = nullptr, *store_y = nullptr, *store_z = nullptr;
+  Real *add_x = nullptr, *add_y = nullptr, *add_z = nullptr;
+  Real *sub_x = nullptr, *sub_y = nullptr, *sub_z = nullptr;
+
+  // A run is set up as between(...) then where k and ℓ come from, then its outputs:
+  // SpringRun::between(n, a…, b…).same(rest, k).store(x, y, z)
+  static SpringRun between(std::size_t count, const Real* ax, const Real* ay, const Real* az, const Real* bx,
+                           const Real* by, const Real* bz) {
+    SpringRun r;
+    r.count = count;
+    r.ax = ax;
+    r.ay = ay;
+    r.az = az;
+    r.bx = bx;
+    r.by = by;
+    r.bz = bz;
+    return r;
+  }
+  SpringRun& per_spring(const Real* rest_of, const Real* k_of) {
+    rest = rest_of;
+    k = k_of;
+    return *this;
+  }
+  SpringRun& same(Real rest_all, Real k_all) {
+    rest_same = rest_all;
+    k_same = k_all;
+    return *this;
+  }
+  SpringRun& store(Real* x, Real* y, Real* z) {
+    store_x = x;
+    store_y = y;
+    store_z = z;
+    return *this;
+  }
+  SpringRun& add(Real* x, Real* y, Real* z) {
+    add_x = x;
+    add_y = y;
+    add_z = z;
+    return *this;
+  }
+  SpringRun& sub(Real* x, Real* y, Real* z) {
+    sub_x = x;
+    sub_y = y;
+    sub_z = z;
+    return *this;
+  }
+};
+
+void springs(const SpringRun<double>& run);
+void springs(const SpringRun<float>& run);
+
+// First-order explicit update of `count` points (eq 4 with M, C diagonal):
+// forward Euler (semi_implicit = false) moves x with the old v; semi-implicit Euler with
+// the new one. v += dt (f/m + g).
+template <class Real>
+struct PointUpdate {
+  std::size_t count = 0;
+  Real *x = nullptr, *y = nullptr, *z = nullptr;
+  Real *vx = nullptr, *vy = nullptr, *vz = nullptr;
+  const Real *fx = nullptr, *fy = nullptr, *fz = nullptr;
+  const Real* inv_mass = nullptr;
+  Real dt = 0, gx = 0, gy = 0, gz = 0;
+  bool semi_implicit = true;
+
+  // PointUpdate::of(n, x…, v…, f…, 1/m).step(dt, g…, semi_implicit)
+  static PointUpdate of(std::size_t count, Real* x, Real* y, Real* z, Real* vx, Real* vy, Real* vz, const Real* fx,
+                        const Real* fy, const Real* fz, const Real* inv_mass) {
+    PointUpdate u;
+    u.count = count;
+    u.x = x;
+    u.y = y;
+    u.z = z;
+    u.vx = vx;
+    u.vy = vy;
+    u.vz = vz;
+    u.fx = fx;
+    u.fy = fy;
+    u.fz = fz;
+    u.inv_mass = inv_mass;
+    return u;
+  }
+  PointUpdate& step(Real step_dt, Real g_x, Real g_y, Real g_z, bool semi) {
+    dt = step_dt;
+    gx = g_x;
+    gy = g_y;
+    gz = g_z;
+    semi_implicit = semi;
+    return *this;
+  }
+};
+
+void update_points(const PointUpdate<double>& u);
+void update_points(const PointUpdate<float>& u);
+
+// Whether the engine's row sweep and explicit integrators call these kernels (a
+// DRAPE_SIMD_DISPATCH build, the portable default) or their inline loops (a native build).
+bool engine_uses_kernels();
+
+// The instruction set the kernels run with now, e.g. "AVX3" (Highway's name for AVX-512),
+// "AVX3_DL", "AVX2", "SSE4", "SCALAR" (portable, one lane).
+const char* target_name();
+
+// Every instruction set compiled into this build that the CPU supports, as Highway target
+// bits, widest first. Tests run the kernels with each (use_target).
+std::vector<std::int64_t> supported_targets();
+
+// Makes the kernels run with one target from supported_targets(), or 0 to return to the
+// widest. Process-wide (Highway's dispatch is), so only tests and benchmarks call it,
+// never the engine; not while a world steps on another thread.
+void use_target(std::int64_t target);
+
+}  // namespace drape::detail::simd

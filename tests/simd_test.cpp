@@ -1,0 +1,262 @@
+// The vector kernels (engine/src/simd) on every instruction set this CPU supports: each
+// target gives eq (6) and the explicit update as computed independently here, in every build.
+// A world keeps its bit-identity across threads, row blocks and frames on the path its build
+// steps with: each target where the engine dispatches the kernels (DRAPE_SIMD_DISPATCH), the
+// inline loops otherwise.
+#include <gtest/gtest.h>
+
+#include <drape/drape.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <limits>
+#include <random>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+#include "simd/kernels.h"
+
+namespace drape {
+namespace {
+
+using detail::simd::supported_targets;
+using detail::simd::use_target;
+
+// Runs body once per instruction set, with the kernels dispatched to it; the widest
+// is back in use afterwards, whatever body did.
+template <class Body>
+void for_each_target(Body body) {
+  const std::vector<std::int64_t> targets = supported_targets();
+  ASSERT_FALSE(targets.empty());
+  struct Restore {
+    ~Restore() { use_target(0); }
+  } restore;
+  for (std::int64_t t : targets) {
+    use_target(t);
+    SCOPED_TRACE(detail::simd::target_name());
+    body(t);
+  }
+}
+
+// Runs body once per way this build's world can step: with each target where the engine
+// dispatches the kernels, else once, with the inline loops (the target makes no difference).
+template <class Body>
+void for_each_world_path(Body body) {
+  if (detail::simd::engine_uses_kernels()) {
+    for_each_target(body);
+  } else {
+    SCOPED_TRACE("inline loops (DRAPE_SIMD_DISPATCH off)");
+    body(0);
+  }
+}
+
+TEST(Simd, EveryTargetTheCpuSupportsIsRunAndNamed) {
+  const std::string widest = detail::simd::target_name();
+  std::vector<std::string> names;
+  for_each_target([&](std::int64_t) { names.push_back(detail::simd::target_name()); });
+  ASSERT_FALSE(names.empty());
+  std::string list;
+  for (const std::string& n : names) list += " " + n;
+  std::printf("kernels run with:%s\n", list.c_str());  // in ctest's log: which sets were tested
+  EXPECT_EQ(names.front(), widest);  // the default is the widest
+  for (std::size_t k = 1; k < names.size(); ++k) EXPECT_NE(names[k], names[k - 1]);  // dispatch really switched
+  EXPECT_EQ(detail::simd::target_name(), widest);
+}
+
+// eq (6) in long double, from the equation: f_a = −k(|d| − ℓ) d/|d|, nothing at |d| = 0.
+template <class Real>
+void expect_springs_match_the_equation() {
+  std::mt19937 rng(15);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const std::size_t count = 37;  // whole vectors of every width and a remainder
+  std::vector<Real> a[3], b[3], rest(count), k(count);
+  for (int c = 0; c < 3; ++c)
+    for (std::size_t e = 0; e < count; ++e) {
+      a[c].push_back(Real(u(rng)));
+      b[c].push_back(e % 11 == 3 ? a[c][e] : Real(u(rng)));  // some zero-length springs
+    }
+  for (std::size_t e = 0; e < count; ++e) {
+    rest[e] = Real(0.5 + 0.4 * u(rng));
+    k[e] = Real(100 + 50 * u(rng));
+  }
+  const double tolerance = std::is_same_v<Real, double> ? 1e-12 : 1e-4;
+  for_each_target([&](std::int64_t) {
+    for (bool per_spring : {true, false}) {
+      std::vector<Real> store[3], add[3], sub[3];
+      for (int c = 0; c < 3; ++c) {
+        store[c].assign(count, Real(7));
+        add[c].assign(count, Real(1));
+        sub[c].assign(count, Real(2));
+      }
+      auto run = detail::simd::SpringRun<Real>::between(count, a[0].data(), a[1].data(), a[2].data(), b[0].data(),
+                                                        b[1].data(), b[2].data());
+      if (per_spring)
+        run.per_spring(rest.data(), k.data());
+      else
+        run.same(rest[0], k[0]);
+      run.store(store[0].data(), store[1].data(), store[2].data());
+      run.add(add[0].data(), add[1].data(), add[2].data());
+      run.sub(sub[0].data(), sub[1].data(), sub[2].data());
+      detail::simd::springs(run);
+      for (std::size_t e = 0; e < count; ++e) {
+        long double d[3], len2 = 0;
+        for (int c = 0; c < 3; ++c) {
+          d[c] = static_cast<long double>(a[c][e]) - b[c][e];
+          len2 += d[c] * d[c];
+        }
+        const long double len = std::sqrt(len2);
+        const long double ke = per_spring ? k[e] : k[0], le = per_spring ? rest[e] : rest[0];
+        for (int c = 0; c < 3; ++c) {
+          const long double f = len > 0 ? -ke * (len - le) * d[c] / len : 0;
+          EXPECT_NEAR(store[c][e], double(f), tolerance * ke) << "spring " << e << " axis " << c;
+          EXPECT_NEAR(add[c][e], double(1 + f), tolerance * ke) << "spring " << e << " axis " << c;
+          EXPECT_NEAR(sub[c][e], double(2 - f), tolerance * ke) << "spring " << e << " axis " << c;
+          if (len == 0) {
+            EXPECT_EQ(store[c][e], Real(0));  // exactly nothing, not NaN
+          }
+        }
+      }
+    }
+  });
+}
+
+TEST(Simd, SpringKernelOfEveryTargetGivesEquationSixInDouble) { expect_springs_match_the_equation<double>(); }
+TEST(Simd, SpringKernelOfEveryTargetGivesEquationSixInFloat) { expect_springs_match_the_equation<float>(); }
+
+// One step by hand: forward Euler moves x with the old v, semi-implicit Euler with the new.
+TEST(Simd, PointUpdateOfEveryTargetIsTheEulerStepByHand) {
+  const std::size_t count = 21;
+  for_each_target([&](std::int64_t) {
+    for (bool semi : {false, true}) {
+      std::vector<double> x[3], v[3], f[3], im(count);
+      for (int c = 0; c < 3; ++c)
+        for (std::size_t i = 0; i < count; ++i) {
+          x[c].push_back(0.25 * double(i) + c);  // all exact in binary: the step is exact too
+          v[c].push_back(0.5 * double(c) - 1.0);
+          f[c].push_back(double(i % 4) - 2.0);
+        }
+      for (std::size_t i = 0; i < count; ++i) im[i] = i % 2 ? 2.0 : 0.5;
+      const double dt = 0.125, g[3] = {0.0, 1.0, -8.0};
+      detail::simd::update_points(detail::simd::PointUpdate<double>::of(count, x[0].data(), x[1].data(), x[2].data(),
+                                                                        v[0].data(), v[1].data(), v[2].data(),
+                                                                        f[0].data(), f[1].data(), f[2].data(), im.data())
+                                      .step(dt, g[0], g[1], g[2], semi));
+      for (int c = 0; c < 3; ++c)
+        for (std::size_t i = 0; i < count; ++i) {
+          const double v0 = 0.5 * double(c) - 1.0, x0 = 0.25 * double(i) + c;
+          const double a = (double(i % 4) - 2.0) * (i % 2 ? 2.0 : 0.5) + g[c];
+          const double v1 = v0 + dt * a;
+          EXPECT_EQ(v[c][i], v1) << "point " << i << " axis " << c;
+          EXPECT_EQ(x[c][i], x0 + dt * (semi ? v1 : v0)) << "point " << i << " axis " << c << (semi ? " semi" : "");
+        }
+    }
+  });
+}
+
+// A world whose free sheets step in one task each (frames), split into row blocks, with
+// per-spring parameters and pins; every spring starts stretched or compressed.
+template <class W>
+W make_world(Integrator integrator, int threads, std::uint32_t block_points) {
+  WorldDef wd;
+  wd.dt = 1e-4;
+  wd.integrator = integrator;
+  wd.threads = threads;
+  wd.block_points = block_points;
+  wd.contact_strength = 0;
+  wd.guard = false;
+  W w(wd);
+  SheetDef d;
+  d.m = 60;
+  d.n = 37;  // rows of 38 points: whole vectors and a remainder on every width
+  d.stiffness = 120;
+  d.damping = 0.002;
+  d.stiffness_regions = {{5, 30, 3, 12, 300.0}};
+  d.pins = corner_points(d.m, d.n);
+  d.initial_velocity = {0.3, -0.1, 0.2};
+  w.add_sheet(d);
+  d.stiffness_regions.clear();  // a uniform topology: one k and ℓ for all springs
+  d.center = {2, 0, 0};
+  d.m = 200;
+  d.n = 80;  // beyond the cache budget: stepped as a wave
+  d.pins = corner_points(d.m, d.n);
+  w.add_sheet(d);
+  for (SheetId id : w.sheets()) {
+    auto st = w.state(id);
+    for (std::size_t p = 0; p < st.x.size(); ++p) {
+      st.x[p] += 0.004 * std::sin(1.7 * double(p));
+      st.z[p] += 0.004 * std::cos(2.3 * double(p));
+    }
+  }
+  return w;
+}
+
+template <class W>
+std::vector<double> run_world(Integrator integrator, int threads, std::uint32_t block_points, int frames,
+                              int substeps) {
+  W w = make_world<W>(integrator, threads, block_points);
+  for (int k = 0; k < frames; ++k) w.step(substeps);
+  std::vector<double> out;
+  for (SheetId id : w.sheets()) {
+    const auto v = w.view(id);
+    for (auto span : {v.x, v.y, v.z, v.vx, v.vy, v.vz}) out.insert(out.end(), span.begin(), span.end());
+  }
+  return out;
+}
+
+template <class W>
+void expect_bit_identity_on_every_path() {
+  for_each_world_path([&](std::int64_t) {
+    for (Integrator integrator : {Integrator::SemiImplicitEuler, Integrator::ForwardEuler}) {
+      const auto reference = run_world<W>(integrator, 1, 1u << 30, 12, 1);
+      EXPECT_TRUE(run_world<W>(integrator, 2, 1u << 30, 12, 1) == reference) << integrator_name(integrator);
+      EXPECT_TRUE(run_world<W>(integrator, 2, 600u, 12, 1) == reference) << integrator_name(integrator) << " blocks";
+      EXPECT_TRUE(run_world<W>(integrator, 1, 1u << 30, 2, 6) == reference) << integrator_name(integrator) << " frames";
+      EXPECT_TRUE(run_world<W>(integrator, 2, 600u, 3, 4) == reference)
+          << integrator_name(integrator) << " frames in blocks";
+    }
+  });
+}
+
+TEST(Simd, EveryPathGivesTheSameBitsOnOneAndTwoThreadsInBlocksAndFrames) {
+  expect_bit_identity_on_every_path<World>();
+}
+TEST(Simd, EveryPathGivesTheSameBitsOnOneAndTwoThreadsInBlocksAndFramesInFloat) {
+  expect_bit_identity_on_every_path<WorldF>();
+}
+
+// Between instruction sets a result may differ only by rounding: over 300 substeps of a
+// sheet moving by centimetres, no coordinate of any target strays from the widest's by
+// more than a few hundred units in the last place of the coordinates' size.
+template <class W, class Real>
+void expect_targets_differ_only_by_rounding() {
+  if (!detail::simd::engine_uses_kernels()) {
+    GTEST_SKIP() << "DRAPE_SIMD_DISPATCH is off: the world steps with the inline loops on every target";
+  }
+  std::vector<double> widest;
+  for_each_target([&](std::int64_t) {
+    const auto run = run_world<W>(Integrator::SemiImplicitEuler, 2, 600u, 30, 10);
+    if (widest.empty()) {
+      widest = run;
+      return;
+    }
+    ASSERT_EQ(run.size(), widest.size());
+    double worst = 0, scale = 0;
+    for (std::size_t p = 0; p < run.size(); ++p) {
+      ASSERT_TRUE(std::isfinite(run[p]));
+      worst = std::max(worst, std::abs(run[p] - widest[p]));
+      scale = std::max(scale, std::abs(widest[p]));
+    }
+    EXPECT_LE(worst, 300 * std::numeric_limits<Real>::epsilon() * scale);
+  });
+}
+
+TEST(Simd, InstructionSetsDifferOnlyByRoundingOverARun) { expect_targets_differ_only_by_rounding<World, double>(); }
+TEST(Simd, InstructionSetsDifferOnlyByRoundingOverARunInFloat) {
+  expect_targets_differ_only_by_rounding<WorldF, float>();
+}
+
+}  // namespace
+}  // namespace drape
