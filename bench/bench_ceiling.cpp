@@ -43,6 +43,19 @@ struct PlainSheet {
   }
 };
 
+// Hard pins at the four corners: back on the pin, at rest.
+void hold_corners(PlainSheet& s) {
+  const std::uint32_t w = s.side;
+  const std::size_t last = std::size_t(w - 1) * w;
+  for (std::size_t p : {std::size_t(0), std::size_t(w - 1), last, last + w - 1}) {
+    const std::uint32_t i = std::uint32_t(p / w), j = std::uint32_t(p % w);
+    s.x[p] = j * s.rest - 0.5;
+    s.y[p] = i * s.rest - 0.5;
+    s.z[p] = 0.0;
+    s.vx[p] = s.vy[p] = s.vz[p] = 0.0;
+  }
+}
+
 // The loops as the engine writes them when it is built without run-time dispatch (a native
 // build: GCC vectorises them for this CPU).
 namespace loops {
@@ -130,14 +143,7 @@ void step(PlainSheet& s) {
   const std::size_t last = std::size_t(w - 1) * w;
   integrate(w, s.dt, s.inv_mass, s.gz, x + last, y + last, z + last, vx + last, vy + last, vz + last, fx + last,
             fy + last, fz + last, sx, sy, sz);
-  // hard pins at the four corners: back on the pin, at rest
-  for (std::size_t p : {std::size_t(0), std::size_t(w - 1), last, last + w - 1}) {
-    const std::uint32_t i = std::uint32_t(p / w), j = std::uint32_t(p % w);
-    x[p] = j * s.rest - 0.5;
-    y[p] = i * s.rest - 0.5;
-    z[p] = 0.0;
-    vx[p] = vy[p] = vz[p] = 0.0;
-  }
+  hold_corners(s);
 }
 
 }  // namespace loops
@@ -200,14 +206,7 @@ void step(PlainSheet& s) {
   }
   const std::size_t last = std::size_t(w - 1) * w;
   integrate(w, s, im, x + last, y + last, z + last, vx + last, vy + last, vz + last, fx + last, fy + last, fz + last);
-  // hard pins at the four corners: back on the pin, at rest
-  for (std::size_t p : {std::size_t(0), std::size_t(w - 1), last, last + w - 1}) {
-    const std::uint32_t i = std::uint32_t(p / w), j = std::uint32_t(p % w);
-    x[p] = j * s.rest - 0.5;
-    y[p] = i * s.rest - 0.5;
-    z[p] = 0.0;
-    vx[p] = vy[p] = vz[p] = 0.0;
-  }
+  hold_corners(s);
 }
 
 }  // namespace kernels
