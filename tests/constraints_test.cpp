@@ -626,5 +626,37 @@ TEST(Constraints, RemovingASheetRemovesItsConstraintsAndAnchors) {
   EXPECT_EQ(w.view(a).vx[0], 0.0);
 }
 
+// ---- Handles -------------------------------------------------------------------------------
+
+// A motion callback that throws while the obstacle is being added leaves no trace: no
+// obstacle, and the next one takes the first slot (a leaked slot would push it to the
+// second). A removed obstacle's handle goes stale and its slot is reused with a new
+// generation, so the old handle never reaches the new obstacle.
+TEST(Handles, AFailedAddLeavesNoSlotBehindAndStaleHandlesStayStale) {
+  World w;
+  ObstacleDef bad;
+  bad.shape = ObstacleShape::Sphere;
+  bad.size = {0.1, 0, 0};
+  Motion throws;
+  throws.kind = Motion::Kind::Callback;
+  throws.callback = [](double) -> Pose { throw std::runtime_error("no pose"); };
+  bad.motion = throws;
+  EXPECT_THROW(w.add_obstacle(bad), std::runtime_error);
+  EXPECT_EQ(w.obstacle_count(), 0u);
+
+  ObstacleDef ball = bad;
+  ball.motion.reset();
+  const ObstacleId first = w.add_obstacle(ball);
+  EXPECT_EQ(first.index, 0u);
+  w.remove_obstacle(first);
+  EXPECT_FALSE(w.contains(first));
+  const ObstacleId second = w.add_obstacle(ball);
+  EXPECT_EQ(second.index, first.index);
+  EXPECT_NE(second.generation, first.generation);
+  EXPECT_FALSE(w.contains(first));
+  EXPECT_TRUE(w.contains(second));
+  EXPECT_THROW(w.remove_obstacle(first), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace drape

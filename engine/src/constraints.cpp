@@ -207,30 +207,24 @@ ConstraintId ConstraintPool<Real>::add(const ConstraintDef& def, double time, co
     for (std::uint32_t p : def.points)
       e.local.push_back(def.kind == ConstraintKind::Path ? sub(position(s, p), pivot) : apply(back, position(s, p)));
   }
-  std::uint32_t index;
-  if (!free_.empty()) {
-    index = free_.back();
-    free_.pop_back();
-  } else {
-    index = static_cast<std::uint32_t>(slots_.size());
-    slots_.emplace_back();
-  }
-  slots_[index].entry = std::move(e);
+  const std::uint32_t index = ids_.acquire();
+  if (index == slots_.size()) slots_.emplace_back();
+  slots_[index] = std::move(e);
   active_.push_back(index);
   rebuild(world);
   set_targets(time, world);
-  return {index, slots_[index].generation};
+  return ids_.id(index);
 }
 
 template <class Real>
 bool ConstraintPool<Real>::contains(ConstraintId id) const {
-  return id.index < slots_.size() && slots_[id.index].entry && slots_[id.index].generation == id.generation;
+  return ids_.contains(id);
 }
 
 template <class Real>
 typename ConstraintPool<Real>::Entry& ConstraintPool<Real>::entry(ConstraintId id) {
   if (!contains(id)) throw std::invalid_argument("drape: unknown or removed ConstraintId " + std::to_string(id.index));
-  return *slots_[id.index].entry;
+  return *slots_[id.index];
 }
 
 template <class Real>
@@ -240,18 +234,14 @@ const ConstraintDef& ConstraintPool<Real>::def(ConstraintId id) const {
 
 template <class Real>
 std::vector<ConstraintId> ConstraintPool<Real>::ids() const {
-  std::vector<ConstraintId> out;
-  for (std::uint32_t index : active_) out.push_back({index, slots_[index].generation});
-  return out;
+  return ids_.ids(active_);
 }
 
 template <class Real>
 void ConstraintPool<Real>::remove(ConstraintId id, const Access& world) {
   entry(id);  // throws on a stale id
-  Slot& slot = slots_[id.index];
-  slot.entry.reset();
-  ++slot.generation;
-  free_.push_back(id.index);
+  slots_[id.index].reset();
+  ids_.release(id.index);
   std::erase(active_, id.index);
   rebuild(world);
 }
@@ -260,10 +250,9 @@ template <class Real>
 bool ConstraintPool<Real>::erase_if(const std::function<bool(const ConstraintDef&)>& drop, const Access& world) {
   bool any = false;
   for (std::uint32_t index : std::vector<std::uint32_t>(active_))
-    if (drop(slots_[index].entry->def)) {
-      slots_[index].entry.reset();
-      ++slots_[index].generation;
-      free_.push_back(index);
+    if (drop(slots_[index]->def)) {
+      slots_[index].reset();
+      ids_.release(index);
       std::erase(active_, index);
       any = true;
     }
@@ -310,7 +299,7 @@ void ConstraintPool<Real>::rebuild(const Access& world) {
     return base;
   };
   for (std::uint32_t index : active_) {
-    Entry& e = *slots_[index].entry;
+    Entry& e = *slots_[index];
     e.base = append(e.def.sheet, e.def.points, e.def.stiffness);
     if (e.def.kind == ConstraintKind::PointToPoint)
       e.other_base = append(e.def.other_sheet, e.def.other_points, e.def.stiffness);
@@ -320,7 +309,7 @@ void ConstraintPool<Real>::rebuild(const Access& world) {
 template <class Real>
 void ConstraintPool<Real>::set_targets(double time, const Access& world) {
   for (std::uint32_t index : active_) {
-    const Entry& e = *slots_[index].entry;
+    const Entry& e = *slots_[index];
     const ConstraintDef& d = e.def;
     Sheet<Real>& s = *world.sheet(d.sheet);
     switch (d.kind) {
@@ -379,7 +368,7 @@ double ConstraintPool<Real>::join_energy_excess(SheetId id, const Sheet<Real>& s
   };
   double excess = 0;
   for (std::uint32_t index : active_) {
-    const Entry& e = *slots_[index].entry;
+    const Entry& e = *slots_[index];
     if (e.def.kind != ConstraintKind::PointToPoint) continue;
     if (e.def.sheet == id) excess += half(e.base, e.def.points.size());
     if (e.def.other_sheet == id) excess += half(e.other_base, e.def.other_points.size());
@@ -392,14 +381,14 @@ std::vector<SheetId> ConstraintPool<Real>::driven_sheets() const {
   std::vector<SheetId> driven;
   auto has = [&](SheetId id) { return std::find(driven.begin(), driven.end(), id) != driven.end(); };
   for (std::uint32_t index : active_) {
-    const ConstraintDef& d = slots_[index].entry->def;
+    const ConstraintDef& d = slots_[index]->def;
     if ((d.kind == ConstraintKind::Path || d.kind == ConstraintKind::Frame) && !has(d.sheet)) driven.push_back(d.sheet);
   }
   // joins pass it on, until nothing changes (a handful of sheets: quadratic is fine)
   for (bool grew = true; grew;) {
     grew = false;
     for (std::uint32_t index : active_) {
-      const ConstraintDef& d = slots_[index].entry->def;
+      const ConstraintDef& d = slots_[index]->def;
       if (d.kind != ConstraintKind::PointToPoint || has(d.sheet) == has(d.other_sheet)) continue;
       driven.push_back(has(d.sheet) ? d.other_sheet : d.sheet);
       grew = true;

@@ -12,6 +12,7 @@
 #include <optional>
 #include <vector>
 
+#include "id_pool.h"
 #include "obstacles.h"
 #include "sheet_data.h"
 
@@ -70,10 +71,6 @@ class ConstraintPool {
     std::vector<Vec3> local;  // Path: offset from the pivot's position; Frame: in the motion's frame
     std::size_t base = 0, other_base = 0;  // first anchor of this constraint on sheet / other_sheet
   };
-  struct Slot {
-    std::optional<Entry> entry;
-    std::uint32_t generation = 0;
-  };
   struct OwnAnchors {  // a sheet's anchors from its SheetDef; constraint anchors follow them
     SheetId sheet;
     std::size_t count;
@@ -83,8 +80,9 @@ class ConstraintPool {
   // Every sheet's anchors: its own, then each constraint's in the order they were added.
   void rebuild(const Access& world);
 
-  std::vector<Slot> slots_;
-  std::vector<std::uint32_t> free_, active_;
+  std::vector<std::optional<Entry>> slots_;
+  IdPool<ConstraintTag> ids_;
+  std::vector<std::uint32_t> active_;  // live slots in the order constraints were added
   std::vector<OwnAnchors> own_;
 };
 

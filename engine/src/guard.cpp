@@ -17,7 +17,7 @@ template <class Real>
 Energies BasicWorld<Real>::Impl::guard_energy(const Slot& slot) const {
   Energies e = detail::sheet_energies(*slot.sheet, def.gravity);
   if (!constraints.empty())
-    e.anchor -= constraints.join_energy_excess({std::uint32_t(&slot - slots.data()), slot.generation}, *slot.sheet);
+    e.anchor -= constraints.join_energy_excess(sheet_ids.id(std::uint32_t(&slot - slots.data())), *slot.sheet);
   for (std::uint32_t o : active_obstacles) {
     const detail::Obstacle& obstacle = *obstacle_slots[o].obstacle;
     e.obstacle += detail::obstacle_energy(*slot.sheet, obstacle, detail::exponent_cap(obstacle.def, slot.lightest_point, def.dt));
@@ -93,7 +93,7 @@ StabilityReport BasicWorld<Real>::Impl::check() const {
       any = true;
     } else if (report.ok()) {
       report.status = status;
-      report.sheet = {index, slot.generation};
+      report.sheet = sheet_ids.id(index);
       report.energy_growth = growth;
       report.stable_dt = def.adaptive_safety * integrator_critical_step(def.integrator, slot.omega_max);
       // the cheapest integrator stable at this step; forward Euler is never suggested

@@ -104,7 +104,7 @@ void BasicWorld<Real>::Impl::find_driven() {
   const bool moving = obstacles_move();
   for (std::uint32_t index : active)
     slots[index].driven =
-        moving || std::find(moved.begin(), moved.end(), SheetId{index, slots[index].generation}) != moved.end();
+        moving || std::find(moved.begin(), moved.end(), sheet_ids.id(index)) != moved.end();
 }
 
 template <class Real>
@@ -166,14 +166,8 @@ SheetId BasicWorld<Real>::add_sheet(const SheetDef& def) {
   Sheet<Real> sheet = detail::build_sheet<Real>(def);
   detail::set_wind(sheet, impl_->def.wind);
   impl_->share_topology(sheet);
-  std::uint32_t index;
-  if (!impl_->free_slots.empty()) {
-    index = impl_->free_slots.back();
-    impl_->free_slots.pop_back();
-  } else {
-    index = static_cast<std::uint32_t>(impl_->slots.size());
-    impl_->slots.emplace_back();
-  }
+  const std::uint32_t index = impl_->sheet_ids.acquire();
+  if (index == impl_->slots.size()) impl_->slots.emplace_back();
   auto& slot = impl_->slots[index];
   slot.lightest_point = *std::min_element(sheet.mass.begin(), sheet.mass.end());
   slot.sheet = std::move(sheet);
@@ -185,7 +179,7 @@ SheetId BasicWorld<Real>::add_sheet(const SheetDef& def) {
   impl_->active.push_back(index);
   impl_->broad_phase.reset();
   impl_->swept_broad_phase.reset();
-  return {index, slot.generation};
+  return impl_->sheet_ids.id(index);
 }
 
 template <class Real>
@@ -194,8 +188,7 @@ void BasicWorld<Real>::remove_sheet(SheetId id) {
   const bool held = impl_->constraints.forget(id, impl_->access());
   auto& slot = impl_->slots[id.index];
   slot.sheet.reset();
-  ++slot.generation;
-  impl_->free_slots.push_back(id.index);
+  impl_->sheet_ids.release(id.index);
   std::erase(impl_->active, id.index);
   if (held) impl_->constraints_changed();  // the sheets it was joined to lost anchors
   impl_->broad_phase.reset();
@@ -209,29 +202,23 @@ std::size_t BasicWorld<Real>::sheet_count() const { return impl_->active.size();
 
 template <class Real>
 std::vector<SheetId> BasicWorld<Real>::sheets() const {
-  std::vector<SheetId> ids;
-  for (std::uint32_t index : impl_->active) ids.push_back({index, impl_->slots[index].generation});
-  return ids;
+  return impl_->sheet_ids.ids(impl_->active);
 }
 
 template <class Real>
 ObstacleId BasicWorld<Real>::add_obstacle(const ObstacleDef& def) {
   if (std::string problem = validate(def); !problem.empty()) throw std::invalid_argument("drape: obstacle " + problem);
-  std::uint32_t index;
-  if (!impl_->free_obstacle_slots.empty()) {
-    index = impl_->free_obstacle_slots.back();
-    impl_->free_obstacle_slots.pop_back();
-  } else {
-    index = static_cast<std::uint32_t>(impl_->obstacle_slots.size());
-    impl_->obstacle_slots.emplace_back();
-  }
+  // Posed before a slot is taken: a motion callback that throws leaves the pools as they were.
+  detail::Obstacle obstacle = detail::make_obstacle(obstacle_at(def, impl_->time()));
+  const std::uint32_t index = impl_->obstacle_ids.acquire();
+  if (index == impl_->obstacle_slots.size()) impl_->obstacle_slots.emplace_back();
   impl_->forget_near_obstacles();
   auto& slot = impl_->obstacle_slots[index];
   slot.def = def;
-  slot.obstacle = detail::make_obstacle(obstacle_at(def, impl_->time()));
+  slot.obstacle = std::move(obstacle);
   impl_->active_obstacles.push_back(index);
   if (def.motion) impl_->find_driven();  // a moving obstacle drives every sheet
-  return {index, slot.generation};
+  return impl_->obstacle_ids.id(index);
 }
 
 template <class Real>
@@ -243,8 +230,7 @@ void BasicWorld<Real>::remove_obstacle(ObstacleId id) {
   const bool moved = slot.def.motion.has_value();
   slot.obstacle.reset();
   slot.def = {};
-  ++slot.generation;
-  impl_->free_obstacle_slots.push_back(id.index);
+  impl_->obstacle_ids.release(id.index);
   std::erase(impl_->active_obstacles, id.index);
   if (carried)
     impl_->constraints_changed();
@@ -259,9 +245,7 @@ std::size_t BasicWorld<Real>::obstacle_count() const { return impl_->active_obst
 
 template <class Real>
 std::vector<ObstacleId> BasicWorld<Real>::obstacles() const {
-  std::vector<ObstacleId> ids;
-  for (std::uint32_t index : impl_->active_obstacles) ids.push_back({index, impl_->obstacle_slots[index].generation});
-  return ids;
+  return impl_->obstacle_ids.ids(impl_->active_obstacles);
 }
 
 template <class Real>

@@ -23,6 +23,7 @@
 #include "constraints.h"
 #include "contacts.h"
 #include "forces.h"
+#include "id_pool.h"
 #include "integrate.h"
 #include "obstacles.h"
 #include "sheet_data.h"
@@ -44,7 +45,6 @@ struct BasicWorld<Real>::Impl {
 
   struct Slot {
     std::optional<Sheet<Real>> sheet;
-    std::uint32_t generation = 0;
     double omega_max = 0;  // rad/s, Gershgorin bound; fixed by masses and stiffnesses
     Guard guard;
     double lightest_point = 0;  // kg, for the obstacle force bound (obstacles.h, exponent_cap)
@@ -68,7 +68,7 @@ struct BasicWorld<Real>::Impl {
   WorldDef def;
   std::unique_ptr<tbb::task_arena> arena;
   std::vector<Slot> slots;
-  std::vector<std::uint32_t> free_slots;
+  detail::IdPool<SheetTag> sheet_ids;  // handles to `slots`
   std::vector<std::uint32_t> active;  // live slots in the order sheets were added
   std::vector<std::shared_ptr<const Topology<Real>>> topologies;
   std::uint64_t steps = 0;
@@ -93,10 +93,9 @@ struct BasicWorld<Real>::Impl {
   struct ObstacleSlot {
     std::optional<detail::Obstacle> obstacle;  // without its motion; at its pose for this substep
     ObstacleDef def;                           // the caller's definition
-    std::uint32_t generation = 0;
   };
   std::vector<ObstacleSlot> obstacle_slots;
-  std::vector<std::uint32_t> free_obstacle_slots;
+  detail::IdPool<ObstacleTag> obstacle_ids;  // handles to `obstacle_slots`
   std::vector<std::uint32_t> active_obstacles;  // live slots in the order obstacles were added
 
   detail::ConstraintPool<Real> constraints;
@@ -124,15 +123,10 @@ struct BasicWorld<Real>::Impl {
   bool driven() const { return !constraints.empty() || obstacles_move(); }
   Sheet<Real>& sheet(SheetId id);
   const Sheet<Real>& sheet(SheetId id) const { return const_cast<Impl*>(this)->sheet(id); }
-  bool contains(SheetId id) const {
-    return id.index < slots.size() && slots[id.index].sheet && slots[id.index].generation == id.generation;
-  }
+  bool contains(SheetId id) const { return sheet_ids.contains(id); }
   Sheet<Real>& at(std::size_t k) { return *slots[active[k]].sheet; }
   detail::Obstacle& obstacle(ObstacleId id);
-  bool contains(ObstacleId id) const {
-    return id.index < obstacle_slots.size() && obstacle_slots[id.index].obstacle &&
-           obstacle_slots[id.index].generation == id.generation;
-  }
+  bool contains(ObstacleId id) const { return obstacle_ids.contains(id); }
   void forget_near_obstacles();
   void share_topology(Sheet<Real>& s);
 

@@ -20,12 +20,8 @@
 
 namespace drape {
 
-struct ConstraintId {
-  std::uint32_t index = std::numeric_limits<std::uint32_t>::max();
-  std::uint32_t generation = 0;
-  constexpr bool is_valid() const { return index != std::numeric_limits<std::uint32_t>::max(); }
-  friend constexpr bool operator==(ConstraintId, ConstraintId) = default;
-};
+struct ConstraintTag;
+using ConstraintId = Id<ConstraintTag>;
 
 enum class ConstraintKind {
   // points[k] of `sheet` and other_points[k] of `other_sheet` joined by a spring of

@@ -35,19 +35,19 @@ Vec3 rotate(const Quat& q, Vec3 v);
 
 // Handles the world hands out. A handle is an index into the world's pool plus a
 // generation, so a handle to a removed object is detected instead of aliasing a new one.
-struct SheetId {
+// One template for every kind of object; the kind only keeps a SheetId from being passed
+// where an ObstacleId is expected.
+template <class Tag>
+struct Id {
   std::uint32_t index = std::numeric_limits<std::uint32_t>::max();
   std::uint32_t generation = 0;
   constexpr bool is_valid() const { return index != std::numeric_limits<std::uint32_t>::max(); }
-  friend constexpr bool operator==(SheetId, SheetId) = default;
+  friend constexpr bool operator==(Id, Id) = default;
 };
-
-struct ObstacleId {
-  std::uint32_t index = std::numeric_limits<std::uint32_t>::max();
-  std::uint32_t generation = 0;
-  constexpr bool is_valid() const { return index != std::numeric_limits<std::uint32_t>::max(); }
-  friend constexpr bool operator==(ObstacleId, ObstacleId) = default;
-};
+struct SheetTag;
+struct ObstacleTag;
+using SheetId = Id<SheetTag>;
+using ObstacleId = Id<ObstacleTag>;
 
 // Time integrators. Each is described by one row of the integrator table
 // (engine/src/integrate.cpp: name, order, explicit or not, stability, knobs, step function);
