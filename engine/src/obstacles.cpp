@@ -212,10 +212,17 @@ inline void implicit_chunk(const Obstacle& o, const Real* x, const Real* y, cons
   }
 }
 
+// The per-point pieces of the loops below (the projection, friction, the point's force)
+// must inline into their `#pragma omp simd` loops: a call left in one makes the loop scalar
+// with a call per point. GCC's inliner gave up on them once the moving-obstacle slip made
+// the friction point's body bigger (19b3f0b: friction went from +40-60 % to +600-1000 % of a
+// frictionless floor, BM_Feature_obstacle_friction), so they are forced.
+#define DRAPE_POINT_INLINE __attribute__((always_inline))
+
 // eq (9)'s projection on the sheet's unit normal n = a × b, a and b the differences across
 // the point along its row and its column: F·n/|n|² n. A lone point or row has no normal
 // (|n| = 0) and keeps the full gradient.
-inline void project_on_normal(double ax, double ay, double az, double bx, double by, double bz, double& fx, double& fy,
+DRAPE_POINT_INLINE inline void project_on_normal(double ax, double ay, double az, double bx, double by, double bz, double& fx, double& fy,
                               double& fz) {
   const double nx = ay * bz - az * by, ny = az * bx - ax * bz, nz = ax * by - ay * bx;
   const double nn = nx * nx + ny * ny + nz * nz;
@@ -232,7 +239,8 @@ inline void project_on_normal(double ax, double ay, double az, double bx, double
 // of μ·N and m·|v*_t|/dt (what stops the slip within the substep). Adds it to F.
 struct Rub {
   double mu, dt, gravity[3];
-  void operator()(const double g[3], double F[3], const double total[3], const double v[3], double inv_mass) const {
+  DRAPE_POINT_INLINE void operator()(const double g[3], double F[3], const double total[3], const double v[3],
+                                     double inv_mass) const {
     const double g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
     const double inv_g2 = g2 > 0 ? 1.0 / g2 : 0.0;
     const double along = F[0] * g[0] + F[1] * g[1] + F[2] * g[2];
@@ -272,7 +280,7 @@ void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near,
 #pragma omp simd
       for (std::uint32_t k = 0; k < count; ++k) c.s[k] = scale(c.f[k]);
       // the force on point j0 + k, written back into f (and projected first, for eq (9))
-      auto apply = [&](std::uint32_t k, std::uint32_t l, std::uint32_t r) {
+      auto apply = [&](std::uint32_t k, std::uint32_t l, std::uint32_t r) DRAPE_POINT_INLINE {
         const std::size_t p = p0 + k, j = j0 + k;
         double F[3] = {c.s[k] * c.gx[k], c.s[k] * c.gy[k], c.s[k] * c.gz[k]};
         if constexpr (project)
