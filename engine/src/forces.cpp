@@ -135,8 +135,11 @@ inline void column_springs(std::uint32_t cols, const Real* xa, const Real* ya, c
 // Row q arrives in a sweep: every row stencil whose last row is q adds its forces, in the
 // order of terms/terms.h: row q's own grid springs (which write, not add, its forces, so f
 // needs no clearing pass), the grid springs between rows q−1 and q, then the other terms.
+// Flattened: the terms' templates (terms/) are defined outside this file's per-target code,
+// so a call left to them would run the build's baseline instruction set; inlined here they
+// compile, and vectorise, for this target.
 template <class Real, class Springs, class Terms, class Window>
-inline void arrive(const Topology<Real>& t, Springs horizontal_springs, Springs vertical_springs, const Terms& terms,
+HWY_FLATTEN inline void arrive(const Topology<Real>& t, Springs horizontal_springs, Springs vertical_springs, const Terms& terms,
                    const Window& w, std::uint32_t q) {
   const std::uint32_t n = t.n, cols = t.cols();
   if (w.owns(q)) {
