@@ -2,7 +2,8 @@
 // target gives eq (6) and the explicit update as computed independently here, in every build.
 // A world, whose whole row sweep runs on the dispatched target (forces.cpp), keeps its
 // bit-identity across threads, row blocks and frames on each target, with and without the
-// cloth terms, and differs between targets only by rounding.
+// cloth terms and obstacles (obstacles.cpp, also compiled per target), and differs between
+// targets only by rounding.
 #include <gtest/gtest.h>
 
 #include <drape/drape.h>
@@ -147,9 +148,12 @@ TEST(Simd, PointUpdateOfEveryTargetIsTheEulerStepByHand) {
 // A world whose free sheets step in one task each (frames), split into row blocks, with
 // per-spring parameters and pins; every spring starts stretched or compressed.
 // With `cloth`, the first sheet also has shear springs, bending and air against a wind:
-// every term of the sweep runs on the target.
+// every term of the sweep runs on the target. With `obstacles`, a floor with friction lies
+// just under both sheets and a sphere just under the second: eq (9) on every point, the
+// plane's and a curved shape's chunks, the projection and friction.
 template <class W>
-W make_world(Integrator integrator, int threads, std::uint32_t block_points, bool cloth = false) {
+W make_world(Integrator integrator, int threads, std::uint32_t block_points, bool cloth = false,
+             bool obstacles = false) {
   WorldDef wd;
   wd.dt = 1e-4;
   wd.integrator = integrator;
@@ -159,6 +163,21 @@ W make_world(Integrator integrator, int threads, std::uint32_t block_points, boo
   wd.guard = false;
   if (cloth) wd.wind.velocity = {2.0, 0.0, 0.5};
   W w(wd);
+  if (obstacles) {
+    ObstacleDef floor;
+    floor.shape = ObstacleShape::Plane;
+    floor.center = {0.0, 0.0, -0.005};
+    floor.c = 0.01;
+    floor.xi = 0.01;
+    floor.friction = 0.5;
+    w.add_obstacle(floor);
+    ObstacleDef ball = floor;
+    ball.shape = ObstacleShape::Sphere;
+    ball.size = {0.3, 0.3, 0.3};
+    ball.center = {2.0, 0.0, -0.305};
+    ball.friction = 0.0;
+    w.add_obstacle(ball);
+  }
   SheetDef d;
   d.m = 60;
   d.n = 37;  // rows of 38 points: whole vectors and a remainder on every width
@@ -194,8 +213,8 @@ W make_world(Integrator integrator, int threads, std::uint32_t block_points, boo
 
 template <class W>
 std::vector<double> run_world(Integrator integrator, int threads, std::uint32_t block_points, int frames,
-                              int substeps, bool cloth = false) {
-  W w = make_world<W>(integrator, threads, block_points, cloth);
+                              int substeps, bool cloth = false, bool obstacles = false) {
+  W w = make_world<W>(integrator, threads, block_points, cloth, obstacles);
   for (int k = 0; k < frames; ++k) w.step(substeps);
   std::vector<double> out;
   for (SheetId id : w.sheets()) {
@@ -206,11 +225,11 @@ std::vector<double> run_world(Integrator integrator, int threads, std::uint32_t 
 }
 
 template <class W>
-void expect_bit_identity_on_every_target(bool cloth) {
+void expect_bit_identity_on_every_target(bool cloth, bool obstacles = false) {
   for_each_target([&](std::int64_t) {
     for (Integrator integrator : {Integrator::SemiImplicitEuler, Integrator::ForwardEuler}) {
       auto run = [&](int threads, std::uint32_t block_points, int frames, int substeps) {
-        return run_world<W>(integrator, threads, block_points, frames, substeps, cloth);
+        return run_world<W>(integrator, threads, block_points, frames, substeps, cloth, obstacles);
       };
       const auto reference = run(1, 1u << 30, 12, 1);
       EXPECT_TRUE(run(2, 1u << 30, 12, 1) == reference) << integrator_name(integrator);
@@ -231,17 +250,24 @@ TEST(Simd, EveryTargetGivesTheSameBitsWithShearBendingAndAir) { expect_bit_ident
 TEST(Simd, EveryTargetGivesTheSameBitsWithShearBendingAndAirInFloat) {
   expect_bit_identity_on_every_target<WorldF>(true);
 }
+TEST(Simd, EveryTargetGivesTheSameBitsWithObstaclesAndFriction) {
+  expect_bit_identity_on_every_target<World>(false, true);
+}
+TEST(Simd, EveryTargetGivesTheSameBitsWithObstaclesAndFrictionInFloat) {
+  expect_bit_identity_on_every_target<WorldF>(false, true);
+}
 
 // Between instruction sets a result may differ only by rounding: over 300 substeps of a
 // sheet moving by centimetres, no coordinate of any target strays from the widest's by
 // more than a few hundred units in the last place of the coordinates' size.
 template <class W, class Real>
 void expect_targets_differ_only_by_rounding() {
-  for (bool cloth : {false, true}) {
-    SCOPED_TRACE(cloth ? "with shear, bending and air" : "grid springs");
+  for (int extras = 0; extras < 3; ++extras) {
+    const bool cloth = extras == 1, obstacles = extras == 2;
+    SCOPED_TRACE(cloth ? "with shear, bending and air" : obstacles ? "with obstacles and friction" : "grid springs");
     std::vector<double> widest;
     for_each_target([&](std::int64_t) {
-      const auto run = run_world<W>(Integrator::SemiImplicitEuler, 2, 600u, 30, 10, cloth);
+      const auto run = run_world<W>(Integrator::SemiImplicitEuler, 2, 600u, 30, 10, cloth, obstacles);
       if (widest.empty()) {
         widest = run;
         return;
