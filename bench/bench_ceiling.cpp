@@ -1,10 +1,17 @@
 // The machine ceiling: the simplest explicit spring step this machine can run for the same
 // sheets, with no engine around it. Plain arrays, one structured grid, one stiffness, one
 // rest length, one mass, semi-implicit Euler, corners pinned; the arithmetic runs as the
-// engine of this build runs it: in its vector kernels (simd/kernels.h) on the widest
-// instruction set the CPU has when the build dispatches them, else in the same plain loops
-// the engine compiles for this CPU. Every engine figure in the
-// report is printed as a fraction of these rates, measured in the same run.
+// engine runs it: the engine's vector kernels (simd/kernels-inl.h) inlined into a step
+// compiled for every instruction set, dispatched to the widest the CPU has once per sheet
+// step, as the engine's row sweep is. Every engine figure in the report is printed as a
+// fraction of these rates, measured in the same run.
+#include "simd/targets.h"
+
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "bench_ceiling.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+#include <hwy/highway.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -14,6 +21,11 @@
 #include "sheet_data.h"
 #include "simd/kernels.h"
 
+#include "simd/kernels-inl.h"
+
+// The sheet, compiled once (foreach_target re-includes this file for every target).
+#ifndef DRAPE_BENCH_CEILING_SHEET_
+#define DRAPE_BENCH_CEILING_SHEET_
 namespace {
 
 struct PlainSheet {
@@ -56,107 +68,21 @@ void hold_corners(PlainSheet& s) {
   }
 }
 
-// The loops as the engine writes them when it is built without run-time dispatch (a native
-// build: GCC vectorises them for this CPU).
-namespace loops {
+}  // namespace
+#endif  // DRAPE_BENCH_CEILING_SHEET_
 
-// −k(|d| − ℓ)/|d|, zero for a zero-length spring: eq (6) with one k and one ℓ.
-inline double scale(double dx, double dy, double dz, double k, double rest) {
-  const double len = std::sqrt(dx * dx + dy * dy + dz * dz);
-  const double inv = len > 0 ? 1.0 / len : 0.0;
-  return -k * (len - rest) * inv;
-}
-
-// Horizontal springs of one row of w points: assign the row's forces. s is scratch.
-void horizontal(std::uint32_t w, double k, double rest, const double* __restrict x, const double* __restrict y,
-                const double* __restrict z, double* __restrict sx, double* __restrict sy, double* __restrict sz,
-                double* __restrict fx, double* __restrict fy, double* __restrict fz) {
-  for (std::uint32_t j = 0; j + 1 < w; ++j) {
-    const double dx = x[j] - x[j + 1], dy = y[j] - y[j + 1], dz = z[j] - z[j + 1];
-    const double c = scale(dx, dy, dz, k, rest);
-    sx[j] = c * dx;
-    sy[j] = c * dy;
-    sz[j] = c * dz;
-  }
-  sx[w - 1] = sy[w - 1] = sz[w - 1] = 0.0;
-  fx[0] = sx[0];
-  fy[0] = sy[0];
-  fz[0] = sz[0];
-  for (std::uint32_t j = 1; j < w; ++j) {
-    fx[j] = sx[j] - sx[j - 1];
-    fy[j] = sy[j] - sy[j - 1];
-    fz[j] = sz[j] - sz[j - 1];
-  }
-}
-
-// Vertical springs between row a and row b below it: row a's share goes to s (it is
-// integrated right after), row b's is added to its forces.
-void vertical(std::uint32_t w, double k, double rest, const double* __restrict xa, const double* __restrict ya,
-              const double* __restrict za, const double* __restrict xb, const double* __restrict yb,
-              const double* __restrict zb, double* __restrict sx, double* __restrict sy, double* __restrict sz,
-              double* __restrict fxb, double* __restrict fyb, double* __restrict fzb) {
-  for (std::uint32_t j = 0; j < w; ++j) {
-    const double dx = xa[j] - xb[j], dy = ya[j] - yb[j], dz = za[j] - zb[j];
-    const double c = scale(dx, dy, dz, k, rest);
-    sx[j] = c * dx;
-    sy[j] = c * dy;
-    sz[j] = c * dz;
-    fxb[j] -= c * dx;
-    fyb[j] -= c * dy;
-    fzb[j] -= c * dz;
-  }
-}
-
-// Semi-implicit Euler on one row whose force is f + s.
-void integrate(std::uint32_t w, double dt, double im, double gz, double* __restrict x, double* __restrict y,
-               double* __restrict z, double* __restrict vx, double* __restrict vy, double* __restrict vz,
-               const double* __restrict fx, const double* __restrict fy, const double* __restrict fz,
-               const double* __restrict sx, const double* __restrict sy, const double* __restrict sz) {
-  for (std::uint32_t j = 0; j < w; ++j) {
-    vx[j] += dt * ((fx[j] + sx[j]) * im);
-    vy[j] += dt * ((fy[j] + sy[j]) * im);
-    vz[j] += dt * ((fz[j] + sz[j]) * im + gz);
-    x[j] += dt * vx[j];
-    y[j] += dt * vy[j];
-    z[j] += dt * vz[j];
-  }
-}
-
-void step(PlainSheet& s) {
-  const std::uint32_t w = s.side;
-  double *x = s.x.data(), *y = s.y.data(), *z = s.z.data();
-  double *vx = s.vx.data(), *vy = s.vy.data(), *vz = s.vz.data();
-  double *fx = s.fx.data(), *fy = s.fy.data(), *fz = s.fz.data();
-  double *sx = s.sx.data(), *sy = s.sy.data(), *sz = s.sz.data();
-  horizontal(w, s.k, s.rest, x, y, z, sx, sy, sz, fx, fy, fz);
-  for (std::uint32_t i = 0; i + 1 < w; ++i) {
-    const std::size_t a = std::size_t(i) * w, b = a + w;
-    horizontal(w, s.k, s.rest, x + b, y + b, z + b, sx, sy, sz, fx + b, fy + b, fz + b);
-    // row i is complete once its vertical springs are in, and no later spring reads it
-    vertical(w, s.k, s.rest, x + a, y + a, z + a, x + b, y + b, z + b, sx, sy, sz, fx + b, fy + b, fz + b);
-    integrate(w, s.dt, s.inv_mass, s.gz, x + a, y + a, z + a, vx + a, vy + a, vz + a, fx + a, fy + a, fz + a, sx, sy,
-              sz);
-  }
-  std::fill(s.sx.begin(), s.sx.end(), 0.0);
-  std::fill(s.sy.begin(), s.sy.end(), 0.0);
-  std::fill(s.sz.begin(), s.sz.end(), 0.0);
-  const std::size_t last = std::size_t(w - 1) * w;
-  integrate(w, s.dt, s.inv_mass, s.gz, x + last, y + last, z + last, vx + last, vy + last, vz + last, fx + last,
-            fy + last, fz + last, sx, sy, sz);
-  hold_corners(s);
-}
-
-}  // namespace loops
-
-// The engine's vector kernels (simd/kernels.h), as a build with run-time dispatch runs them.
-namespace kernels {
+// The step, per target, with the kernels inlined.
+HWY_BEFORE_NAMESPACE();
+namespace drape::bench::ceiling {
+namespace HWY_NAMESPACE {
+namespace kernels = drape::detail::simd::HWY_NAMESPACE;
 
 // Horizontal springs of one row of w points through the engine's vector kernel (eq 6, one
 // k and ℓ): assign the row's forces. s is scratch.
-void horizontal(std::uint32_t w, double k, double rest, const double* __restrict x, const double* __restrict y,
+HWY_INLINE void horizontal(std::uint32_t w, double k, double rest, const double* __restrict x, const double* __restrict y,
                 const double* __restrict z, double* __restrict sx, double* __restrict sy, double* __restrict sz,
                 double* __restrict fx, double* __restrict fy, double* __restrict fz) {
-  drape::detail::simd::springs(
+  kernels::springs_loop<false, true, false, false>(
       drape::detail::simd::SpringRun<double>::between(w - 1, x, y, z, x + 1, y + 1, z + 1).same(rest, k).store(sx, sy, sz));
   fx[0] = sx[0];
   fy[0] = sy[0];
@@ -172,23 +98,23 @@ void horizontal(std::uint32_t w, double k, double rest, const double* __restrict
 }
 
 // Vertical springs between row a and row b below it, added to both rows' forces.
-void vertical(std::uint32_t w, double k, double rest, const double* xa, const double* ya, const double* za,
+HWY_INLINE void vertical(std::uint32_t w, double k, double rest, const double* xa, const double* ya, const double* za,
               const double* xb, const double* yb, const double* zb, double* fxa, double* fya, double* fza,
               double* fxb, double* fyb, double* fzb) {
-  drape::detail::simd::springs(drape::detail::simd::SpringRun<double>::between(w, xa, ya, za, xb, yb, zb)
+  kernels::springs_loop<false, false, true, true>(drape::detail::simd::SpringRun<double>::between(w, xa, ya, za, xb, yb, zb)
                                    .same(rest, k)
                                    .add(fxa, fya, fza)
                                    .sub(fxb, fyb, fzb));
 }
 
 // Semi-implicit Euler on one row, through the engine's vector kernel.
-void integrate(std::uint32_t w, const PlainSheet& s, const double* inv_mass, double* x, double* y, double* z,
+HWY_INLINE void integrate(std::uint32_t w, const PlainSheet& s, const double* inv_mass, double* x, double* y, double* z,
                double* vx, double* vy, double* vz, const double* fx, const double* fy, const double* fz) {
-  drape::detail::simd::update_points(
+  kernels::update_loop<true>(
       drape::detail::simd::PointUpdate<double>::of(w, x, y, z, vx, vy, vz, fx, fy, fz, inv_mass).step(s.dt, 0, 0, s.gz, true));
 }
 
-void step(PlainSheet& s) {
+HWY_INLINE void step(PlainSheet& s) {
   const std::uint32_t w = s.side;
   double *x = s.x.data(), *y = s.y.data(), *z = s.z.data();
   double *vx = s.vx.data(), *vy = s.vy.data(), *vz = s.vz.data();
@@ -209,16 +135,18 @@ void step(PlainSheet& s) {
   hold_corners(s);
 }
 
-}  // namespace kernels
+void Step(PlainSheet& s) { step(s); }
 
-// The ceiling runs the kind of code the engine of this build runs (DRAPE_SIMD_DISPATCH), so
-// "fraction of the ceiling" compares like with like.
-void plain_step(PlainSheet& s) {
-  if (drape::detail::simd::engine_uses_kernels())
-    kernels::step(s);
-  else
-    loops::step(s);
-}
+}  // namespace HWY_NAMESPACE
+}  // namespace drape::bench::ceiling
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace drape::bench::ceiling {
+
+HWY_EXPORT(Step);
+
+void plain_step(PlainSheet& s) { HWY_DYNAMIC_DISPATCH(Step)(s); }
 
 // One sheet of side×side points: the ceiling of BM_Fig13.
 void BM_CeilingSheet(benchmark::State& state) {
@@ -242,4 +170,5 @@ void BM_CeilingSheets48(benchmark::State& state) {
 BENCHMARK(BM_CeilingSheets48);                  // CPU time, like the feature benchmarks
 BENCHMARK(BM_CeilingSheets48)->UseRealTime();   // wall time, like the thread benchmarks
 
-}  // namespace
+}  // namespace drape::bench::ceiling
+#endif  // HWY_ONCE

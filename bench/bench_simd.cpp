@@ -35,6 +35,7 @@ void InvSqrtF32(std::size_t count, const float* in, float* out) { inv_sqrt(count
 HWY_AFTER_NAMESPACE();
 
 #if HWY_ONCE
+#include <cstdio>
 #include <cstdlib>
 #include <string>
 #include <vector>
@@ -51,14 +52,23 @@ HWY_EXPORT(InvSqrtF32);
 // Read by tools/bench_report.py: the kernels' instruction set, and every one this build
 // could have used on this CPU.
 // DRAPE_SIMD_TARGET=AVX2 (a name from simd_targets) runs the whole suite on that target,
-// to price each instruction set on one machine.
+// to price each instruction set on one machine; a name this build or CPU lacks stops the run.
 const bool context_added = [] {
   std::string all;
   const char* wanted = std::getenv("DRAPE_SIMD_TARGET");
+  bool found = false;
   for (std::int64_t t : detail::simd::supported_targets()) {
     if (!all.empty()) all += ' ';
     all += hwy::TargetName(t);
-    if (wanted && std::string(wanted) == hwy::TargetName(t)) detail::simd::use_target(t);
+    if (wanted && std::string(wanted) == hwy::TargetName(t)) {
+      detail::simd::use_target(t);
+      found = true;
+    }
+  }
+  if (wanted && *wanted && !found) {
+    std::fprintf(stderr, "drape_bench: DRAPE_SIMD_TARGET=%s is not one of this build's targets on this CPU: %s\n",
+                 wanted, all.c_str());
+    std::exit(2);
   }
   benchmark::AddCustomContext("simd_target", detail::simd::target_name());
   benchmark::AddCustomContext("simd_targets", all);

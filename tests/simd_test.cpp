@@ -1,8 +1,9 @@
 // The vector kernels (engine/src/simd) on every instruction set this CPU supports: each
 // target gives eq (6) and the explicit update as computed independently here, in every build.
-// A world keeps its bit-identity across threads, row blocks and frames on the path its build
-// steps with: each target where the engine dispatches the kernels (DRAPE_SIMD_DISPATCH), the
-// inline loops otherwise.
+// A world, whose whole row sweep runs on the dispatched target (forces.cpp), keeps its
+// bit-identity across threads, row blocks and frames on each target, with and without the
+// cloth terms and obstacles (obstacles.cpp, also compiled per target), and differs between
+// targets only by rounding.
 #include <gtest/gtest.h>
 
 #include <drape/drape.h>
@@ -38,18 +39,6 @@ void for_each_target(Body body) {
     use_target(t);
     SCOPED_TRACE(detail::simd::target_name());
     body(t);
-  }
-}
-
-// Runs body once per way this build's world can step: with each target where the engine
-// dispatches the kernels, else once, with the inline loops (the target makes no difference).
-template <class Body>
-void for_each_world_path(Body body) {
-  if (detail::simd::engine_uses_kernels()) {
-    for_each_target(body);
-  } else {
-    SCOPED_TRACE("inline loops (DRAPE_SIMD_DISPATCH off)");
-    body(0);
   }
 }
 
@@ -158,8 +147,13 @@ TEST(Simd, PointUpdateOfEveryTargetIsTheEulerStepByHand) {
 
 // A world whose free sheets step in one task each (frames), split into row blocks, with
 // per-spring parameters and pins; every spring starts stretched or compressed.
+// With `cloth`, the first sheet also has shear springs, bending and air against a wind:
+// every term of the sweep runs on the target. With `obstacles`, a floor with friction lies
+// just under both sheets and a sphere just under the second: eq (9) on every point, the
+// plane's and a curved shape's chunks, the projection and friction.
 template <class W>
-W make_world(Integrator integrator, int threads, std::uint32_t block_points) {
+W make_world(Integrator integrator, int threads, std::uint32_t block_points, bool cloth = false,
+             bool obstacles = false) {
   WorldDef wd;
   wd.dt = 1e-4;
   wd.integrator = integrator;
@@ -167,7 +161,23 @@ W make_world(Integrator integrator, int threads, std::uint32_t block_points) {
   wd.block_points = block_points;
   wd.contact_strength = 0;
   wd.guard = false;
+  if (cloth) wd.wind.velocity = {2.0, 0.0, 0.5};
   W w(wd);
+  if (obstacles) {
+    ObstacleDef floor;
+    floor.shape = ObstacleShape::Plane;
+    floor.center = {0.0, 0.0, -0.005};
+    floor.c = 0.01;
+    floor.xi = 0.01;
+    floor.friction = 0.5;
+    w.add_obstacle(floor);
+    ObstacleDef ball = floor;
+    ball.shape = ObstacleShape::Sphere;
+    ball.size = {0.3, 0.3, 0.3};
+    ball.center = {2.0, 0.0, -0.305};
+    ball.friction = 0.0;
+    w.add_obstacle(ball);
+  }
   SheetDef d;
   d.m = 60;
   d.n = 37;  // rows of 38 points: whole vectors and a remainder on every width
@@ -176,7 +186,15 @@ W make_world(Integrator integrator, int threads, std::uint32_t block_points) {
   d.stiffness_regions = {{5, 30, 3, 12, 300.0}};
   d.pins = corner_points(d.m, d.n);
   d.initial_velocity = {0.3, -0.1, 0.2};
+  if (cloth) {
+    d.shear = ShearDef{40.0, std::nullopt};
+    d.bending = BendingDef{0.05};
+    d.air = AirDef{1.2, 0.05};
+  }
   w.add_sheet(d);
+  d.shear.reset();
+  d.bending.reset();
+  d.air.reset();
   d.stiffness_regions.clear();  // a uniform topology: one k and ℓ for all springs
   d.center = {2, 0, 0};
   d.m = 200;
@@ -195,8 +213,8 @@ W make_world(Integrator integrator, int threads, std::uint32_t block_points) {
 
 template <class W>
 std::vector<double> run_world(Integrator integrator, int threads, std::uint32_t block_points, int frames,
-                              int substeps) {
-  W w = make_world<W>(integrator, threads, block_points);
+                              int substeps, bool cloth = false, bool obstacles = false) {
+  W w = make_world<W>(integrator, threads, block_points, cloth, obstacles);
   for (int k = 0; k < frames; ++k) w.step(substeps);
   std::vector<double> out;
   for (SheetId id : w.sheets()) {
@@ -207,24 +225,36 @@ std::vector<double> run_world(Integrator integrator, int threads, std::uint32_t 
 }
 
 template <class W>
-void expect_bit_identity_on_every_path() {
-  for_each_world_path([&](std::int64_t) {
+void expect_bit_identity_on_every_target(bool cloth, bool obstacles = false) {
+  for_each_target([&](std::int64_t) {
     for (Integrator integrator : {Integrator::SemiImplicitEuler, Integrator::ForwardEuler}) {
-      const auto reference = run_world<W>(integrator, 1, 1u << 30, 12, 1);
-      EXPECT_TRUE(run_world<W>(integrator, 2, 1u << 30, 12, 1) == reference) << integrator_name(integrator);
-      EXPECT_TRUE(run_world<W>(integrator, 2, 600u, 12, 1) == reference) << integrator_name(integrator) << " blocks";
-      EXPECT_TRUE(run_world<W>(integrator, 1, 1u << 30, 2, 6) == reference) << integrator_name(integrator) << " frames";
-      EXPECT_TRUE(run_world<W>(integrator, 2, 600u, 3, 4) == reference)
-          << integrator_name(integrator) << " frames in blocks";
+      auto run = [&](int threads, std::uint32_t block_points, int frames, int substeps) {
+        return run_world<W>(integrator, threads, block_points, frames, substeps, cloth, obstacles);
+      };
+      const auto reference = run(1, 1u << 30, 12, 1);
+      EXPECT_TRUE(run(2, 1u << 30, 12, 1) == reference) << integrator_name(integrator);
+      EXPECT_TRUE(run(2, 600u, 12, 1) == reference) << integrator_name(integrator) << " blocks";
+      EXPECT_TRUE(run(1, 1u << 30, 2, 6) == reference) << integrator_name(integrator) << " frames";
+      EXPECT_TRUE(run(2, 600u, 3, 4) == reference) << integrator_name(integrator) << " frames in blocks";
     }
   });
 }
 
-TEST(Simd, EveryPathGivesTheSameBitsOnOneAndTwoThreadsInBlocksAndFrames) {
-  expect_bit_identity_on_every_path<World>();
+TEST(Simd, EveryTargetGivesTheSameBitsOnOneAndTwoThreadsInBlocksAndFrames) {
+  expect_bit_identity_on_every_target<World>(false);
 }
-TEST(Simd, EveryPathGivesTheSameBitsOnOneAndTwoThreadsInBlocksAndFramesInFloat) {
-  expect_bit_identity_on_every_path<WorldF>();
+TEST(Simd, EveryTargetGivesTheSameBitsOnOneAndTwoThreadsInBlocksAndFramesInFloat) {
+  expect_bit_identity_on_every_target<WorldF>(false);
+}
+TEST(Simd, EveryTargetGivesTheSameBitsWithShearBendingAndAir) { expect_bit_identity_on_every_target<World>(true); }
+TEST(Simd, EveryTargetGivesTheSameBitsWithShearBendingAndAirInFloat) {
+  expect_bit_identity_on_every_target<WorldF>(true);
+}
+TEST(Simd, EveryTargetGivesTheSameBitsWithObstaclesAndFriction) {
+  expect_bit_identity_on_every_target<World>(false, true);
+}
+TEST(Simd, EveryTargetGivesTheSameBitsWithObstaclesAndFrictionInFloat) {
+  expect_bit_identity_on_every_target<WorldF>(false, true);
 }
 
 // Between instruction sets a result may differ only by rounding: over 300 substeps of a
@@ -232,25 +262,26 @@ TEST(Simd, EveryPathGivesTheSameBitsOnOneAndTwoThreadsInBlocksAndFramesInFloat) 
 // more than a few hundred units in the last place of the coordinates' size.
 template <class W, class Real>
 void expect_targets_differ_only_by_rounding() {
-  if (!detail::simd::engine_uses_kernels()) {
-    GTEST_SKIP() << "DRAPE_SIMD_DISPATCH is off: the world steps with the inline loops on every target";
+  for (int extras = 0; extras < 3; ++extras) {
+    const bool cloth = extras == 1, obstacles = extras == 2;
+    SCOPED_TRACE(cloth ? "with shear, bending and air" : obstacles ? "with obstacles and friction" : "grid springs");
+    std::vector<double> widest;
+    for_each_target([&](std::int64_t) {
+      const auto run = run_world<W>(Integrator::SemiImplicitEuler, 2, 600u, 30, 10, cloth, obstacles);
+      if (widest.empty()) {
+        widest = run;
+        return;
+      }
+      ASSERT_EQ(run.size(), widest.size());
+      double worst = 0, scale = 0;
+      for (std::size_t p = 0; p < run.size(); ++p) {
+        ASSERT_TRUE(std::isfinite(run[p]));
+        worst = std::max(worst, std::abs(run[p] - widest[p]));
+        scale = std::max(scale, std::abs(widest[p]));
+      }
+      EXPECT_LE(worst, 300 * std::numeric_limits<Real>::epsilon() * scale);
+    });
   }
-  std::vector<double> widest;
-  for_each_target([&](std::int64_t) {
-    const auto run = run_world<W>(Integrator::SemiImplicitEuler, 2, 600u, 30, 10);
-    if (widest.empty()) {
-      widest = run;
-      return;
-    }
-    ASSERT_EQ(run.size(), widest.size());
-    double worst = 0, scale = 0;
-    for (std::size_t p = 0; p < run.size(); ++p) {
-      ASSERT_TRUE(std::isfinite(run[p]));
-      worst = std::max(worst, std::abs(run[p] - widest[p]));
-      scale = std::max(scale, std::abs(widest[p]));
-    }
-    EXPECT_LE(worst, 300 * std::numeric_limits<Real>::epsilon() * scale);
-  });
 }
 
 TEST(Simd, InstructionSetsDifferOnlyByRoundingOverARun) { expect_targets_differ_only_by_rounding<World, double>(); }

@@ -52,5 +52,18 @@ cmake --build "$build-portable" --target drape_bench -j"$(nproc)"
   "--benchmark_filter=^BM_(Sheets48_f|Fig13/semi_implicit_euler/f64/|Paper1000Points|CeilingSheets48|ArithmeticBound)" \
   --benchmark_out="$portable_json.tmp" --benchmark_out_format=json >/dev/null
 mv "$portable_json.tmp" "$portable_json"
+# The same binary held to lower instruction sets (DRAPE_SIMD_TARGET, read by bench_simd.cpp):
+# how it runs on a CPU with AVX2 but no AVX-512, or SSE4 only (docs/benchmarks-<set>.json).
+forced_json=()
+for set in AVX2 SSE4; do
+  out="docs/benchmarks-$set.json"
+  DRAPE_SIMD_TARGET=$set "$build-portable/bench/drape_bench" "--benchmark_min_time=$min_time" \
+    "--benchmark_repetitions=$repetitions" --benchmark_enable_random_interleaving=true \
+    --benchmark_report_aggregates_only=true \
+    "--benchmark_filter=^BM_(Sheets48_f|Fig13/semi_implicit_euler/f64/1024|CeilingSheets48$|ArithmeticBound)" \
+    --benchmark_out="$out.tmp" --benchmark_out_format=json >/dev/null
+  mv "$out.tmp" "$out"
+  forced_json+=("$out")
+done
 "$python" tools/bench_report.py --json "$json" --build-dir "$build" --out docs/BENCHMARKS.md --img docs/img \
-  --portable-json "$portable_json" --command "tools/bench.sh (${command[*]:1})"
+  --portable-json "$portable_json" --forced-json "${forced_json[@]}" --command "tools/bench.sh (${command[*]:1})"

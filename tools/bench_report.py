@@ -35,6 +35,7 @@ TARGET_CONTACT_SPEEDUP = 1.8      # 2 threads vs 1, in contact
 TARGET_FLOOR_PRICE = 0.40         # a floor under every point, vs bare
 TARGET_SELF_CONTACT_RATIO = 3.0   # a 128×128 sheet folded onto itself, with vs without
 TARGET_PORTABLE_FRACTION = 0.90  # issue 15: a DRAPE_NATIVE=OFF build within 10 % of the native one
+TARGET_F32_OVER_F64 = 1.8  # issue 15: 48 sheets in float32 at least 1.8× float64, on AVX2
 
 PAPER_INTEGRATOR = "semi_implicit_euler"
 SINGLE = " (step(1))"  # marks the Fig 13 series stepped one substep per call
@@ -151,9 +152,10 @@ def verdict(met):
 
 
 class Report:
-    def __init__(self, context, runs, build_dir, img_dir, md_dir, sweep_ranks=None, portable=None):
+    def __init__(self, context, runs, build_dir, img_dir, md_dir, sweep_ranks=None, portable=None, forced=()):
         self.context, self.runs = context, runs
         self.portable = portable  # (context, runs) of a DRAPE_NATIVE=OFF build's run, or None
+        self.forced = list(forced)  # (context, runs) of that build run with DRAPE_SIMD_TARGET, one per set
         self.sweep_ranks = sweep_ranks  # tools/bench_ranks.py's JSON, or None
         self.build_dir, self.img_dir, self.md_dir = build_dir, img_dir, md_dir
         self.lines, self.targets, self.used = [], [], set()
@@ -507,6 +509,33 @@ class Report:
                         f"≥ {pct(TARGET_PORTABLE_FRACTION)}", worst >= TARGET_PORTABLE_FRACTION,
                         "" if worst >= TARGET_PORTABLE_FRACTION else
                         f"{100 * (TARGET_PORTABLE_FRACTION - worst):.0f} points short")
+
+    def forced_targets(self):
+        """Issue 15: the same benchmarks with the dispatch held to one lower instruction set each."""
+        runs = [(ctx.get("simd_target", "?"), r) for ctx, r in self.forced]
+        if self.portable is not None:
+            runs.insert(0, (self.portable[0].get("simd_target", "?"), self.portable[1]))
+        names = sorted({n for _, r in runs for n in r} & set(self.runs))
+        if not self.forced or not names:
+            return
+        self.out("## Each instruction set on this machine", "",
+                 "The portable build's benchmarks again, each run with `DRAPE_SIMD_TARGET` holding the run-time "
+                 "dispatch to one instruction set (Highway's own mechanism): what the same binary does on a CPU "
+                 "that has only that set, e.g. AVX2 without AVX-512. Each column names the set every dispatched "
+                 "sweep ran with; code outside the sweep runs the portable build's baseline. M point-steps/s.", "",
+                 "| benchmark | " + " | ".join(f"`{t}`" for t, _ in runs) + " |", "|---" * (len(runs) + 1) + "|")
+        for n in names:
+            cells = [f"{mrate(r[n].rate)}{cv_text(r[n])}" if n in r and r[n].rate else "–" for _, r in runs]
+            self.out(f"| {n} | " + " | ".join(cells) + " |")
+        s64, s32 = "BM_Sheets48_f64/threads:1/real_time", "BM_Sheets48_f32/threads:1/real_time"
+        ratios = [f"{r[s32].rate / r[s64].rate:.2f}" if s64 in r and s32 in r and r[s64].rate else "–" for _, r in runs]
+        self.out("| 48 sheets, f32 ÷ f64 | " + " | ".join(ratios) + " |", "")
+        for t, r in runs:
+            if t == "AVX2" and s64 in r and s32 in r and r[s64].rate:
+                ratio = r[s32].rate / r[s64].rate
+                self.target("48 sheets on AVX2 (DRAPE_SIMD_TARGET), float32 ÷ float64", f"{ratio:.2f}×",
+                            f"≥ {TARGET_F32_OVER_F64:.1f}×", ratio >= TARGET_F32_OVER_F64,
+                            "" if ratio >= TARGET_F32_OVER_F64 else f"{TARGET_F32_OVER_F64 - ratio:.2f}× short")
 
     def precision(self):
         rows = []
@@ -940,6 +969,7 @@ class Report:
         self.against_bullet()
         self.ceiling()
         self.portable_build()
+        self.forced_targets()
         self.threads()
         self.ranks()
         self.precision()
@@ -988,6 +1018,8 @@ def main():
     ap.add_argument("--command", default="tools/bench.sh", help="how the run was made, for the report")
     ap.add_argument("--portable-json", default=None,
                     help="drape_bench JSON of a DRAPE_NATIVE=OFF build, compared with --json (section left out if absent)")
+    ap.add_argument("--forced-json", nargs="*", default=[],
+                    help="drape_bench JSONs of the portable build run with DRAPE_SIMD_TARGET set (one per set)")
     ap.add_argument("--sweep-ranks", default="docs/sweep_ranks.json",
                     help="tools/bench_ranks.py's JSON (the section is left out when the file is missing)")
     args = ap.parse_args()
@@ -1000,8 +1032,9 @@ def main():
         except (OSError, json.JSONDecodeError) as e:
             fail(f"cannot read {args.sweep_ranks}: {e}")
     portable = load_runs(args.portable_json) if args.portable_json and os.path.exists(args.portable_json) else None
+    forced = [load_runs(p) for p in args.forced_json if os.path.exists(p)]
     report = Report(context, runs, args.build_dir, args.img, os.path.dirname(os.path.abspath(args.out)), sweep_ranks,
-                    portable)
+                    portable, forced)
     text = report.render(args.command)
     tmp = args.out + ".tmp"
     with open(tmp, "w") as f:

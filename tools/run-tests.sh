@@ -6,9 +6,8 @@
 #      and with every optional package left out (-DDRAPE_OPTIONAL_PACKAGES=OFF: Bullet, ...), so
 #      this stage also proves that a machine with only what tools/setup.sh installs builds
 #      everything, the benchmarks included, whatever else this machine has; it is also the
-#      portable build (-DDRAPE_NATIVE=OFF, so DRAPE_SIMD_DISPATCH is on): its engine steps with
-#      the Highway kernels dispatched at run time, where stage 1's native build runs the
-#      inline loops, so CI tests both paths;
+#      portable build (-DDRAPE_NATIVE=OFF): its baseline is the compiler's default, where
+#      stage 1's is this CPU, and both run the same row sweep dispatched at run time;
 #   3. a short libFuzzer run of every reader (build-fuzz, clang), seeded with valid files.
 # Environment: DRAPE_BUILD_DIR (default build), DRAPE_SKIP_SANITIZE=1, DRAPE_SKIP_FUZZ=1,
 # DRAPE_FUZZ_SECONDS (default 15 per target).

@@ -1,6 +1,19 @@
 // The row sweep and the paper's kernels: springs (eqs 6–7), damping (eq 4's C), anchors
 // (eq 8). The other terms live in terms/ (their list: terms/terms.h); obstacles (eq 9) in
 // obstacles.cpp.
+//
+// Highway's foreach_target compiles this file once per instruction set (simd/targets.h):
+// the sweep, the terms it calls, the vector kernels of simd/kernels-inl.h and an explicit
+// integrator's point update all inline into one function per target, and the entry points
+// at the end dispatch to the widest the CPU has once per sheet or block of rows. Contraction
+// into FMA is off here (engine/CMakeLists.txt), so every target gives the same bits.
+#include "simd/targets.h"
+
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "forces.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+#include <hwy/highway.h>
+
 #include "forces.h"
 
 #include <algorithm>
@@ -12,52 +25,80 @@
 #include "simd/kernels.h"
 #include "terms/terms.h"
 
-namespace drape::detail {
+#include "simd/kernels-inl.h"
 
+// What every target shares, compiled once: the cache budget and a wave's row ranges.
+#ifndef DRAPE_FORCES_SHARED_
+#define DRAPE_FORCES_SHARED_
+namespace drape::detail {
 namespace {
+
+constexpr std::size_t cache_budget = std::size_t(1) << 20;  // bytes: about an L2 cache
+constexpr std::size_t values_per_point = 11;                // x, v, f, 1/m, damping
+
+// The rows a block's wave steps: the block and up to `halo` = levels·R rows beyond each
+// edge. A halo row's neighbours outside the range are missing, so its state goes wrong R
+// rows further in at every substep: after `levels` substeps exactly the halo is wrong.
+struct WaveRange {
+  std::uint32_t lo, hi;
+};
+inline WaveRange wave_range(std::uint32_t rows, std::uint32_t halo, std::uint32_t row_begin, std::uint32_t row_end) {
+  return {row_begin > halo ? row_begin - halo : 0, std::min(rows, row_end + halo)};
+}
+
+template <class Real>
+std::uint32_t wave_halo(const Sheet<Real>& s, std::uint32_t levels) {
+  return levels * force_reach(s);
+}
+
+// Where halo row i lives in the block's copies: the rows above the block, then below.
+inline std::size_t halo_slot(WaveRange r, std::uint32_t row_begin, std::uint32_t row_end, std::uint32_t i) {
+  return i < row_begin ? i - r.lo : (row_begin - r.lo) + (i - row_end);
+}
+
+template <class Real>
+Vec3Ptr<Real> at(Vec3Array<Real>& a, std::size_t offset) {
+  return {a.x.data() + offset, a.y.data() + offset, a.z.data() + offset};
+}
+
+}  // namespace
+}  // namespace drape::detail
+#endif  // DRAPE_FORCES_SHARED_
+
+HWY_BEFORE_NAMESPACE();
+namespace drape::detail {
+namespace HWY_NAMESPACE {
+
+namespace kernels = simd::HWY_NAMESPACE;
 
 // Where a kernel finds k and ℓ of spring e: per-spring arrays, or one constant for the
 // whole run (Topology::uniform), chosen once per sheet so the loops carry no branch.
 template <class Real>
 struct PerSpring {
-  const Real* __restrict rest;
-  const Real* __restrict k;
-  Real rest_at(std::size_t e) const { return rest[e]; }
-  Real k_at(std::size_t e) const { return k[e]; }
+  static constexpr bool per_spring = true;
+  const Real* rest;
+  const Real* k;
   PerSpring offset(std::size_t e) const { return {rest + e, k + e}; }
   simd::SpringRun<Real>& into(simd::SpringRun<Real>& run) const { return run.per_spring(rest, k); }
 };
 
 template <class Real>
 struct SameSpring {
+  static constexpr bool per_spring = false;
   Real rest, k;
-  Real rest_at(std::size_t) const { return rest; }
-  Real k_at(std::size_t) const { return k; }
   SameSpring offset(std::size_t) const { return *this; }
   simd::SpringRun<Real>& into(simd::SpringRun<Real>& run) const { return run.same(rest, k); }
 };
 
 // Horizontal springs of one row: forces go to a scratch row first, so the scatter into
 // both endpoints becomes a dependency-free second loop the compiler can vectorise.
-// eq (6) runs in the Highway kernels (simd/kernels.h) in a DRAPE_SIMD_DISPATCH build, else
-// in the inline loop, which -march=native vectorises fused with its neighbours.
 template <class Real, class Springs>
 inline void row_springs(std::uint32_t n, const Real* __restrict x, const Real* __restrict y, const Real* __restrict z,
                         Springs springs, Real* __restrict sx, Real* __restrict sy, Real* __restrict sz,
                         Real* __restrict fx, Real* __restrict fy, Real* __restrict fz) {
-  if constexpr (DRAPE_SIMD_DISPATCH) {
-    // spring j joins points j and j + 1
-    auto run = simd::SpringRun<Real>::between(n, x, y, z, x + 1, y + 1, z + 1);
-    simd::springs(springs.into(run).store(sx, sy, sz));
-  } else {
-    for (std::uint32_t j = 0; j < n; ++j) {
-      const Real dx = x[j] - x[j + 1], dy = y[j] - y[j + 1], dz = z[j] - z[j + 1];
-      const Real s = spring_scale(dx, dy, dz, springs.rest_at(j), springs.k_at(j));
-      sx[j] = s * dx;
-      sy[j] = s * dy;
-      sz[j] = s * dz;
-    }
-  }
+  // spring j joins points j and j + 1
+  auto run = simd::SpringRun<Real>::between(n, x, y, z, x + 1, y + 1, z + 1);
+  kernels::springs_loop<Springs::per_spring, true, false, false>(springs.into(run).store(sx, sy, sz));
   // point j gets +s[j] from the spring on its right and −s[j−1] from the one on its left
   if (n == 0) {
     fx[0] = fy[0] = fz[0] = Real(0);
@@ -77,44 +118,28 @@ inline void row_springs(std::uint32_t n, const Real* __restrict x, const Real* _
 }
 
 // Vertical springs between row `a` and the row below it, `b`: no two iterations touch
-// the same point, so it vectorises as it stands, and the kernel adds to both rows directly
-// (which of the two runs: as in row_springs). A block of rows that does not own row a
-// (or b) still evaluates the spring, with the same arithmetic, and adds only to its own
-// row: forces of a row are then bit-identical however the sheet is split.
+// the same point, and the kernel adds to both rows directly. A block of rows that does not
+// own row a (or b) still evaluates the spring, with the same arithmetic, and adds only to
+// its own row: forces of a row are then bit-identical however the sheet is split.
 template <bool ToA, bool ToB, class Real, class Springs>
-inline void column_springs(std::uint32_t cols, const Real* __restrict xa, const Real* __restrict ya,
-                           const Real* __restrict za, const Real* __restrict xb, const Real* __restrict yb,
-                           const Real* __restrict zb, Springs springs, Real* __restrict fxa, Real* __restrict fya,
-                           Real* __restrict fza, Real* __restrict fxb, Real* __restrict fyb, Real* __restrict fzb) {
-  if constexpr (DRAPE_SIMD_DISPATCH) {
-    auto run = simd::SpringRun<Real>::between(cols, xa, ya, za, xb, yb, zb);
-    springs.into(run);
-    if constexpr (ToA) run.add(fxa, fya, fza);
-    if constexpr (ToB) run.sub(fxb, fyb, fzb);
-    simd::springs(run);
-  } else {
-    for (std::uint32_t j = 0; j < cols; ++j) {
-      const Real dx = xa[j] - xb[j], dy = ya[j] - yb[j], dz = za[j] - zb[j];
-      const Real s = spring_scale(dx, dy, dz, springs.rest_at(j), springs.k_at(j));
-      if constexpr (ToA) {
-        fxa[j] += s * dx;
-        fya[j] += s * dy;
-        fza[j] += s * dz;
-      }
-      if constexpr (ToB) {
-        fxb[j] -= s * dx;
-        fyb[j] -= s * dy;
-        fzb[j] -= s * dz;
-      }
-    }
-  }
+inline void column_springs(std::uint32_t cols, const Real* xa, const Real* ya, const Real* za, const Real* xb,
+                           const Real* yb, const Real* zb, Springs springs, Real* fxa, Real* fya, Real* fza, Real* fxb,
+                           Real* fyb, Real* fzb) {
+  auto run = simd::SpringRun<Real>::between(cols, xa, ya, za, xb, yb, zb);
+  springs.into(run);
+  if constexpr (ToA) run.add(fxa, fya, fza);
+  if constexpr (ToB) run.sub(fxb, fyb, fzb);
+  kernels::springs_loop<Springs::per_spring, false, ToA, ToB>(run);
 }
 
 // Row q arrives in a sweep: every row stencil whose last row is q adds its forces, in the
 // order of terms/terms.h: row q's own grid springs (which write, not add, its forces, so f
 // needs no clearing pass), the grid springs between rows q−1 and q, then the other terms.
+// Flattened: the terms' templates (terms/) are defined outside this file's per-target code,
+// so a call left to them would run the build's baseline instruction set; inlined here they
+// compile, and vectorise, for this target.
 template <class Real, class Springs, class Terms, class Window>
-inline void arrive(const Topology<Real>& t, Springs horizontal_springs, Springs vertical_springs, const Terms& terms,
+HWY_FLATTEN inline void arrive(const Topology<Real>& t, Springs horizontal_springs, Springs vertical_springs, const Terms& terms,
                    const Window& w, std::uint32_t q) {
   const std::uint32_t n = t.n, cols = t.cols();
   if (w.owns(q)) {
@@ -230,19 +255,40 @@ inline void damp(std::size_t count, const Real* __restrict c, const Real* __rest
   }
 }
 
-}  // namespace
+// What a sweep does with a row once its force is final: nothing (forces only), or one
+// explicit Euler step of its points (an integrator's per-point update, simd/kernels.h).
+struct NoUpdate {
+  template <class Real>
+  void operator()(std::size_t, Vec3Ptr<Real>, Vec3Ptr<Real>, ConstVec3Ptr<Real>, const Real*) const {}
+};
 
-template <class Real>
-void spring_forces(const Topology<Real>& t, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row,
-                   std::uint32_t row_begin, std::uint32_t row_end) {
-  with_springs(t, [&](auto horizontal, auto vertical) {
-    sweep_rows(t, horizontal, vertical, NoRowTerms{}, x, x, f, row, row_begin, row_end, [](std::uint32_t) {});
-  });
+template <bool SemiImplicit, class Real>
+struct EulerUpdate {
+  simd::EulerStep<Real> step;
+  void operator()(std::size_t count, Vec3Ptr<Real> x, Vec3Ptr<Real> v, ConstVec3Ptr<Real> f,
+                  const Real* inv_mass) const {
+    const auto u = simd::PointUpdate<Real>::of(count, x.x, x.y, x.z, v.x, v.y, v.z, f.x, f.y, f.z, inv_mass).step(step);
+    kernels::update_loop<SemiImplicit>(u);
+  }
+};
+
+// Calls body(update) with the update picked once per sweep: none for a null step.
+template <class Real, class Body>
+void with_update(const simd::EulerStep<Real>* step, Body body) {
+  if (!step)
+    body(NoUpdate{});
+  else if (step->semi_implicit)
+    body(EulerUpdate<true, Real>{*step});
+  else
+    body(EulerUpdate<false, Real>{*step});
 }
 
 template <class Real>
-void spring_forces(const Topology<Real>& t, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row) {
-  spring_forces(t, x, f, row, 0, t.rows());
+void spring_forces_of(const Topology<Real>& t, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row,
+                      std::uint32_t row_begin, std::uint32_t row_end) {
+  with_springs(t, [&](auto horizontal, auto vertical) {
+    sweep_rows(t, horizontal, vertical, NoRowTerms{}, x, x, f, row, row_begin, row_end, [](std::uint32_t) {});
+  });
 }
 
 // Terms 5–6 of terms/terms.h (damping, contacts) on the `count` points from the sheet's
@@ -265,8 +311,8 @@ inline void row_terms(const Sheet<Real>& s, std::size_t p, std::size_t count, Co
 }
 
 template <class Real>
-void sheet_forces_rows(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f, Vec3Ptr<Real> row,
-                       std::uint32_t row_begin, std::uint32_t row_end) {
+void sheet_forces_rows_of(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f,
+                          Vec3Ptr<Real> row, std::uint32_t row_begin, std::uint32_t row_end) {
   const Topology<Real>& t = *s.topology;
   const std::size_t cols = t.cols();
   sheet_sweep(s, x, v, f, row, row_begin, row_end,
@@ -277,39 +323,36 @@ void sheet_forces_rows(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> 
     if (an.point[a] >= begin && an.point[a] < end) add_anchor(an, a, x, f, an.point[a]);
 }
 
-namespace {
-constexpr std::size_t cache_budget = std::size_t(1) << 20;  // bytes: about an L2 cache
-constexpr std::size_t values_per_point = 11;                // x, v, f, 1/m, damping
-}  // namespace
-
-template <class Real>
-bool fits_cache_budget(const Sheet<Real>& s) {
-  return s.size() * values_per_point * sizeof(Real) <= cache_budget;
-}
-
-template <class Real>
-void sheet_forces_by_rows(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f, RowSink sink) {
+template <class Real, class Update>
+void sheet_forces_by_rows_with(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f,
+                               Update update) {
   const Topology<Real>& t = *s.topology;
   const auto& an = s.anchors;
   auto anchor = [&](std::size_t a) { add_anchor(an, a, x, f, an.point[a]); };
+  // the update moves the sheet's own points (x and v are the sheet's arrays whenever it runs)
+  auto move = [&](std::size_t p, std::size_t count) {
+    update(count, Vec3Ptr<Real>{s.position.x.data() + p, s.position.y.data() + p, s.position.z.data() + p},
+           Vec3Ptr<Real>{s.velocity.x.data() + p, s.velocity.y.data() + p, s.velocity.z.data() + p},
+           ConstVec3Ptr<Real>{f.x + p, f.y + p, f.z + p}, s.inv_mass.data() + p);
+  };
   // Obstacle forces (eq 9) follow the sheet's surface normal, which reads the rows on both
   // sides of a point, so they cannot be added row by row once earlier rows have moved.
-  // A sheet within the cache budget is in cache for the second pass anyway, and one sink
-  // call over all its points runs whole vectors where rows of a small sheet would run
-  // mostly in their scalar remainders (BM_Fig13 at small sizes, BM_WorldStep10kSheets).
+  // A sheet within the cache budget is in cache for the second pass anyway, and one update
+  // over all its points runs whole vectors where rows of a small sheet would run mostly in
+  // their remainders (BM_Fig13 at small sizes, BM_WorldStep10kSheets).
   if (!s.near_obstacles.empty() || !std::is_sorted(an.point.begin(), an.point.end()) || fits_cache_budget(s)) {
-    // finish every force first, then hand over the whole sheet
+    // finish every force first, then update the whole sheet
     sheet_sweep(s, x, v, f, ptr(s.row_scratch), 0, t.rows(),
                 [&](std::uint32_t i) { row_terms(s, std::size_t(i) * t.cols(), t.cols(), v, f); });
     for (std::size_t a = 0; a < an.point.size(); ++a) anchor(a);
     // eq (9): only obstacles the host stage found near this sheet
     for (const NearObstacle& o : s.near_obstacles) obstacle_forces(t, o, x, v, s.inv_mass.data(), f);
-    if (sink.done) sink.done(sink.context, 0, s.size());
+    move(0, s.size());
     return;
   }
   // Every term of row i is added as soon as its springs are final (same order as above:
-  // springs, damping, contacts, anchors), then the row goes to the sink while it is still
-  // in cache. A new per-point force term belongs in add_point_terms, a row stencil in
+  // springs, damping, contacts, anchors), then the row is updated while it is still in
+  // cache. A new per-point force term belongs in add_point_terms, a row stencil in
   // terms/terms.h; one that reads all rows' positions, like obstacles, must send its sheets
   // to the branch above.
   const std::uint32_t cols = t.cols();
@@ -318,53 +361,14 @@ void sheet_forces_by_rows(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Rea
     const std::size_t p = std::size_t(i) * cols;
     row_terms(s, p, cols, v, f);
     for (; next_anchor < an.point.size() && an.point[next_anchor] < p + cols; ++next_anchor) anchor(next_anchor);
-    if (sink.done) sink.done(sink.context, p, cols);
+    move(p, cols);
   });
 }
 
 template <class Real>
-void sheet_forces(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f) {
-  sheet_forces_by_rows(s, x, v, f, RowSink{});
-}
-
-template <class Real>
-bool wave_ready(const Sheet<Real>& s) {
-  return !s.has_contacts && s.near_obstacles.empty() && std::is_sorted(s.anchors.point.begin(), s.anchors.point.end()) &&
-         std::is_sorted(s.pins.point.begin(), s.pins.point.end());
-}
-
-std::uint32_t wave_levels(std::uint32_t cols, std::size_t bytes_per_value, std::uint32_t reach) {
-  // rows in flight: `reach` per substep, and about four more at the wave's front and back
-  const std::size_t rows = cache_budget / (std::max<std::size_t>(cols, 1) * values_per_point * bytes_per_value);
-  return rows > 4 + reach ? static_cast<std::uint32_t>(std::min<std::size_t>(64, (rows - 4) / reach)) : 1;
-}
-
-
-namespace {
-
-// The rows a block's wave steps: the block and up to `halo` = levels·R rows beyond each
-// edge. A halo row's neighbours outside the range are missing, so its state goes wrong R
-// rows further in at every substep: after `levels` substeps exactly the halo is wrong.
-struct WaveRange {
-  std::uint32_t lo, hi;
-};
-WaveRange wave_range(std::uint32_t rows, std::uint32_t halo, std::uint32_t row_begin, std::uint32_t row_end) {
-  return {row_begin > halo ? row_begin - halo : 0, std::min(rows, row_end + halo)};
-}
-
-template <class Real>
-std::uint32_t wave_halo(const Sheet<Real>& s, std::uint32_t levels) {
-  return levels * force_reach(s);
-}
-
-// Where halo row i lives in the block's copies: the rows above the block, then below.
-std::size_t halo_slot(WaveRange r, std::uint32_t row_begin, std::uint32_t row_end, std::uint32_t i) {
-  return i < row_begin ? i - r.lo : (row_begin - r.lo) + (i - row_end);
-}
-
-template <class Real>
-Vec3Ptr<Real> at(Vec3Array<Real>& a, std::size_t offset) {
-  return {a.x.data() + offset, a.y.data() + offset, a.z.data() + offset};
+void sheet_forces_by_rows_of(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f,
+                             const simd::EulerStep<Real>* step) {
+  with_update(step, [&](auto update) { sheet_forces_by_rows_with(s, x, v, f, update); });
 }
 
 // A wave's rows: the block's own from the sheet, halo rows from the copies, forces from
@@ -386,10 +390,10 @@ struct WaveRows {
   Vec3Ptr<Real> f(std::uint32_t i) const { return at(w->forces, std::size_t((i - range.lo) & mask) * cols); }
 };
 
-template <class Real, class Springs, class Terms>
+template <class Real, class Springs, class Terms, class Update>
 void wave_rows(Sheet<Real>& s, Springs horizontal_springs, Springs vertical_springs, const Terms& terms,
                std::uint32_t levels, std::uint32_t row_begin, std::uint32_t row_end, WaveScratch<Real>& w,
-               WaveSink<Real> sink, Aabb* swept) {
+               Update update, Aabb* swept) {
   const Topology<Real>& t = *s.topology;
   const std::uint32_t cols = t.cols(), reach = terms.reach();
   const WaveRange range = wave_range(t.rows(), levels * reach, row_begin, row_end);
@@ -415,7 +419,7 @@ void wave_rows(Sheet<Real>& s, Springs horizontal_springs, Springs vertical_spri
     add_point_terms<Real>(s, p, cols, v, f);
     for (std::size_t& a = w.next_anchor[level]; a < an.point.size() && an.point[a] < end; ++a)
       add_anchor(an, a, ConstVec3Ptr<Real>(x), f, an.point[a] - p);
-    if (sink.done) sink.done(sink.context, RowState<Real>{x, v, f, p, cols});
+    update(cols, x, v, ConstVec3Ptr<Real>(f), s.inv_mass.data() + p);
     for (std::size_t& k = w.next_pin[level]; k < pins.point.size() && pins.point[k] < end; ++k)
       hold_pin(pins, k, x, v, pins.point[k] - p);
     if (swept && i >= row_begin && i < row_end) include_points(*swept, x.x, x.y, x.z, cols);
@@ -434,7 +438,121 @@ void wave_rows(Sheet<Real>& s, Springs horizontal_springs, Springs vertical_spri
       if (wave - level * reach < steps) step(level, wave - level * reach);
 }
 
-}  // namespace
+template <class Real>
+void sheet_wave_of(Sheet<Real>& s, std::uint32_t levels, std::uint32_t row_begin, std::uint32_t row_end,
+                   WaveScratch<Real>& w, const simd::EulerStep<Real>& step, Aabb* swept) {
+  if (levels == 0 || row_begin >= row_end) return;
+  with_update(&step, [&](auto update) {
+    with_springs(*s.topology, [&](auto horizontal, auto vertical) {
+      if (has_row_terms(s))
+        wave_rows(s, horizontal, vertical, row_terms_of(s), levels, row_begin, row_end, w, update, swept);
+      else
+        wave_rows(s, horizontal, vertical, NoRowTerms{}, levels, row_begin, row_end, w, update, swept);
+    });
+  });
+}
+
+// The entry points HWY_EXPORT names, one per precision.
+#define DRAPE_FORCES_ENTRIES(Suffix, Real)                                                                         \
+  void SpringForces##Suffix(const Topology<Real>& t, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row,     \
+                            std::uint32_t row_begin, std::uint32_t row_end) {                                      \
+    spring_forces_of(t, x, f, row, row_begin, row_end);                                                            \
+  }                                                                                                                \
+  void SheetForcesRows##Suffix(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f,       \
+                               Vec3Ptr<Real> row, std::uint32_t row_begin, std::uint32_t row_end) {               \
+    sheet_forces_rows_of(s, x, v, f, row, row_begin, row_end);                                                     \
+  }                                                                                                                \
+  void SheetForcesByRows##Suffix(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f,     \
+                                 const simd::EulerStep<Real>* step) {                                              \
+    sheet_forces_by_rows_of(s, x, v, f, step);                                                                     \
+  }                                                                                                                \
+  void SheetWave##Suffix(Sheet<Real>& s, std::uint32_t levels, std::uint32_t row_begin, std::uint32_t row_end,    \
+                         WaveScratch<Real>& w, const simd::EulerStep<Real>& step, Aabb* swept) {                   \
+    sheet_wave_of(s, levels, row_begin, row_end, w, step, swept);                                                  \
+  }
+DRAPE_FORCES_ENTRIES(F64, double)
+DRAPE_FORCES_ENTRIES(F32, float)
+#undef DRAPE_FORCES_ENTRIES
+
+}  // namespace HWY_NAMESPACE
+}  // namespace drape::detail
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace drape::detail {
+
+HWY_EXPORT(SpringForcesF64);
+HWY_EXPORT(SpringForcesF32);
+HWY_EXPORT(SheetForcesRowsF64);
+HWY_EXPORT(SheetForcesRowsF32);
+HWY_EXPORT(SheetForcesByRowsF64);
+HWY_EXPORT(SheetForcesByRowsF32);
+HWY_EXPORT(SheetWaveF64);
+HWY_EXPORT(SheetWaveF32);
+
+// One dispatch per call: a sheet, or a block of its rows, per substep (or per wave).
+template <class Real>
+void spring_forces(const Topology<Real>& t, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row,
+                   std::uint32_t row_begin, std::uint32_t row_end) {
+  if constexpr (std::is_same_v<Real, double>)
+    HWY_DYNAMIC_DISPATCH(SpringForcesF64)(t, x, f, row, row_begin, row_end);
+  else
+    HWY_DYNAMIC_DISPATCH(SpringForcesF32)(t, x, f, row, row_begin, row_end);
+}
+
+template <class Real>
+void spring_forces(const Topology<Real>& t, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row) {
+  spring_forces(t, x, f, row, 0, t.rows());
+}
+
+template <class Real>
+void sheet_forces_rows(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f, Vec3Ptr<Real> row,
+                       std::uint32_t row_begin, std::uint32_t row_end) {
+  if constexpr (std::is_same_v<Real, double>)
+    HWY_DYNAMIC_DISPATCH(SheetForcesRowsF64)(s, x, v, f, row, row_begin, row_end);
+  else
+    HWY_DYNAMIC_DISPATCH(SheetForcesRowsF32)(s, x, v, f, row, row_begin, row_end);
+}
+
+template <class Real>
+void sheet_forces_by_rows(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f,
+                          const simd::EulerStep<Real>* step) {
+  if constexpr (std::is_same_v<Real, double>)
+    HWY_DYNAMIC_DISPATCH(SheetForcesByRowsF64)(s, x, v, f, step);
+  else
+    HWY_DYNAMIC_DISPATCH(SheetForcesByRowsF32)(s, x, v, f, step);
+}
+
+template <class Real>
+void sheet_forces(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f) {
+  sheet_forces_by_rows<Real>(s, x, v, f, nullptr);
+}
+
+template <class Real>
+void sheet_wave(Sheet<Real>& s, std::uint32_t levels, std::uint32_t row_begin, std::uint32_t row_end,
+                WaveScratch<Real>& w, const simd::EulerStep<Real>& step, Aabb* swept) {
+  if constexpr (std::is_same_v<Real, double>)
+    HWY_DYNAMIC_DISPATCH(SheetWaveF64)(s, levels, row_begin, row_end, w, step, swept);
+  else
+    HWY_DYNAMIC_DISPATCH(SheetWaveF32)(s, levels, row_begin, row_end, w, step, swept);
+}
+
+template <class Real>
+bool fits_cache_budget(const Sheet<Real>& s) {
+  return s.size() * values_per_point * sizeof(Real) <= cache_budget;
+}
+
+template <class Real>
+bool wave_ready(const Sheet<Real>& s) {
+  return !s.has_contacts && s.near_obstacles.empty() && std::is_sorted(s.anchors.point.begin(), s.anchors.point.end()) &&
+         std::is_sorted(s.pins.point.begin(), s.pins.point.end());
+}
+
+std::uint32_t wave_levels(std::uint32_t cols, std::size_t bytes_per_value, std::uint32_t reach) {
+  // rows in flight: `reach` per substep, and about four more at the wave's front and back
+  const std::size_t rows = cache_budget / (std::max<std::size_t>(cols, 1) * values_per_point * bytes_per_value);
+  return rows > 4 + reach ? static_cast<std::uint32_t>(std::min<std::size_t>(64, (rows - 4) / reach)) : 1;
+}
 
 template <class Real>
 void wave_take_halo(const Sheet<Real>& s, std::uint32_t levels, std::uint32_t row_begin, std::uint32_t row_end,
@@ -458,18 +576,6 @@ void wave_take_halo(const Sheet<Real>& s, std::uint32_t levels, std::uint32_t ro
   for (std::uint32_t i = row_end; i < range.hi; ++i) copy(i);
 }
 
-template <class Real>
-void sheet_wave(Sheet<Real>& s, std::uint32_t levels, std::uint32_t row_begin, std::uint32_t row_end,
-                WaveScratch<Real>& w, WaveSink<Real> sink, Aabb* swept) {
-  if (levels == 0 || row_begin >= row_end) return;
-  with_springs(*s.topology, [&](auto horizontal, auto vertical) {
-    if (has_row_terms(s))
-      wave_rows(s, horizontal, vertical, row_terms_of(s), levels, row_begin, row_end, w, sink, swept);
-    else
-      wave_rows(s, horizontal, vertical, NoRowTerms{}, levels, row_begin, row_end, w, sink, swept);
-  });
-}
-
 template void spring_forces<double>(const Topology<double>&, ConstVec3Ptr<double>, Vec3Ptr<double>, Vec3Ptr<double>);
 template void spring_forces<float>(const Topology<float>&, ConstVec3Ptr<float>, Vec3Ptr<float>, Vec3Ptr<float>);
 template void spring_forces<double>(const Topology<double>&, ConstVec3Ptr<double>, Vec3Ptr<double>, Vec3Ptr<double>,
@@ -491,12 +597,13 @@ template void wave_take_halo<double>(const Sheet<double>&, std::uint32_t, std::u
 template void wave_take_halo<float>(const Sheet<float>&, std::uint32_t, std::uint32_t, std::uint32_t,
                                     WaveScratch<float>&);
 template void sheet_wave<double>(Sheet<double>&, std::uint32_t, std::uint32_t, std::uint32_t, WaveScratch<double>&,
-                                 WaveSink<double>, Aabb*);
+                                 const simd::EulerStep<double>&, Aabb*);
 template void sheet_wave<float>(Sheet<float>&, std::uint32_t, std::uint32_t, std::uint32_t, WaveScratch<float>&,
-                                WaveSink<float>, Aabb*);
+                                const simd::EulerStep<float>&, Aabb*);
 template void sheet_forces_by_rows<double>(Sheet<double>&, ConstVec3Ptr<double>, ConstVec3Ptr<double>, Vec3Ptr<double>,
-                                           RowSink);
+                                           const simd::EulerStep<double>*);
 template void sheet_forces_by_rows<float>(Sheet<float>&, ConstVec3Ptr<float>, ConstVec3Ptr<float>, Vec3Ptr<float>,
-                                          RowSink);
+                                          const simd::EulerStep<float>*);
 
 }  // namespace drape::detail
+#endif  // HWY_ONCE

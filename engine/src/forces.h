@@ -6,6 +6,7 @@
 
 #include "bounds.h"
 #include "sheet_data.h"
+#include "simd/kernels.h"
 #include "terms/rows.h"
 
 namespace drape::detail {
@@ -57,26 +58,16 @@ void sheet_forces_rows(Sheet<Real>& sheet, ConstVec3Ptr<Real> x, ConstVec3Ptr<Re
 template <class Real>
 void sheet_forces(Sheet<Real>& sheet, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f);
 
-// Receives points [first, first + count) of a sheet once their total force is final.
-struct RowSink {
-  void* context = nullptr;
-  void (*done)(void* context, std::size_t first, std::size_t count) = nullptr;
-
-  // Wraps a callable taking (first, count); it must outlive the sink.
-  template <class F>
-  static RowSink of(F& f) {
-    return {&f, [](void* c, std::size_t first, std::size_t count) { (*static_cast<F*>(c))(first, count); }};
-  }
-};
-
-// sheet_forces, handing each row to `sink` as soon as its force is final, while it is
-// still in cache. An explicit integrator may move the row's points (x, v) in the sink: no
-// later force of this sweep reads them. This saves the integrator a pass over the whole
-// sheet's forces (a sheet beyond the caches streams half the bytes per step). A sheet
-// within the cache budget (fits_cache_budget) gets one call for all its points instead.
+// sheet_forces, then, when `step` is given, that explicit Euler step of the sheet's own
+// points (x and v are then the sheet's position and velocity): each row is moved as soon
+// as its force is final, while it is still in cache, since no later force of this sweep
+// reads it. This saves the integrator a pass over the whole sheet's forces (a sheet beyond
+// the caches streams half the bytes per step). A sheet within the cache budget
+// (fits_cache_budget), or with obstacles near it, is moved in one pass after its forces.
+// The sweep and the update run on one instruction set, chosen once per call (forces.cpp).
 template <class Real>
 void sheet_forces_by_rows(Sheet<Real>& sheet, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f,
-                          RowSink sink);
+                          const simd::EulerStep<Real>* step);
 
 // ---- Several substeps in one sweep (temporal blocking) ------------------------------
 //
@@ -86,26 +77,6 @@ void sheet_forces_by_rows(Sheet<Real>& sheet, ConstVec3Ptr<Real> x, ConstVec3Ptr
 // `levels` substeps walks the rows as a wave, substep ℓ R rows behind substep ℓ−1, and a sheet beyond the caches is streamed from memory once
 // per `levels` substeps instead of once per substep, while its arithmetic, row by row and
 // term by term, is that of `levels` separate sweeps: the state is bit-identical.
-
-// One row of a wave, handed to the integrator once its force is final: it moves x and v.
-template <class Real>
-struct RowState {
-  Vec3Ptr<Real> x, v;
-  ConstVec3Ptr<Real> f;
-  std::size_t first;   // the sheet's index of the row's first point (for per-point arrays)
-  std::uint32_t count; // points in the row
-};
-
-template <class Real>
-struct WaveSink {
-  void* context = nullptr;
-  void (*done)(void* context, const RowState<Real>& row) = nullptr;
-
-  template <class F>
-  static WaveSink of(F& f) {
-    return {&f, [](void* c, const RowState<Real>& row) { (*static_cast<F*>(c))(row); }};
-  }
-};
 
 // Scratch of one wave: the force rows in flight (a ring), the spring row, the anchor and
 // pin cursors of each substep, and, for a block of a split sheet, private copies of the
@@ -131,8 +102,8 @@ std::uint32_t wave_levels(std::uint32_t cols, std::size_t bytes_per_value, std::
 template <class Real>
 bool fits_cache_budget(const Sheet<Real>& sheet);
 
-// Moves rows [row_begin, row_end) of a wave_ready sheet `levels` substeps ahead, calling
-// `sink` for every row and substep in order, then setting the row's pins; `swept`, when
+// Moves rows [row_begin, row_end) of a wave_ready sheet `levels` substeps ahead by `step`,
+// row by row and substep by substep, then sets the row's pins; `swept`, when
 // given, grows to contain those rows at every substep. Rows outside the range are not
 // written. A block that is not the whole sheet also steps the levels·R
 // rows beyond each of its edges, in copies: call wave_take_halo for every block of the
@@ -142,6 +113,6 @@ void wave_take_halo(const Sheet<Real>& sheet, std::uint32_t levels, std::uint32_
                     WaveScratch<Real>& scratch);
 template <class Real>
 void sheet_wave(Sheet<Real>& sheet, std::uint32_t levels, std::uint32_t row_begin, std::uint32_t row_end,
-                WaveScratch<Real>& scratch, WaveSink<Real> sink, Aabb* swept = nullptr);
+                WaveScratch<Real>& scratch, const simd::EulerStep<Real>& step, Aabb* swept = nullptr);
 
 }  // namespace drape::detail

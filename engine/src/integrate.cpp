@@ -29,75 +29,19 @@ void apply_pins(Sheet<Real>& s, std::size_t begin = 0, std::size_t end = SIZE_MA
     if (pins.point[k] >= begin && pins.point[k] < end) hold_pin(pins, k, ptr(s.position), ptr(s.velocity), pins.point[k]);
 }
 
-// Both first-order updates run over all three axes in one pass, so inv_mass is read once
-// and every array is streamed once per substep.
+// The first-order step of an integrator: forward Euler (x and v both advance from the old
+// state) or semi-implicit Euler (the new velocity moves the point), simd/kernels.h.
 template <class Real>
-struct FirstOrderArrays {
-  Real* __restrict x;
-  Real* __restrict y;
-  Real* __restrict z;
-  Real* __restrict vx;
-  Real* __restrict vy;
-  Real* __restrict vz;
-  const Real* __restrict fx;
-  const Real* __restrict fy;
-  const Real* __restrict fz;
-  const Real* __restrict inv_mass;
-};
-
-// Forward Euler (SemiImplicit = false): x and v both advance from the old state.
-// Semi-implicit Euler (SemiImplicit = true): the new velocity moves the point.
-// A DRAPE_SIMD_DISPATCH build runs the Highway kernel of simd/kernels.h, any other the
-// inline loop, which -march=native vectorises.
-template <class Real, bool SemiImplicit>
-void first_order_update(std::size_t count, const StepParams<Real>& p, FirstOrderArrays<Real> a) {
-  if constexpr (DRAPE_SIMD_DISPATCH) {
-    simd::update_points(simd::PointUpdate<Real>::of(count, a.x, a.y, a.z, a.vx, a.vy, a.vz, a.fx, a.fy, a.fz,
-                                                    a.inv_mass)
-                            .step(p.dt, p.gx, p.gy, p.gz, SemiImplicit));
-  } else {
-    Real* __restrict x = a.x;
-    Real* __restrict y = a.y;
-    Real* __restrict z = a.z;
-    Real* __restrict vx = a.vx;
-    Real* __restrict vy = a.vy;
-    Real* __restrict vz = a.vz;
-    const Real* __restrict fx = a.fx;
-    const Real* __restrict fy = a.fy;
-    const Real* __restrict fz = a.fz;
-    const Real* __restrict im = a.inv_mass;
-    const Real dt = p.dt, gx = p.gx, gy = p.gy, gz = p.gz;
-    for (std::size_t i = 0; i < count; ++i) {
-      if constexpr (!SemiImplicit) {
-        x[i] += dt * vx[i];
-        y[i] += dt * vy[i];
-        z[i] += dt * vz[i];
-      }
-      vx[i] += dt * (fx[i] * im[i] + gx);
-      vy[i] += dt * (fy[i] * im[i] + gy);
-      vz[i] += dt * (fz[i] * im[i] + gz);
-      if constexpr (SemiImplicit) {
-        x[i] += dt * vx[i];
-        y[i] += dt * vy[i];
-        z[i] += dt * vz[i];
-      }
-    }
-  }
+simd::EulerStep<Real> euler_step(const StepParams<Real>& p, bool semi_implicit) {
+  return {p.dt, p.gx, p.gy, p.gz, semi_implicit};
 }
 
-// Each row is updated as soon as its force is final (sheet_forces_by_rows), so forces
-// never leave the cache.
-template <class Real, class Update>
-void first_order_step(Sheet<Real>& s, const StepParams<Real>& p, Update update) {
-  auto row_done = [&](std::size_t first, std::size_t count) {
-    update(count, p,
-           FirstOrderArrays<Real>{s.position.x.data() + first, s.position.y.data() + first,
-                                  s.position.z.data() + first, s.velocity.x.data() + first,
-                                  s.velocity.y.data() + first, s.velocity.z.data() + first,
-                                  s.force.x.data() + first, s.force.y.data() + first, s.force.z.data() + first,
-                                  s.inv_mass.data() + first});
-  };
-  sheet_forces_by_rows(s, cptr(s.position), cptr(s.velocity), ptr(s.force), RowSink::of(row_done));
+// Each row is updated as soon as its force is final, in the same sweep and on the same
+// instruction set (sheet_forces_by_rows), so forces never leave the cache.
+template <class Real, bool SemiImplicit>
+void first_order_step(Sheet<Real>& s, const StepParams<Real>& p) {
+  const simd::EulerStep<Real> step = euler_step(p, SemiImplicit);
+  sheet_forces_by_rows(s, cptr(s.position), cptr(s.velocity), ptr(s.force), &step);
 }
 
 // a = f(x, v)/m + g into s.force, with pinned points held at zero acceleration so that
@@ -212,11 +156,9 @@ void rk4_step(Sheet<Real>& s, const StepParams<Real>& p) {
 
 // Per-point first-order updates as whole-sheet steps, for the table.
 template <class Real>
-void forward_euler_step(Sheet<Real>& s, const StepParams<Real>& p) { first_order_step(s, p, first_order_update<Real, false>); }
+void forward_euler_step(Sheet<Real>& s, const StepParams<Real>& p) { first_order_step<Real, false>(s, p); }
 template <class Real>
-void semi_implicit_euler_step(Sheet<Real>& s, const StepParams<Real>& p) {
-  first_order_step(s, p, first_order_update<Real, true>);
-}
+void semi_implicit_euler_step(Sheet<Real>& s, const StepParams<Real>& p) { first_order_step<Real, true>(s, p); }
 
 double forward_euler_limit(double omega) { return std::numbers::ln2 / (omega * omega); }
 double interval_two(double omega) { return 2.0 / omega; }
@@ -304,40 +246,26 @@ void record_solve(SolveStats& stats, int iterations, double relative_residual, b
 template <class Real>
 void update_points(Integrator integrator, Sheet<Real>& s, const StepParams<Real>& p, std::size_t begin,
                    std::size_t end) {
-  // the same update as the whole-sheet step, on this block's points only
-  auto run = [&](auto update) {
-    update(end - begin, p,
-           FirstOrderArrays<Real>{s.position.x.data() + begin, s.position.y.data() + begin,
-                                  s.position.z.data() + begin, s.velocity.x.data() + begin,
-                                  s.velocity.y.data() + begin, s.velocity.z.data() + begin,
-                                  s.force.x.data() + begin, s.force.y.data() + begin, s.force.z.data() + begin,
-                                  s.inv_mass.data() + begin});
-  };
-  switch (integrator) {
-    case Integrator::ForwardEuler: run(first_order_update<Real, false>); break;
-    case Integrator::SemiImplicitEuler: run(first_order_update<Real, true>); break;
-    default: break;  // updates_per_point() keeps the other integrators whole: never split
+  // the same update as the whole-sheet step, on this block's points only (one dispatch per block)
+  if (integrator == Integrator::ForwardEuler || integrator == Integrator::SemiImplicitEuler) {
+    const std::size_t b = begin;
+    simd::update_points(simd::PointUpdate<Real>::of(end - begin, s.position.x.data() + b, s.position.y.data() + b,
+                                                    s.position.z.data() + b, s.velocity.x.data() + b,
+                                                    s.velocity.y.data() + b, s.velocity.z.data() + b,
+                                                    s.force.x.data() + b, s.force.y.data() + b, s.force.z.data() + b,
+                                                    s.inv_mass.data() + b)
+                            .step(euler_step(p, integrator == Integrator::SemiImplicitEuler)));
   }
+  // the other integrators: updates_per_point() keeps them whole, never split
   apply_pins(s, begin, end);
 }
 
 template <class Real>
 void integrate_wave(Integrator integrator, Sheet<Real>& s, const StepParams<Real>& p, std::uint32_t levels,
                     std::uint32_t row_begin, std::uint32_t row_end, WaveScratch<Real>& scratch, Aabb* swept) {
-  // the update is a template argument, not a function pointer, so it inlines into the sink
-  auto run = [&]<bool SemiImplicit>() {
-    auto row_done = [&](const RowState<Real>& r) {
-      first_order_update<Real, SemiImplicit>(r.count, p,
-                                             FirstOrderArrays<Real>{r.x.x, r.x.y, r.x.z, r.v.x, r.v.y, r.v.z, r.f.x,
-                                                                    r.f.y, r.f.z, s.inv_mass.data() + r.first});
-    };
-    sheet_wave(s, levels, row_begin, row_end, scratch, WaveSink<Real>::of(row_done), swept);
-  };
-  switch (integrator) {
-    case Integrator::ForwardEuler: run.template operator()<false>(); break;
-    case Integrator::SemiImplicitEuler: run.template operator()<true>(); break;
-    default: break;  // updates_per_point() integrators only
-  }
+  // updates_per_point() integrators only
+  if (integrator != Integrator::ForwardEuler && integrator != Integrator::SemiImplicitEuler) return;
+  sheet_wave(s, levels, row_begin, row_end, scratch, euler_step(p, integrator == Integrator::SemiImplicitEuler), swept);
 }
 
 template void integrate_wave<double>(Integrator, Sheet<double>&, const StepParams<double>&, std::uint32_t,

@@ -1,5 +1,19 @@
 // Obstacles (paper §3, eq 9): implicit functions of plane, sphere, ellipsoid, torus and box
 // with analytic gradients, and the repulsion c·exp(−f/ξ) around them.
+//
+// Highway's foreach_target compiles the eq (9) term once per instruction set
+// (simd/targets.h), like the row sweep (forces.cpp): its omp simd loops vectorise for each,
+// and obstacle_forces dispatches to the widest the CPU has once per sheet and obstacle.
+// Contraction into FMA is off here (engine/CMakeLists.txt), so every target gives the same
+// bits. The rest (validation, placement, energies) is compiled once and uses the build's
+// own target's copy of the shapes.
+#include "simd/targets.h"
+
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "obstacles.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+#include <hwy/highway.h>
+
 #include "obstacles.h"
 
 #include <algorithm>
@@ -8,54 +22,11 @@
 #include <cmath>
 #include <limits>
 #include <sstream>
+#include <type_traits>
 
-namespace drape {
-
-namespace {
-
-bool positive(double v) { return std::isfinite(v) && v > 0; }
-
-}  // namespace
-
-std::string validate(const ObstacleDef& d) {
-  std::ostringstream out;
-  auto fail = [&](const char* field, const char* what, double got) {
-    out << field << " " << what << " (got " << got << ")";
-    return out.str();
-  };
-  if (!std::isfinite(d.center.x) || !std::isfinite(d.center.y) || !std::isfinite(d.center.z))
-    return "center must be finite";
-  const Quat& q = d.orientation;
-  const double qn = q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z;
-  if (!(std::abs(qn - 1.0) < 1e-6)) return fail("orientation", "must be a unit quaternion; its norm² is", qn);
-  if (!positive(d.c)) return fail("c", "must be positive and finite", d.c);
-  if (!positive(d.xi)) return fail("xi", "must be positive and finite", d.xi);
-  if (!positive(d.max_exponent)) return fail("max_exponent", "must be positive and finite", d.max_exponent);
-  if (!(std::isfinite(d.friction) && d.friction >= 0)) return fail("friction", "must be non-negative and finite", d.friction);
-  if (d.motion)
-    if (std::string problem = validate(*d.motion); !problem.empty()) return "motion." + problem;
-  switch (d.shape) {
-    case ObstacleShape::Plane: break;
-    case ObstacleShape::Sphere:
-      if (!positive(d.size.x)) return fail("size.x (radius)", "must be positive and finite", d.size.x);
-      break;
-    case ObstacleShape::Torus:
-      if (!positive(d.size.x)) return fail("size.x (major radius)", "must be positive and finite", d.size.x);
-      if (!positive(d.size.y)) return fail("size.y (minor radius)", "must be positive and finite", d.size.y);
-      break;
-    case ObstacleShape::Ellipsoid:
-    case ObstacleShape::Box:
-      if (!positive(d.size.x)) return fail("size.x", "must be positive and finite", d.size.x);
-      if (!positive(d.size.y)) return fail("size.y", "must be positive and finite", d.size.y);
-      if (!positive(d.size.z)) return fail("size.z", "must be positive and finite", d.size.z);
-      break;
-  }
-  return {};
-}
-
-namespace detail {
-
-namespace {
+HWY_BEFORE_NAMESPACE();
+namespace drape::detail {
+namespace HWY_NAMESPACE {
 
 // Local implicit functions: f and ∇f of a point p in the obstacle's own frame. Where the
 // gradient has no direction (a sphere's centre, a torus's axis or core circle) a fixed unit
@@ -212,10 +183,17 @@ inline void implicit_chunk(const Obstacle& o, const Real* x, const Real* y, cons
   }
 }
 
+// The per-point pieces of the loops below (the projection, friction, the point's force)
+// must inline into their `#pragma omp simd` loops: a call left in one makes the loop scalar
+// with a call per point. GCC's inliner gave up on them once the moving-obstacle slip made
+// the friction point's body bigger (19b3f0b: friction went from +40-60 % to +600-1000 % of a
+// frictionless floor, BM_Feature_obstacle_friction), so they are forced.
+#define DRAPE_POINT_INLINE __attribute__((always_inline))
+
 // eq (9)'s projection on the sheet's unit normal n = a × b, a and b the differences across
 // the point along its row and its column: F·n/|n|² n. A lone point or row has no normal
 // (|n| = 0) and keeps the full gradient.
-inline void project_on_normal(double ax, double ay, double az, double bx, double by, double bz, double& fx, double& fy,
+DRAPE_POINT_INLINE inline void project_on_normal(double ax, double ay, double az, double bx, double by, double bz, double& fx, double& fy,
                               double& fz) {
   const double nx = ay * bz - az * by, ny = az * bx - ax * bz, nz = ax * by - ay * bx;
   const double nn = nx * nx + ny * ny + nz * nz;
@@ -232,7 +210,8 @@ inline void project_on_normal(double ax, double ay, double az, double bx, double
 // of μ·N and m·|v*_t|/dt (what stops the slip within the substep). Adds it to F.
 struct Rub {
   double mu, dt, gravity[3];
-  void operator()(const double g[3], double F[3], const double total[3], const double v[3], double inv_mass) const {
+  DRAPE_POINT_INLINE void operator()(const double g[3], double F[3], const double total[3], const double v[3],
+                                     double inv_mass) const {
     const double g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
     const double inv_g2 = g2 > 0 ? 1.0 / g2 : 0.0;
     const double along = F[0] * g[0] + F[1] * g[1] + F[2] * g[2];
@@ -272,7 +251,7 @@ void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near,
 #pragma omp simd
       for (std::uint32_t k = 0; k < count; ++k) c.s[k] = scale(c.f[k]);
       // the force on point j0 + k, written back into f (and projected first, for eq (9))
-      auto apply = [&](std::uint32_t k, std::uint32_t l, std::uint32_t r) {
+      auto apply = [&](std::uint32_t k, std::uint32_t l, std::uint32_t r) DRAPE_POINT_INLINE {
         const std::size_t p = p0 + k, j = j0 + k;
         double F[3] = {c.s[k] * c.gx[k], c.s[k] * c.gy[k], c.s[k] * c.gz[k]};
         if constexpr (project)
@@ -319,7 +298,82 @@ void repel_shape(const Topology<Real>& t, const NearObstacle& near, ConstVec3Ptr
   }
 }
 
+template <class Real>
+void obstacle_forces_of(const Topology<Real>& t, const NearObstacle& near, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v,
+                     const Real* inv_mass, Vec3Ptr<Real> f) {
+  const bool project = !near.obstacle->def.full_gradient, rub = near.friction > 0;
+  if (project && rub) repel_shape<true, true>(t, near, x, v, inv_mass, f);
+  if (project && !rub) repel_shape<true, false>(t, near, x, v, inv_mass, f);
+  if (!project && rub) repel_shape<false, true>(t, near, x, v, inv_mass, f);
+  if (!project && !rub) repel_shape<false, false>(t, near, x, v, inv_mass, f);
+}
+
+
+void ObstacleForcesF64(const Topology<double>& t, const NearObstacle& near, ConstVec3Ptr<double> x,
+                       ConstVec3Ptr<double> v, const double* inv_mass, Vec3Ptr<double> f) {
+  obstacle_forces_of(t, near, x, v, inv_mass, f);
+}
+void ObstacleForcesF32(const Topology<float>& t, const NearObstacle& near, ConstVec3Ptr<float> x,
+                       ConstVec3Ptr<float> v, const float* inv_mass, Vec3Ptr<float> f) {
+  obstacle_forces_of(t, near, x, v, inv_mass, f);
+}
+
+}  // namespace HWY_NAMESPACE
+}  // namespace drape::detail
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace drape {
+
+namespace {
+
+bool positive(double v) { return std::isfinite(v) && v > 0; }
+
 }  // namespace
+
+std::string validate(const ObstacleDef& d) {
+  std::ostringstream out;
+  auto fail = [&](const char* field, const char* what, double got) {
+    out << field << " " << what << " (got " << got << ")";
+    return out.str();
+  };
+  if (!std::isfinite(d.center.x) || !std::isfinite(d.center.y) || !std::isfinite(d.center.z))
+    return "center must be finite";
+  const Quat& q = d.orientation;
+  const double qn = q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z;
+  if (!(std::abs(qn - 1.0) < 1e-6)) return fail("orientation", "must be a unit quaternion; its norm² is", qn);
+  if (!positive(d.c)) return fail("c", "must be positive and finite", d.c);
+  if (!positive(d.xi)) return fail("xi", "must be positive and finite", d.xi);
+  if (!positive(d.max_exponent)) return fail("max_exponent", "must be positive and finite", d.max_exponent);
+  if (!(std::isfinite(d.friction) && d.friction >= 0)) return fail("friction", "must be non-negative and finite", d.friction);
+  if (d.motion)
+    if (std::string problem = validate(*d.motion); !problem.empty()) return "motion." + problem;
+  switch (d.shape) {
+    case ObstacleShape::Plane: break;
+    case ObstacleShape::Sphere:
+      if (!positive(d.size.x)) return fail("size.x (radius)", "must be positive and finite", d.size.x);
+      break;
+    case ObstacleShape::Torus:
+      if (!positive(d.size.x)) return fail("size.x (major radius)", "must be positive and finite", d.size.x);
+      if (!positive(d.size.y)) return fail("size.y (minor radius)", "must be positive and finite", d.size.y);
+      break;
+    case ObstacleShape::Ellipsoid:
+    case ObstacleShape::Box:
+      if (!positive(d.size.x)) return fail("size.x", "must be positive and finite", d.size.x);
+      if (!positive(d.size.y)) return fail("size.y", "must be positive and finite", d.size.y);
+      if (!positive(d.size.z)) return fail("size.z", "must be positive and finite", d.size.z);
+      break;
+  }
+  return {};
+}
+
+namespace detail {
+
+// The static target's copy of the per-target code, for what runs once.
+namespace here = HWY_NAMESPACE;
+
+HWY_EXPORT(ObstacleForcesF64);
+HWY_EXPORT(ObstacleForcesF32);
 
 Obstacle make_obstacle(const ObstacleDef& def) {
   Obstacle o;
@@ -359,11 +413,11 @@ Obstacle make_obstacle(const ObstacleDef& def) {
 
 ImplicitSample implicit_at(const Obstacle& o, const double p[3]) {
   switch (o.def.shape) {
-    case ObstacleShape::Plane: return sample<plane_f>(o, p);
-    case ObstacleShape::Sphere: return sample<sphere_f>(o, p);
-    case ObstacleShape::Ellipsoid: return sample<ellipsoid_f>(o, p);
-    case ObstacleShape::Torus: return sample<torus_f>(o, p);
-    case ObstacleShape::Box: return sample<box_f>(o, p);
+    case ObstacleShape::Plane: return here::sample<here::plane_f>(o, p);
+    case ObstacleShape::Sphere: return here::sample<here::sphere_f>(o, p);
+    case ObstacleShape::Ellipsoid: return here::sample<here::ellipsoid_f>(o, p);
+    case ObstacleShape::Torus: return here::sample<here::torus_f>(o, p);
+    case ObstacleShape::Box: return here::sample<here::box_f>(o, p);
   }
   return {};
 }
@@ -381,7 +435,7 @@ double potential_energy(const ObstacleDef& d, double f, double cap) {
   return d.c * (std::exp(cap) - t) * (1.0 + (e - cap)) - d.c * t * (reach_exponent + cap);
 }
 
-double potential_force_scale(const ObstacleDef& d, double f, double cap) { return force_scale_of(d, cap)(f); }
+double potential_force_scale(const ObstacleDef& d, double f, double cap) { return here::force_scale_of(d, cap)(f); }
 
 bool may_touch(const Obstacle& o, const Aabb& box) {
   if (o.bounded) return overlaps(o.reach, box);
@@ -389,19 +443,20 @@ bool may_touch(const Obstacle& o, const Aabb& box) {
   double lowest = std::numeric_limits<double>::infinity();
   for (int c = 0; c < 8; ++c) {
     const double p[3] = {c & 1 ? box.hi[0] : box.lo[0], c & 2 ? box.hi[1] : box.lo[1], c & 4 ? box.hi[2] : box.lo[2]};
-    lowest = std::min(lowest, sample<plane_f>(o, p).f);
+    lowest = std::min(lowest, here::sample<here::plane_f>(o, p).f);
   }
   return lowest < o.reach_distance;
 }
 
+// One dispatch per sheet and obstacle per substep: the chunks, the shapes' f and ∇f, the
+// force scale, the projection and friction run on the widest instruction set the CPU has.
 template <class Real>
 void obstacle_forces(const Topology<Real>& t, const NearObstacle& near, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v,
                      const Real* inv_mass, Vec3Ptr<Real> f) {
-  const bool project = !near.obstacle->def.full_gradient, rub = near.friction > 0;
-  if (project && rub) repel_shape<true, true>(t, near, x, v, inv_mass, f);
-  if (project && !rub) repel_shape<true, false>(t, near, x, v, inv_mass, f);
-  if (!project && rub) repel_shape<false, true>(t, near, x, v, inv_mass, f);
-  if (!project && !rub) repel_shape<false, false>(t, near, x, v, inv_mass, f);
+  if constexpr (std::is_same_v<Real, double>)
+    HWY_DYNAMIC_DISPATCH(ObstacleForcesF64)(t, near, x, v, inv_mass, f);
+  else
+    HWY_DYNAMIC_DISPATCH(ObstacleForcesF32)(t, near, x, v, inv_mass, f);
 }
 
 template <class Real>
@@ -423,3 +478,4 @@ template double obstacle_energy<float>(const Sheet<float>&, const Obstacle&, dou
 
 }  // namespace detail
 }  // namespace drape
+#endif  // HWY_ONCE

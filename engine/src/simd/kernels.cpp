@@ -10,141 +10,11 @@
 
 #include "simd/kernels.h"
 
+#include "simd/kernels-inl.h"
+
 HWY_BEFORE_NAMESPACE();
 namespace drape::detail::simd {
 namespace HWY_NAMESPACE {
-namespace hn = hwy::HWY_NAMESPACE;
-
-// Loads and stores of whole vectors, or of the first lanes of one (a row's remainder):
-// masked lanes load zero and are never stored, and every lane that is computes exactly
-// as in a whole vector.
-template <class D>
-struct Whole {
-  D d;
-  template <class Real>
-  HWY_INLINE auto load(const Real* p) const { return hn::LoadU(d, p); }
-  template <class V, class Real>
-  HWY_INLINE void store(V v, Real* p) const { hn::StoreU(v, d, p); }
-};
-template <class D>
-struct FirstLanes {
-  D d;
-  decltype(hn::FirstN(D(), 0)) mask;
-  template <class Real>
-  HWY_INLINE auto load(const Real* p) const { return hn::MaskedLoad(mask, d, p); }
-  template <class V, class Real>
-  HWY_INLINE void store(V v, Real* p) const { hn::BlendedStore(v, mask, d, p); }
-};
-
-// Runs kernel(lanes, i) over [0, count) in whole vectors, then the remainder: as one
-// masked vector where the target's masked loads cannot touch memory beyond the mask
-// (AVX2 and AVX-512), else one lane at a time through the same code. Either way each
-// element gets the same bits wherever the run starts, so a row split between blocks
-// changes nothing.
-template <class Real, class Kernel>
-HWY_INLINE void over_lanes(std::size_t count, Kernel kernel) {
-  const hn::ScalableTag<Real> d;
-  const std::size_t lanes = hn::Lanes(d);
-  std::size_t i = 0;
-  for (; i + lanes <= count; i += lanes) kernel(Whole<decltype(d)>{d}, i);
-  if (i == count) return;
-#if HWY_ARCH_X86 && HWY_TARGET <= HWY_AVX2
-  kernel(FirstLanes<decltype(d)>{d, hn::FirstN(d, count - i)}, i);
-#else
-  const hn::CappedTag<Real, 1> one;
-  for (; i < count; ++i) kernel(Whole<decltype(one)>{one}, i);
-#endif
-}
-
-// eq (6) on the springs of one vector from e: the same operations, in the same order, as
-// spring_scale in terms/rows.h, so a lane gives the scalar kernel's bits.
-template <bool PerSpring, bool Store, bool Add, bool Sub, class Real, class Lanes>
-HWY_INLINE void springs_at(Lanes l, const SpringRun<Real>& r, std::size_t e) {
-  const auto d = l.d;
-  const auto dx = hn::Sub(l.load(r.ax + e), l.load(r.bx + e));
-  const auto dy = hn::Sub(l.load(r.ay + e), l.load(r.by + e));
-  const auto dz = hn::Sub(l.load(r.az + e), l.load(r.bz + e));
-  const auto rest = PerSpring ? l.load(r.rest + e) : hn::Set(d, r.rest_same);
-  const auto k = PerSpring ? l.load(r.k + e) : hn::Set(d, r.k_same);
-  const auto len = hn::Sqrt(hn::Add(hn::Add(hn::Mul(dx, dx), hn::Mul(dy, dy)), hn::Mul(dz, dz)));
-  // a zero-length spring has no direction: its lane's 1/0 is dropped, not used
-  const auto inv = hn::IfThenElseZero(hn::Gt(len, hn::Zero(d)), hn::Div(hn::Set(d, Real(1)), len));
-  const auto s = hn::Mul(hn::Mul(hn::Neg(k), hn::Sub(len, rest)), inv);
-  const auto fx = hn::Mul(s, dx), fy = hn::Mul(s, dy), fz = hn::Mul(s, dz);
-  if constexpr (Store) {
-    l.store(fx, r.store_x + e);
-    l.store(fy, r.store_y + e);
-    l.store(fz, r.store_z + e);
-  }
-  if constexpr (Add) {
-    l.store(hn::Add(l.load(r.add_x + e), fx), r.add_x + e);
-    l.store(hn::Add(l.load(r.add_y + e), fy), r.add_y + e);
-    l.store(hn::Add(l.load(r.add_z + e), fz), r.add_z + e);
-  }
-  if constexpr (Sub) {
-    l.store(hn::Sub(l.load(r.sub_x + e), fx), r.sub_x + e);
-    l.store(hn::Sub(l.load(r.sub_y + e), fy), r.sub_y + e);
-    l.store(hn::Sub(l.load(r.sub_z + e), fz), r.sub_z + e);
-  }
-}
-
-template <bool PerSpring, bool Store, bool Add, bool Sub, class Real>
-HWY_INLINE void springs_loop(const SpringRun<Real>& r) {
-  over_lanes<Real>(r.count, [&](auto lanes, std::size_t e) { springs_at<PerSpring, Store, Add, Sub>(lanes, r, e); });
-}
-
-// The outputs and the parameters' source picked once per run, not per spring.
-template <class Real>
-HWY_INLINE void springs_run(const SpringRun<Real>& r) {
-  auto with_outputs = [&]<bool PerSpring>() {
-    const bool store = r.store_x != nullptr, add = r.add_x != nullptr, sub = r.sub_x != nullptr;
-    if (store && !add && !sub) return springs_loop<PerSpring, true, false, false>(r);
-    if (!store && add && sub) return springs_loop<PerSpring, false, true, true>(r);
-    if (!store && add && !sub) return springs_loop<PerSpring, false, true, false>(r);
-    if (!store && !add && sub) return springs_loop<PerSpring, false, false, true>(r);
-    if (store && sub && !add) return springs_loop<PerSpring, true, false, true>(r);
-    if (store && add && !sub) return springs_loop<PerSpring, true, true, false>(r);
-    if (store && add && sub) return springs_loop<PerSpring, true, true, true>(r);
-  };
-  if (r.rest != nullptr)
-    with_outputs.template operator()<true>();
-  else
-    with_outputs.template operator()<false>();
-}
-
-// eq (4), first order, on the points of one vector from i.
-template <bool SemiImplicit, class Real, class Lanes>
-HWY_INLINE void update_at(Lanes l, const PointUpdate<Real>& u, std::size_t i) {
-  const auto d = l.d;
-  const auto dt = hn::Set(d, u.dt);
-  const auto im = l.load(u.inv_mass + i);
-  Real* const xs[3] = {u.x, u.y, u.z};
-  Real* const vs[3] = {u.vx, u.vy, u.vz};
-  const Real* const fs[3] = {u.fx, u.fy, u.fz};
-  const Real gs[3] = {u.gx, u.gy, u.gz};
-  for (int c = 0; c < 3; ++c) {
-    auto x = l.load(xs[c] + i);
-    auto v = l.load(vs[c] + i);
-    if constexpr (!SemiImplicit) x = hn::Add(x, hn::Mul(dt, v));
-    v = hn::Add(v, hn::Mul(dt, hn::Add(hn::Mul(l.load(fs[c] + i), im), hn::Set(d, gs[c]))));
-    if constexpr (SemiImplicit) x = hn::Add(x, hn::Mul(dt, v));
-    l.store(x, xs[c] + i);
-    l.store(v, vs[c] + i);
-  }
-}
-
-template <bool SemiImplicit, class Real>
-HWY_INLINE void update_loop(const PointUpdate<Real>& u) {
-  over_lanes<Real>(u.count, [&](auto lanes, std::size_t i) { update_at<SemiImplicit>(lanes, u, i); });
-}
-
-template <class Real>
-HWY_INLINE void update_run(const PointUpdate<Real>& u) {
-  if (u.semi_implicit)
-    update_loop<true>(u);
-  else
-    update_loop<false>(u);
-}
 
 void SpringsF64(const SpringRun<double>& r) { springs_run(r); }
 void SpringsF32(const SpringRun<float>& r) { springs_run(r); }
@@ -170,8 +40,6 @@ void springs(const SpringRun<float>& run) { HWY_DYNAMIC_DISPATCH(SpringsF32)(run
 void update_points(const PointUpdate<double>& u) { HWY_DYNAMIC_DISPATCH(UpdateF64)(u); }
 void update_points(const PointUpdate<float>& u) { HWY_DYNAMIC_DISPATCH(UpdateF32)(u); }
 const char* target_name() { return HWY_DYNAMIC_DISPATCH(Name)(); }
-
-bool engine_uses_kernels() { return DRAPE_SIMD_DISPATCH; }
 
 std::vector<std::int64_t> supported_targets() { return hwy::SupportedAndGeneratedTargets(); }
 

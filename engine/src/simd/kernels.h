@@ -1,7 +1,10 @@
 // The hot loops' vector kernels (issue 15): eq (6) over a run of springs and the explicit
-// integrators' per-point update, written once with Google Highway and compiled for every
-// instruction set Highway targets on this architecture (SSE4, AVX2, AVX-512, … or NEON/SVE);
-// each call runs the widest one the CPU has, picked at run time. The kernels use no fused
+// integrators' per-point update, written once with Google Highway (simd/kernels-inl.h) and
+// compiled for every instruction set Highway targets on this architecture (SSE4, AVX2,
+// AVX-512, … or NEON/SVE); each call runs the widest one the CPU has, picked at run time.
+// The row sweep (forces.cpp) compiles itself per target with these kernels inlined and
+// dispatches once per sheet or block; the entry points here serve a block's update, the
+// ceiling benchmark and the tests. The kernels use no fused
 // multiply-add and the same operations in the same order as the scalar spring_scale
 // (terms/rows.h), so every target gives the same bits; sqrt and division are IEEE on all.
 // Plain pointers only: this file sits below the row sweep and the integrators.
@@ -76,9 +79,16 @@ struct SpringRun {
 void springs(const SpringRun<double>& run);
 void springs(const SpringRun<float>& run);
 
-// First-order explicit update of `count` points (eq 4 with M, C diagonal):
-// forward Euler (semi_implicit = false) moves x with the old v; semi-implicit Euler with
-// the new one. v += dt (f/m + g).
+// One first-order explicit step (eq 4 with M, C diagonal): forward Euler
+// (semi_implicit = false) moves x with the old v; semi-implicit Euler with the new one.
+// v += dt (f/m + g).
+template <class Real>
+struct EulerStep {
+  Real dt = 0, gx = 0, gy = 0, gz = 0;
+  bool semi_implicit = true;
+};
+
+// That step on `count` points.
 template <class Real>
 struct PointUpdate {
   std::size_t count = 0;
@@ -114,14 +124,11 @@ struct PointUpdate {
     semi_implicit = semi;
     return *this;
   }
+  PointUpdate& step(const EulerStep<Real>& e) { return step(e.dt, e.gx, e.gy, e.gz, e.semi_implicit); }
 };
 
 void update_points(const PointUpdate<double>& u);
 void update_points(const PointUpdate<float>& u);
-
-// Whether the engine's row sweep and explicit integrators call these kernels (a
-// DRAPE_SIMD_DISPATCH build, the portable default) or their inline loops (a native build).
-bool engine_uses_kernels();
 
 // The instruction set the kernels run with now, e.g. "AVX3" (Highway's name for AVX-512),
 // "AVX3_DL", "AVX2", "SSE4", "SCALAR" (portable, one lane).
