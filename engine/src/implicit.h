@@ -3,11 +3,23 @@
 //   M Δv = dt·f(x + dt(v + Δv), v + Δv)
 // with f expanded to first order, i.e. the symmetric system
 //   (M − dt·∂f/∂v − dt²·∂f/∂x) Δv = dt·(f + dt·∂f/∂x·v),
-// assembled as an Eigen sparse matrix and solved by conjugate gradient preconditioned with
-// the inverses of its 3×3 diagonal blocks (one per point).
+// assembled as an Eigen sparse matrix and solved by preconditioned conjugate gradient, with
+// one of two preconditioners (Preconditioner, types.h):
+//   block Jacobi: the inverses of its 3×3 diagonal blocks (one per point);
+//   Cholesky: a sparse Cholesky factor of the matrix itself, refactored every step (its
+//     pattern's analysis is kept).
+// The factored mass–spring matrix of local/global (M̃ + dt²·L, the same for x, y and z) was
+// tried as the preconditioner first and measured worse than block Jacobi: it counts every
+// spring as stiff in all three directions, while the system is stiff only along each
+// spring (u uᵀ), so the modes a grid of springs barely resists (out of plane, and in-plane
+// shear of a grid without diagonals) come out of it with eigenvalues near m/(dt²k), and CG
+// took hundreds of iterations at k ≥ 1e3 N/m on 64×64 (docs/integrators.md). A factor kept
+// from an earlier step fails the same way once springs turn between steps. Only the step's
+// own matrix captures each spring's direction.
 #pragma once
 
 #include <Eigen/LU>
+#include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 #include <vector>
 
@@ -31,6 +43,17 @@ struct ImplicitScratch {
   Vector rhs, dv;                 // dv: the solution (its copy in Sheet::integrator_scratch is the next guess)
   Vector residual, direction, preconditioned, product;  // the solve's work vectors
   std::vector<Real> block_inverse;  // per point: the inverse of its 3×3 diagonal block, row-major
+
+  // Auto's rule reads the sheet's stiffest mode, ω_max = 2/sheet_stable_step (Gershgorin).
+  double omega_max = 0;
+  // The Cholesky preconditioner: the system in double, column-major (the same arrays as
+  // the symmetric row-major system), and its factor, whose ordering and pattern are
+  // analysed once per pattern.
+  using WideMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
+  WideMatrix wide;
+  Eigen::SimplicialLLT<WideMatrix, Eigen::Lower, Eigen::AMDOrdering<int>> factor;
+  bool analysed = false;
+  Eigen::VectorXd wide_in, wide_out;
 };
 
 template <class Real>
