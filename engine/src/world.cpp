@@ -392,6 +392,11 @@ typename BasicWorld<Real>::SolverStats BasicWorld<Real>::solver_stats(SheetId id
 }
 
 template <class Real>
+void BasicWorld<Real>::set_solver_stats(SheetId id, const SolverStats& stats) {
+  impl_->sheet(id).last_solve = {stats.iterations, stats.relative_residual, stats.converged, stats.unconverged_solves};
+}
+
+template <class Real>
 double BasicWorld<Real>::time() const { return impl_->time(); }
 
 template <class Real>

@@ -246,6 +246,9 @@ class BasicWorld {
     std::uint64_t unconverged_solves = 0;
   };
   SolverStats solver_stats(SheetId id) const;
+  // Puts back what solver_stats() returned, e.g. from a checkpoint, so the counts of a
+  // resumed run go on from where they were.
+  void set_solver_stats(SheetId id, const SolverStats& stats);
   // s, simulated: step_count()·dt while the substep never changed (runs of equal substeps
   // are exact; advance() and adaptive steps add their own lengths)
   double time() const;
