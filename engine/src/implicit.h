@@ -6,8 +6,9 @@
 // assembled as an Eigen sparse matrix and solved by preconditioned conjugate gradient, with
 // one of two preconditioners (Preconditioner, types.h):
 //   block Jacobi: the inverses of its 3×3 diagonal blocks (one per point);
-//   Cholesky: a sparse Cholesky factor of the matrix itself, refactored every step (its
-//     pattern's analysis is kept).
+//   Cholesky: a sparse Cholesky factor of the matrix itself, refactored every step, in 3×3
+//     blocks on the symbolic structure (pattern of L, fill-reducing permutation) of
+//     local/global's factored matrix, whose point graph is the same (local_global.h).
 // The factored mass–spring matrix of local/global (M̃ + dt²·L, the same for x, y and z) was
 // tried as the preconditioner first and measured worse than block Jacobi: it counts every
 // spring as stiff in all three directions, while the system is stiff only along each
@@ -19,8 +20,8 @@
 #pragma once
 
 #include <Eigen/LU>
-#include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
+#include <array>
 #include <vector>
 
 #include "integrate.h"
@@ -46,14 +47,16 @@ struct ImplicitScratch {
 
   // Auto's rule reads the sheet's stiffest mode, ω_max = 2/sheet_stable_step (Gershgorin).
   double omega_max = 0;
-  // The Cholesky preconditioner: the system in double, column-major (the same arrays as
-  // the symmetric row-major system), and its factor, whose ordering and pattern are
-  // analysed once per pattern.
-  using WideMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
-  WideMatrix wide;
-  Eigen::SimplicialLLT<WideMatrix, Eigen::Lower, Eigen::AMDOrdering<int>> factor;
-  bool analysed = false;
-  Eigen::VectorXd wide_in, wide_out;
+  // The Cholesky preconditioner: L in 3×3 blocks (row-major, 9 values per block) on the
+  // pattern of local/global's point factor, `source`: per block of L, the offsets in
+  // `system` of its three rows (−1: fill, not in the matrix). Built for one factor of
+  // local/global (`structure`, `structure_factorisations`) and one pattern of `system`.
+  const void* structure = nullptr;
+  std::uint64_t structure_factorisations = 0;
+  std::vector<std::array<int, 3>> source;
+  std::vector<int> point_of;                 // factor row → point
+  std::vector<double> block_value, block_work, solve_work;
+  std::vector<int> head, next, first;        // the left-looking factorisation's lists
 };
 
 template <class Real>

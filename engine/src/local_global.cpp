@@ -110,6 +110,7 @@ void build_factor(LocalGlobalScratch& sc, const Sheet<Real>& s, double dt, bool 
   const auto& indices = factor.permutationP().indices();
   sc.permutation.assign(indices.data(), indices.data() + count);
   sc.work.resize(3 * count);
+  ++sc.factorisations;
 }
 
 // The local step at positions `x` (sc.solution): every spring's d_e; with `force`, also
@@ -207,9 +208,17 @@ void global_solve(LocalGlobalScratch& sc) {
 }  // namespace
 
 template <class Real>
+void prepare_factor(LocalGlobalScratch& sc, const Sheet<Real>& s, double dt) {
+  if (!factor_current(sc, s, dt) || sc.inverse_diagonal.size() != s.size()) build_factor(sc, s, dt, true);
+}
+
+template <class Real>
 void backward_euler_begin(LocalGlobalScratch& sc, Sheet<Real>& s, const StepParams<Real>& p, bool factor) {
   const double h = static_cast<double>(p.dt), h2 = h * h;
-  if (!factor_current(sc, s, h) || (factor && sc.inverse_diagonal.size() != s.size())) build_factor(sc, s, h, factor);
+  if (factor)
+    prepare_factor(sc, s, h);
+  else if (!factor_current(sc, s, h))
+    build_factor(sc, s, h, false);
 
   const auto& t = *s.topology;
   const std::size_t count = s.size();
@@ -357,6 +366,8 @@ template void backward_euler_begin<double>(LocalGlobalScratch&, Sheet<double>&, 
 template void backward_euler_begin<float>(LocalGlobalScratch&, Sheet<float>&, const StepParams<float>&, bool);
 template void backward_euler_finish<double>(LocalGlobalScratch&, Sheet<double>&, const StepParams<double>&, int);
 template void backward_euler_finish<float>(LocalGlobalScratch&, Sheet<float>&, const StepParams<float>&, int);
+template void prepare_factor<double>(LocalGlobalScratch&, const Sheet<double>&, double);
+template void prepare_factor<float>(LocalGlobalScratch&, const Sheet<float>&, double);
 template void local_global_step<double>(Sheet<double>&, const StepParams<double>&);
 template void local_global_step<float>(Sheet<float>&, const StepParams<float>&);
 

@@ -44,6 +44,7 @@ struct LocalGlobalScratch {
   // fill-reducing permutation, copied out of Eigen so the three axes share one pass over L.
   std::vector<int> column_start, row_index, permutation;  // permutation: point → factor row
   std::vector<double> value, inverse_diagonal;
+  std::uint64_t factorisations = 0;    // counts build_factor's factors, so a reader sees a new one
   std::vector<double> work;            // 3 per factor row: x, y, z interleaved
 
   std::vector<char> pinned;            // per point
@@ -56,6 +57,13 @@ struct LocalGlobalScratch {
 
 template <class Real>
 void local_global_step(Sheet<Real>& sheet, const StepParams<Real>& params);
+
+// The factored matrix above, current for this sheet and dt (factored again only when its
+// key changed). Implicit Euler reads its symbolic structure: the pattern of L and the
+// fill-reducing permutation are those of its own matrix's point graph (springs, shear
+// diagonals, bending's reach of two), so it factors its 3×3 blocks on them.
+template <class Real>
+void prepare_factor(LocalGlobalScratch& scratch, const Sheet<Real>& sheet, double dt);
 
 // What local/global and vertex block descent share: begin sets up a backward-Euler step
 // (start state, the forces held explicit, M̃ x̂ into `inertia`, the first iterate x + dt·v
