@@ -276,25 +276,29 @@ void backward_euler_finish(LocalGlobalScratch& sc, Sheet<Real>& s, const StepPar
   const bool damped = !sc.damping.empty();
   // Residual of the backward-Euler equations at the result, over the free points:
   //   M(x − x0 − h v0) + h C (x − x0) − h²(f_spring(x) + f_anchor(x) + f_other + M g),
-  // relative to the sizes of its two sides.
+  // relative to the sizes of its terms: the momentum change, the implicit forces and the
+  // held ones. (Relative to the two sides' sums, a sheet at rest, where both vanish while
+  // its springs hold its weight, measured 0/0 and reported every step unconverged.)
   implicit_forces(sc, t);
   for (std::size_t k = 0; k < an.point.size(); ++k) {
     const double target[3] = {double(an.tx[k]), double(an.ty[k]), double(an.tz[k])};
     for (int r = 0; r < 3; ++r)
       sc.spring_force[r][an.point[k]] += sc.anchor_stiffness[k] * (target[r] - sc.solution[r][an.point[k]]);
   }
-  double residual2 = 0, left2 = 0, right2 = 0;
+  double residual2 = 0, left2 = 0, implicit2 = 0, held2 = 0;
   for (int r = 0; r < 3; ++r)
     for (std::size_t q = 0; q < count; ++q) {
       if (sc.pinned[q]) continue;
       const double xq = sc.solution[r][Eigen::Index(q)], x0 = sc.start[r][q];
       const double left = sc.mass[q] * (xq - x0 - h * double(v[r][q])) + (damped ? h * sc.damping[q] * (xq - x0) : 0.0);
-      const double right = h2 * (sc.spring_force[r][q] + sc.other_force[r][q] + sc.mass[q] * g[r]);
-      residual2 += (left - right) * (left - right);
+      const double implicit = h2 * sc.spring_force[r][q], held = h2 * (sc.other_force[r][q] + sc.mass[q] * g[r]);
+      const double residual = left - implicit - held;
+      residual2 += residual * residual;
       left2 += left * left;
-      right2 += right * right;
+      implicit2 += implicit * implicit;
+      held2 += held * held;
     }
-  const double scale = std::sqrt(left2) + std::sqrt(right2);
+  const double scale = std::sqrt(left2) + std::sqrt(implicit2) + std::sqrt(held2);
   const double residual = scale > 0 ? std::sqrt(residual2) / scale : 0.0;
   record_solve(s.last_solve, iterations, residual, residual <= p.cg_tolerance);
 
