@@ -101,7 +101,41 @@ void BM_EqualStiffness48(benchmark::State& state, Stepping s) {
   run_seconds(state, world, s, 48 * 64.0 * 64.0);
 }
 
+// Implicit Euler per step on the issue's sheet (64×64, 1 kg, corners pinned, dt = 1/60 s) at
+// k = 1e4, 1e5, 1e6 N/m, with each preconditioner measured in the same run: block Jacobi at
+// the default cap (200 iterations, the path before issue 16) and the Cholesky factor. Each
+// iteration is one step of a sheet falling from flat (30 steps, the same trajectory for
+// both up to the solves' tolerance); the counters say how many CG iterations a step took
+// and whether every solve converged.
+void BM_ImplicitEulerStep(benchmark::State& state, drape::Preconditioner preconditioner) {
+  drape::WorldDef wd = drape::bench::world_def(1);
+  wd.integrator = Integrator::ImplicitEuler;
+  wd.dt = 1.0 / 60;
+  wd.cg_preconditioner = preconditioner;
+  drape::World world(wd);
+  const drape::SheetId id = world.add_sheet(stiff_sheet(double(state.range(0))));
+  double iterations = 0;
+  for (auto _ : state) {
+    world.step(1);
+    state.PauseTiming();
+    iterations += world.solver_stats(id).iterations;
+    state.ResumeTiming();
+  }
+  state.counters["cg_iterations"] = iterations / double(state.iterations());
+  state.counters["unconverged_solves"] = double(world.solver_stats(id).unconverged_solves);
+  drape::bench::set_point_rate(state, 64.0 * 64.0, 1);
+}
+
 const int registered = [] {
+  for (auto preconditioner : {drape::Preconditioner::BlockJacobi, drape::Preconditioner::Cholesky})
+    benchmark::RegisterBenchmark(("BM_ImplicitEulerStep/" + std::string(drape::preconditioner_name(preconditioner))).c_str(),
+                                 BM_ImplicitEulerStep, preconditioner)
+        ->ArgName("k")
+        ->Arg(10000)
+        ->Arg(100000)
+        ->Arg(1000000)
+        ->Unit(benchmark::kMillisecond)
+        ->Iterations(30);
   for (const Stepping& s : steppings) {
     benchmark::RegisterBenchmark(("BM_StiffSheet/" + s.label).c_str(), BM_StiffSheet, s)
         ->Unit(benchmark::kMillisecond)

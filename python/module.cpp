@@ -358,6 +358,18 @@ PYBIND11_MODULE(drape, m) {
       .def("critical_step", &integrator_critical_step, py::arg("omega_max"));
   py::implicitly_convertible<std::string, Integrator>();
 
+  py::enum_<Preconditioner>(m, "Preconditioner", "implicit Euler's CG preconditioner (WorldDef.cg_preconditioner)")
+      .value("Auto", Preconditioner::Auto)
+      .value("BlockJacobi", Preconditioner::BlockJacobi)
+      .value("Cholesky", Preconditioner::Cholesky)
+      .def(py::init([](const std::string& name) {
+             const auto p = preconditioner_from_name(name);
+             if (!p) throw py::value_error("unknown preconditioner \"" + name + "\"");
+             return *p;
+           }),
+           py::arg("name"), "From the scene format's name: \"auto\", \"block_jacobi\", \"cholesky\"");
+  py::implicitly_convertible<std::string, Preconditioner>();
+
   py::enum_<ObstacleShape>(m, "ObstacleShape")
       .value("Plane", ObstacleShape::Plane)
       .value("Sphere", ObstacleShape::Sphere)
@@ -505,6 +517,7 @@ PYBIND11_MODULE(drape, m) {
       .field("threads", &WorldDef::threads, "worker threads of step(); 0: all cores")
       .field("cg_tolerance", &WorldDef::cg_tolerance, "implicit Euler's CG stop")
       .field("cg_max_iterations", &WorldDef::cg_max_iterations, "implicit Euler's CG stop")
+      .field("cg_preconditioner", &WorldDef::cg_preconditioner, "Preconditioner (or its name)")
       .field("local_global_iterations", &WorldDef::local_global_iterations, "LocalGlobal's iterations per step")
       .field("adaptive", &WorldDef::adaptive, "explicit integrators take their largest stable substep")
       .field("adaptive_safety", &WorldDef::adaptive_safety, "in (0, 1]")

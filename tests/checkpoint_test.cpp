@@ -123,12 +123,14 @@ TEST(Checkpoint, HeaderIsTheDocumentedLittleEndianLayout) {
   world.step(7);
   const auto bytes = drape::encode_checkpoint(drape::capture_checkpoint(world));
   EXPECT_EQ(std::string(bytes.begin(), bytes.begin() + 8), "DRAPECKP");
-  EXPECT_EQ(bytes[8], 1);   // format version, low byte first
+  EXPECT_EQ(bytes[8], 2);   // format version, low byte first
   EXPECT_EQ(bytes[9], 0);
   EXPECT_EQ(bytes[12], 4);  // float world: 4 bytes per value
   EXPECT_EQ(bytes[24], 7);  // step count, after the (zero) fingerprint
-  // magic..sheet count, 19-byte integrator name, then per sheet 16 bytes + 6 arrays of floats, checksum
-  const std::size_t expected = 8 + 4 + 4 + 8 + 8 + 8 + 24 + 4 + 19 + 4 + (16 + 6 * 4 * 7 * 6) + (16 + 6 * 4 * 3 * 4) + 8;
+  // magic..sheet count, 19-byte integrator name, then per sheet 16 bytes + 6 arrays of floats
+  // + 24 bytes of solve counters (u64, u32, f64, u32), checksum
+  const std::size_t expected =
+      8 + 4 + 4 + 8 + 8 + 8 + 24 + 4 + 19 + 4 + (16 + 6 * 4 * 7 * 6 + 24) + (16 + 6 * 4 * 3 * 4 + 24) + 8;
   EXPECT_EQ(bytes.size(), expected);
 }
 
@@ -195,11 +197,44 @@ TEST(Checkpoint, ExtraTrailingBytesAreRefused) {
 
 TEST(Checkpoint, OtherFormatVersionIsRefusedByName) {
   auto bytes = small_checkpoint();
-  bytes[8] = 2;  // version 2, with a checksum that is right for it
+  bytes[8] = 3;  // version 3, with a checksum that is right for it
   const std::uint64_t sum = drape::fnv1a64(std::span(bytes).first(bytes.size() - 8));
   for (int i = 0; i < 8; ++i) bytes[bytes.size() - 8 + i] = static_cast<unsigned char>(sum >> (8 * i));
-  const std::string what = refusal([&] { drape::decode_checkpoint(bytes, "v2.ckpt"); }, "v2.ckpt");
-  EXPECT_NE(what.find("format version 2"), std::string::npos) << what;
+  const std::string what = refusal([&] { drape::decode_checkpoint(bytes, "v3.ckpt"); }, "v3.ckpt");
+  EXPECT_NE(what.find("format version 3"), std::string::npos) << what;
+}
+
+// The implicit solves' counters (World::solver_stats) go through a checkpoint: a resumed
+// run reports every solve that stopped short, not only those after the resume.
+TEST(Checkpoint, SolverCountersSurviveACheckpoint) {
+  drape::WorldDef wd;
+  wd.integrator = drape::Integrator::ImplicitEuler;
+  wd.dt = 1.0 / 60;
+  wd.cg_max_iterations = 1;  // every solve stops at the cap
+  wd.cg_preconditioner = drape::Preconditioner::BlockJacobi;
+  auto build = [&] {
+    drape::World w(wd);
+    drape::SheetDef d;
+    d.m = d.n = 6;
+    d.stiffness = 1e4;
+    d.pins = drape::corner_points(d.m, d.n);
+    w.add_sheet(d);
+    return w;
+  };
+  drape::World first = build();
+  first.step(5);
+  const auto before = first.solver_stats(first.sheets()[0]);
+  ASSERT_GT(before.unconverged_solves, 0u);  // the first step, from rest, converges in one
+  const auto bytes = drape::encode_checkpoint(drape::capture_checkpoint(first));
+  drape::World resumed = build();
+  drape::apply_checkpoint(drape::decode_checkpoint(bytes, "solver.ckpt"), resumed, "solver.ckpt");
+  const auto after = resumed.solver_stats(resumed.sheets()[0]);
+  EXPECT_EQ(after.unconverged_solves, before.unconverged_solves);
+  EXPECT_EQ(after.iterations, before.iterations);
+  EXPECT_EQ(after.relative_residual, before.relative_residual);
+  EXPECT_EQ(after.converged, before.converged);
+  resumed.step(2);
+  EXPECT_EQ(resumed.solver_stats(resumed.sheets()[0]).unconverged_solves, before.unconverged_solves + 2);
 }
 
 TEST(Checkpoint, ForeignFileIsRefused) {

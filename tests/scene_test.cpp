@@ -142,7 +142,7 @@ TEST(SceneFile, EngineKnobsReachTheWorldAndSheetDefinitions) {
   EXPECT_EQ(d.world.block_points, engine.block_points);
   EXPECT_FALSE(d.sheets[0].self_collision);
 
-  const Scene s = parse_scene(R"({"frames": 1, "cg_tolerance": 1e-9, "cg_max_iterations": 17, "local_global_iterations": 7, "vertex_block_iterations": 9, "adaptive": true,
+  const Scene s = parse_scene(R"({"frames": 1, "cg_tolerance": 1e-9, "cg_max_iterations": 17, "cg_preconditioner": "cholesky", "local_global_iterations": 7, "vertex_block_iterations": 9, "adaptive": true,
     "adaptive_safety": 0.5, "guard": false, "guard_energy_growth": 3.5, "contact_thickness": 0.01,
     "contact_xi": 0.004, "contact_strength": 0, "contact_range": 4, "block_points": 1000,
     "sheets": [{"grid": [2, 2], "size": [1, 1], "stiffness": 5, "self_collision": true, "friction": 0.4},
@@ -150,6 +150,7 @@ TEST(SceneFile, EngineKnobsReachTheWorldAndSheetDefinitions) {
     "obstacles": [{"type": "plane", "friction": 0.7}]})", "k.json");
   EXPECT_EQ(s.world.cg_tolerance, 1e-9);
   EXPECT_EQ(s.world.cg_max_iterations, 17);
+  EXPECT_EQ(s.world.cg_preconditioner, drape::Preconditioner::Cholesky);
   EXPECT_EQ(s.world.local_global_iterations, 7);
   EXPECT_EQ(s.world.vertex_block_iterations, 9);
   EXPECT_TRUE(s.world.adaptive);
@@ -174,6 +175,8 @@ TEST(SceneFile, BadEngineKnobsNameTheirPath) {
       {R"("cg_tolerance": 0)", "test.json: cg_tolerance: must be positive (got 0)"},
       {R"("cg_max_iterations": 0)", "test.json: cg_max_iterations: must be between 1 and 2147483647 (got 0)"},
       {R"("cg_max_iterations": 2.5)", "test.json: cg_max_iterations: must be a whole number (got 2.5)"},
+      {R"("cg_preconditioner": "ilu")",
+       "test.json: cg_preconditioner: must be \"auto\", \"block_jacobi\" or \"cholesky\" (got \"ilu\")"},
       {R"("local_global_iterations": 0)", "test.json: local_global_iterations: must be between 1 and 2147483647 (got 0)"},
       {R"("vertex_block_iterations": 0)", "test.json: vertex_block_iterations: must be between 1 and 2147483647 (got 0)"},
       {R"("adaptive": 1)", "test.json: adaptive: must be true or false, got a number"},

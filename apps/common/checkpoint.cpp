@@ -11,6 +11,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <optional>
 #include <stdexcept>
 #include <string_view>
@@ -207,6 +208,8 @@ Checkpoint capture_checkpoint(const BasicWorld<Real>& world, std::uint64_t finge
     s.vy.assign(v.vy.begin(), v.vy.end());
     s.vz.assign(v.vz.begin(), v.vz.end());
     s.integrator_memory.assign(memory.begin(), memory.end());
+    const auto stats = world.solver_stats(id);
+    s.solver = {stats.iterations, stats.relative_residual, stats.converged, stats.unconverged_solves};
   }
   return c;
 }
@@ -251,6 +254,8 @@ void apply_checkpoint(const Checkpoint& c, BasicWorld<Real>& world, const std::s
     const Converted& s = converted[k];
     world.set_state(ids[k], SheetView<Real>{c.sheets[k].m, c.sheets[k].n, s.x, s.y, s.z, s.vx, s.vy, s.vz});
     world.set_integrator_memory(ids[k], s.memory);
+    const World::SolverStats& stats = c.sheets[k].solver;
+    world.set_solver_stats(ids[k], {stats.iterations, stats.relative_residual, stats.converged, stats.unconverged_solves});
   }
 }
 
@@ -275,6 +280,10 @@ std::vector<unsigned char> encode_checkpoint(const Checkpoint& c) {
     out.u64(s.integrator_memory.size());
     for (const auto* values : {&s.x, &s.y, &s.z, &s.vx, &s.vy, &s.vz, &s.integrator_memory})
       for (double v : *values) out.real(v, c.precision);
+    out.u64(s.solver.unconverged_solves);
+    out.u32(static_cast<std::uint32_t>(s.solver.iterations));
+    out.f64(s.solver.relative_residual);
+    out.u32(s.solver.converged ? 1 : 0);
   }
   out.u64(fnv1a64(out.out));
   return std::move(out.out);
@@ -327,6 +336,14 @@ Checkpoint decode_checkpoint(std::span<const unsigned char> bytes, const std::st
     const std::uint64_t memory = in.u64("integrator memory count");
     for (auto* values : {&s.x, &s.y, &s.z, &s.vx, &s.vy, &s.vz}) read_values(in, c.precision, points, *values, "sheet state");
     read_values(in, c.precision, memory, s.integrator_memory, "integrator memory");
+    s.solver.unconverged_solves = in.u64("unconverged solves");
+    const std::uint32_t iterations = in.u32("solve iterations");
+    if (iterations > std::uint32_t(std::numeric_limits<int>::max())) fail(source, "solve iterations out of range");
+    s.solver.iterations = int(iterations);
+    s.solver.relative_residual = in.f64("solve residual");
+    const std::uint32_t converged = in.u32("solve converged");
+    if (converged > 1) fail(source, "solve converged must be 0 or 1");
+    s.solver.converged = converged == 1;
   }
   if (in.remaining() != 0)
     fail(source, std::to_string(in.remaining()) + " unexpected bytes after the last sheet at offset " +

@@ -15,6 +15,8 @@
 //     u32 m, u32 n, u64 memory count
 //     x, y, z, vx, vy, vz           (m+1)(n+1) values each, row-major as in eqs (2)-(3)
 //     integrator memory             memory count values
+//     u64 unconverged solves, u32 last solve's iterations, f64 its relative residual,
+//     u32 converged (0 or 1)        World::solver_stats (format 2 on)
 //   u64 FNV-1a 64 of every byte before it
 #pragma once
 
@@ -28,7 +30,7 @@
 
 namespace drape {
 
-inline constexpr std::uint32_t checkpoint_format_version = 1;
+inline constexpr std::uint32_t checkpoint_format_version = 2;
 
 // A checkpoint in memory, parsed and checked but not applied to any world. Values are held
 // as double whatever the precision: float -> double -> float is exact.
@@ -37,6 +39,7 @@ struct Checkpoint {
     std::uint32_t m = 0, n = 0;
     std::vector<double> x, y, z, vx, vy, vz;
     std::vector<double> integrator_memory;
+    World::SolverStats solver;  // the implicit solves' counters
   };
   std::uint32_t precision = 8;
   // The program's fingerprint of what it built the world from (e.g. FNV-1a of the scene

@@ -570,6 +570,13 @@ void apply_override(json& root, const SceneOverride& o, const std::string& file)
 void read_world_knobs(const Node& top, WorldDef& w) {
   if (top.has("cg_tolerance")) w.cg_tolerance = top.child("cg_tolerance").positive();
   if (top.has("cg_max_iterations")) w.cg_max_iterations = int(top.child("cg_max_iterations").whole(1, 2147483647));
+  if (top.has("cg_preconditioner")) {
+    const Node n = top.child("cg_preconditioner");
+    const std::string name = n.string();
+    const auto preconditioner = preconditioner_from_name(name);
+    if (!preconditioner) n.fail("must be \"auto\", \"block_jacobi\" or \"cholesky\" (got \"" + name + "\")");
+    w.cg_preconditioner = *preconditioner;
+  }
   if (top.has("local_global_iterations"))
     w.local_global_iterations = int(top.child("local_global_iterations").whole(1, 2147483647));
   if (top.has("vertex_block_iterations"))
@@ -629,7 +636,7 @@ Scene parse_scene(std::string_view text, const std::string& file, std::span<cons
   for (const auto& o : overrides) apply_override(root, o, file);
   const Node top(file, root, "");
   top.expect_object({"description", "dt", "substeps", "fps", "frames", "duration", "integrator", "precision",
-                     "gravity", "cg_tolerance", "cg_max_iterations", "local_global_iterations", "vertex_block_iterations", "adaptive", "adaptive_safety", "guard",
+                     "gravity", "cg_tolerance", "cg_max_iterations", "cg_preconditioner", "local_global_iterations", "vertex_block_iterations", "adaptive", "adaptive_safety", "guard",
                      "guard_energy_growth", "contact_thickness", "contact_xi", "contact_strength", "contact_range",
                      "block_points", "wind", "sheets", "obstacles", "constraints", "output", "camera"});
   Scene scene;

@@ -3,8 +3,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
+#include "diagnostics.h"
 #include "forces.h"
+#include "local_global.h"
 #include "spring_jacobian.h"
 #include "terms/terms.h"
 
@@ -57,6 +60,8 @@ void build_pattern(ImplicitScratch<Real>& sc, const Sheet<Real>& s) {
   sc.dv.setZero(n3);
   sc.topology = s.topology.get();
   sc.pin_count = s.pins.point.size();
+  sc.omega_max = 2.0 / sheet_stable_step(s);
+  sc.structure = nullptr;  // the Cholesky blocks' offsets into the old pattern are stale
 }
 
 struct SolveResult {
@@ -65,29 +70,12 @@ struct SolveResult {
 };
 
 // Conjugate gradient on sc.system·dv = sc.rhs from the guess in sc.dv, preconditioned by
-// the inverse 3×3 diagonal blocks: a point's own coupling of its three axes (a spring's
-// u uᵀ) is solved exactly, which a scalar diagonal cannot do. Stops at |r| ≤ tol·|b|.
-template <class Real>
-SolveResult block_jacobi_cg(ImplicitScratch<Real>& sc, double tolerance, int max_iterations) {
+// precondition(r, z), z ≈ A⁻¹r (symmetric positive definite). Stops at |r| ≤ tol·|b|.
+template <class Real, class Precondition>
+SolveResult preconditioned_cg(ImplicitScratch<Real>& sc, double tolerance, int max_iterations,
+                              Precondition precondition) {
   using Vector = typename ImplicitScratch<Real>::Vector;
   const Eigen::Index n3 = sc.rhs.size();
-  const std::size_t count = std::size_t(n3 / 3);
-  const Real* a = sc.system.valuePtr();
-  sc.block_inverse.resize(9 * count);
-  for (std::size_t q = 0; q < count; ++q) {
-    Eigen::Matrix<Real, 3, 3> block;
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c) block(r, c) = a[sc.diagonal[3 * q + r] + c];
-    Eigen::Map<Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(sc.block_inverse.data() + 9 * q) = block.inverse();
-  }
-  auto precondition = [&](const Vector& in, Vector& out) {
-    for (std::size_t q = 0; q < count; ++q) {
-      const Real* m = sc.block_inverse.data() + 9 * q;
-      const Real* v = in.data() + 3 * q;
-      Real* o = out.data() + 3 * q;
-      for (int r = 0; r < 3; ++r) o[r] = m[3 * r] * v[0] + m[3 * r + 1] * v[1] + m[3 * r + 2] * v[2];
-    }
-  };
   Vector& x = sc.dv;
   Vector& r = sc.residual;
   Vector& d = sc.direction;
@@ -121,6 +109,203 @@ SolveResult block_jacobi_cg(ImplicitScratch<Real>& sc, double tolerance, int max
     rz = rz_next;
   }
   return {it, residual};
+}
+
+// Block Jacobi: a point's own coupling of its three axes (a spring's u uᵀ) is solved
+// exactly, which a scalar diagonal cannot do.
+template <class Real>
+SolveResult block_jacobi_cg(ImplicitScratch<Real>& sc, double tolerance, int max_iterations) {
+  using Vector = typename ImplicitScratch<Real>::Vector;
+  const std::size_t count = std::size_t(sc.rhs.size() / 3);
+  const Real* a = sc.system.valuePtr();
+  sc.block_inverse.resize(9 * count);
+  for (std::size_t q = 0; q < count; ++q) {
+    Eigen::Matrix<Real, 3, 3> block;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) block(r, c) = a[sc.diagonal[3 * q + r] + c];
+    Eigen::Map<Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(sc.block_inverse.data() + 9 * q) = block.inverse();
+  }
+  return preconditioned_cg(sc, tolerance, max_iterations, [&](const Vector& in, Vector& out) {
+    for (std::size_t q = 0; q < count; ++q) {
+      const Real* m = sc.block_inverse.data() + 9 * q;
+      const Real* v = in.data() + 3 * q;
+      Real* o = out.data() + 3 * q;
+      for (int r = 0; r < 3; ++r) o[r] = m[3 * r] * v[0] + m[3 * r + 1] * v[1] + m[3 * r + 2] * v[2];
+    }
+  });
+}
+
+// The Cholesky blocks' sources in `system` for local/global's symbolic structure `ms`.
+template <class Real>
+void map_blocks(ImplicitScratch<Real>& sc, const LocalGlobalScratch& ms) {
+  const std::size_t count = ms.permutation.size();
+  sc.point_of.resize(count);
+  for (std::size_t p = 0; p < count; ++p) sc.point_of[std::size_t(ms.permutation[p])] = int(p);
+  const std::size_t blocks = ms.row_index.size();
+  sc.source.resize(blocks);
+  for (std::size_t j = 0; j < count; ++j)
+    for (int k = ms.column_start[j]; k < ms.column_start[j + 1]; ++k) {
+      const int pi = sc.point_of[std::size_t(ms.row_index[std::size_t(k)])], pj = sc.point_of[j];
+      auto& src = sc.source[std::size_t(k)];
+      const int* begin = sc.system.innerIndexPtr() + sc.system.outerIndexPtr()[3 * pi];
+      const int* end = sc.system.innerIndexPtr() + sc.system.outerIndexPtr()[3 * pi + 1];
+      const bool present = std::binary_search(begin, end, 3 * pj);
+      for (int r = 0; r < 3; ++r) src[std::size_t(r)] = present ? offset_of(sc.system, 3 * pi + r, 3 * pj) : -1;
+    }
+  sc.block_value.resize(9 * blocks);
+  sc.block_work.resize(9 * count);
+  sc.solve_work.resize(3 * count);
+  sc.structure = &ms;
+  sc.structure_factorisations = ms.factorisations;
+}
+
+// Left-looking block Cholesky of `system` (lower 3×3 blocks, in double) on the pattern of
+// `ms`: column j gathers its column of the matrix, subtracts L_ik·L_jkᵀ of every earlier
+// column k with a block in row j (kept in linked lists by their next row, Ng and Peyton's
+// scheme), then factors its diagonal block and scales the rest. False when a diagonal
+// block is not positive definite.
+template <class Real>
+bool block_factor(ImplicitScratch<Real>& sc, const LocalGlobalScratch& ms) {
+  const std::size_t count = ms.permutation.size();
+  const int* start = ms.column_start.data();
+  const int* row = ms.row_index.data();
+  const Real* a = sc.system.valuePtr();
+  double* value = sc.block_value.data();
+  double* work = sc.block_work.data();
+  sc.head.assign(count, -1);
+  sc.next.assign(count, -1);
+  sc.first.assign(count, 0);
+  for (std::size_t j = 0; j < count; ++j) {
+    for (int k = start[j]; k < start[j + 1]; ++k) {
+      double* w = work + 9 * std::size_t(row[k]);
+      const auto& src = sc.source[std::size_t(k)];
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) w[3 * r + c] = src[std::size_t(r)] < 0 ? 0.0 : double(a[src[std::size_t(r)] + c]);
+    }
+    for (int k = sc.head[j]; k != -1;) {
+      const int after = sc.next[std::size_t(k)];
+      const int at = sc.first[std::size_t(k)];
+      const double* ljk = value + 9 * std::size_t(at);
+      for (int q = at; q < start[k + 1]; ++q) {
+        const double* lik = value + 9 * std::size_t(q);
+        double* w = work + 9 * std::size_t(row[q]);
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c)
+            w[3 * r + c] -= lik[3 * r] * ljk[3 * c] + lik[3 * r + 1] * ljk[3 * c + 1] + lik[3 * r + 2] * ljk[3 * c + 2];
+      }
+      if (at + 1 < start[k + 1]) {  // column k's next row waits for that column
+        sc.first[std::size_t(k)] = at + 1;
+        const int target = row[at + 1];
+        sc.next[std::size_t(k)] = sc.head[std::size_t(target)];
+        sc.head[std::size_t(target)] = k;
+      }
+      k = after;
+    }
+    // the diagonal block: S = L_jj L_jjᵀ, from its lower triangle
+    const double* d = work + 9 * j;
+    double* l = value + 9 * std::size_t(start[j]);
+    const double l00s = d[0];
+    if (!(l00s > 0)) return false;
+    const double l00 = std::sqrt(l00s), l10 = d[3] / l00, l20 = d[6] / l00;
+    const double l11s = d[4] - l10 * l10;
+    if (!(l11s > 0)) return false;
+    const double l11 = std::sqrt(l11s), l21 = (d[7] - l20 * l10) / l11;
+    const double l22s = d[8] - l20 * l20 - l21 * l21;
+    if (!(l22s > 0)) return false;
+    const double l22 = std::sqrt(l22s);
+    const double diagonal[9] = {l00, 0, 0, l10, l11, 0, l20, l21, l22};
+    std::copy(diagonal, diagonal + 9, l);
+    // L_ij = W_ij L_jj⁻ᵀ: each row x of the block solves L_jj xᵀ = wᵀ
+    for (int k = start[j] + 1; k < start[j + 1]; ++k) {
+      const double* w = work + 9 * std::size_t(row[k]);
+      double* out = value + 9 * std::size_t(k);
+      for (int r = 0; r < 3; ++r) {
+        const double x0 = w[3 * r] / l00;
+        const double x1 = (w[3 * r + 1] - l10 * x0) / l11;
+        const double x2 = (w[3 * r + 2] - l20 * x0 - l21 * x1) / l22;
+        out[3 * r] = x0;
+        out[3 * r + 1] = x1;
+        out[3 * r + 2] = x2;
+      }
+    }
+    if (start[j] + 1 < start[j + 1]) {
+      sc.first[j] = start[j] + 1;
+      const int target = row[start[j] + 1];
+      sc.next[j] = sc.head[std::size_t(target)];
+      sc.head[std::size_t(target)] = int(j);
+    }
+  }
+  return true;
+}
+
+// z = (L Lᵀ)⁻¹ r through the blocks, permuted.
+template <class Real>
+void block_solve(ImplicitScratch<Real>& sc, const LocalGlobalScratch& ms, const Real* in, Real* out) {
+  const std::size_t count = ms.permutation.size();
+  const int* start = ms.column_start.data();
+  const int* row = ms.row_index.data();
+  const double* value = sc.block_value.data();
+  double* y = sc.solve_work.data();
+  for (std::size_t p = 0; p < count; ++p)
+    for (int r = 0; r < 3; ++r) y[3 * std::size_t(ms.permutation[p]) + std::size_t(r)] = double(in[3 * p + std::size_t(r)]);
+  for (std::size_t j = 0; j < count; ++j) {  // L y = b
+    const double* l = value + 9 * std::size_t(start[j]);
+    double* yj = y + 3 * j;
+    yj[0] = yj[0] / l[0];
+    yj[1] = (yj[1] - l[3] * yj[0]) / l[4];
+    yj[2] = (yj[2] - l[6] * yj[0] - l[7] * yj[1]) / l[8];
+    for (int k = start[j] + 1; k < start[j + 1]; ++k) {
+      const double* lij = value + 9 * std::size_t(k);
+      double* yi = y + 3 * std::size_t(row[k]);
+      for (int r = 0; r < 3; ++r) yi[r] -= lij[3 * r] * yj[0] + lij[3 * r + 1] * yj[1] + lij[3 * r + 2] * yj[2];
+    }
+  }
+  for (std::size_t j = count; j-- > 0;) {  // Lᵀ x = y
+    double s[3] = {y[3 * j], y[3 * j + 1], y[3 * j + 2]};
+    for (int k = start[j] + 1; k < start[j + 1]; ++k) {
+      const double* lij = value + 9 * std::size_t(k);
+      const double* xi = y + 3 * std::size_t(row[k]);
+      for (int c = 0; c < 3; ++c) s[c] -= lij[c] * xi[0] + lij[3 + c] * xi[1] + lij[6 + c] * xi[2];
+    }
+    const double* l = value + 9 * std::size_t(start[j]);
+    const double x2 = s[2] / l[8];
+    const double x1 = (s[1] - l[7] * x2) / l[4];
+    const double x0 = (s[0] - l[3] * x1 - l[6] * x2) / l[0];
+    y[3 * j] = x0;
+    y[3 * j + 1] = x1;
+    y[3 * j + 2] = x2;
+  }
+  for (std::size_t p = 0; p < count; ++p)
+    for (int r = 0; r < 3; ++r) out[3 * p + std::size_t(r)] = Real(y[3 * std::size_t(ms.permutation[p]) + std::size_t(r)]);
+}
+
+// Cholesky: the step's matrix factored in double (a float sheet's too), every step. The
+// matrix is positive definite (masses on the diagonal, every spring block clamped to
+// G ⪰ 0), so the factor exists; if rounding still breaks it, the step falls back to block
+// Jacobi.
+template <class Real>
+SolveResult cholesky_cg(ImplicitScratch<Real>& sc, Sheet<Real>& s, double dt, double tolerance, int max_iterations) {
+  using Vector = typename ImplicitScratch<Real>::Vector;
+  if (!s.local_global_scratch || s.local_global_scratch.use_count() > 1)
+    s.local_global_scratch = std::make_shared<LocalGlobalScratch>();
+  LocalGlobalScratch& ms = *s.local_global_scratch;
+  prepare_factor(ms, s, dt);
+  if (sc.structure != &ms || sc.structure_factorisations != ms.factorisations) map_blocks(sc, ms);
+  if (!block_factor(sc, ms)) return block_jacobi_cg(sc, tolerance, max_iterations);
+  return preconditioned_cg(sc, tolerance, max_iterations,
+                           [&](const Vector& in, Vector& out) { block_solve(sc, ms, in.data(), out.data()); });
+}
+
+// Auto: block Jacobi's iterations grow with dt·ω_max (on a 64×64 sheet about 15 at
+// dt·ω_max ≈ 3, 100 at 30, 195 at 95, where some solves pass the default cap of 200), the
+// factor's cost does not: a factor and its solve cost about as much as 180 block-Jacobi
+// iterations there. Block Jacobi up to dt·ω_max = 50 keeps it both cheaper and converged.
+bool use_cholesky(Preconditioner preconditioner, double dt, double omega_max) {
+  switch (preconditioner) {
+    case Preconditioner::BlockJacobi: return false;
+    case Preconditioner::Cholesky: return true;
+    default: return dt * omega_max > 50.0;
+  }
 }
 
 // Springs (eq 6, spring_jacobian.h): −dt²·∂f/∂x = dt²·G into the matrix and dt²·∂f/∂x·v
@@ -231,7 +416,9 @@ void implicit_euler_step(Sheet<Real>& s, const StepParams<Real>& p) {
   if (s.integrator_scratch.size() != std::size_t(n3)) s.integrator_scratch.assign(std::size_t(n3), Real(0));
   Eigen::Map<typename ImplicitScratch<Real>::Vector> guess(s.integrator_scratch.data(), n3);
   sc.dv = guess;
-  const SolveResult result = block_jacobi_cg(sc, p.cg_tolerance, p.cg_max_iterations);
+  const SolveResult result = use_cholesky(p.cg_preconditioner, double(dt), sc.omega_max)
+                                ? cholesky_cg(sc, s, double(dt), p.cg_tolerance, p.cg_max_iterations)
+                                : block_jacobi_cg(sc, p.cg_tolerance, p.cg_max_iterations);
   guess = sc.dv;
   record_solve(s.last_solve, result.iterations, result.relative_residual, result.relative_residual <= p.cg_tolerance);
 
@@ -249,3 +436,24 @@ template void implicit_euler_step<double>(Sheet<double>&, const StepParams<doubl
 template void implicit_euler_step<float>(Sheet<float>&, const StepParams<float>&);
 
 }  // namespace drape::detail
+
+namespace drape {
+
+namespace {
+constexpr std::pair<Preconditioner, std::string_view> preconditioner_names[] = {
+    {Preconditioner::Auto, "auto"}, {Preconditioner::BlockJacobi, "block_jacobi"}, {Preconditioner::Cholesky, "cholesky"}};
+}
+
+std::string_view preconditioner_name(Preconditioner preconditioner) {
+  for (const auto& [value, name] : preconditioner_names)
+    if (value == preconditioner) return name;
+  return "unknown";
+}
+
+std::optional<Preconditioner> preconditioner_from_name(std::string_view name) {
+  for (const auto& [value, known] : preconditioner_names)
+    if (known == name) return value;
+  return std::nullopt;
+}
+
+}  // namespace drape

@@ -3,12 +3,25 @@
 //   M Δv = dt·f(x + dt(v + Δv), v + Δv)
 // with f expanded to first order, i.e. the symmetric system
 //   (M − dt·∂f/∂v − dt²·∂f/∂x) Δv = dt·(f + dt·∂f/∂x·v),
-// assembled as an Eigen sparse matrix and solved by conjugate gradient preconditioned with
-// the inverses of its 3×3 diagonal blocks (one per point).
+// assembled as an Eigen sparse matrix and solved by preconditioned conjugate gradient, with
+// one of two preconditioners (Preconditioner, types.h):
+//   block Jacobi: the inverses of its 3×3 diagonal blocks (one per point);
+//   Cholesky: a sparse Cholesky factor of the matrix itself, refactored every step, in 3×3
+//     blocks on the symbolic structure (pattern of L, fill-reducing permutation) of
+//     local/global's factored matrix, whose point graph is the same (local_global.h).
+// The factored mass–spring matrix of local/global (M̃ + dt²·L, the same for x, y and z) was
+// tried as the preconditioner first and measured worse than block Jacobi: it counts every
+// spring as stiff in all three directions, while the system is stiff only along each
+// spring (u uᵀ), so the modes a grid of springs barely resists (out of plane, and in-plane
+// shear of a grid without diagonals) come out of it with eigenvalues near m/(dt²k), and CG
+// took hundreds of iterations at k ≥ 1e3 N/m on 64×64 (docs/integrators.md). A factor kept
+// from an earlier step fails the same way once springs turn between steps. Only the step's
+// own matrix captures each spring's direction.
 #pragma once
 
 #include <Eigen/LU>
 #include <Eigen/SparseCore>
+#include <array>
 #include <vector>
 
 #include "integrate.h"
@@ -31,6 +44,19 @@ struct ImplicitScratch {
   Vector rhs, dv;                 // dv: the solution (its copy in Sheet::integrator_scratch is the next guess)
   Vector residual, direction, preconditioned, product;  // the solve's work vectors
   std::vector<Real> block_inverse;  // per point: the inverse of its 3×3 diagonal block, row-major
+
+  // Auto's rule reads the sheet's stiffest mode, ω_max = 2/sheet_stable_step (Gershgorin).
+  double omega_max = 0;
+  // The Cholesky preconditioner: L in 3×3 blocks (row-major, 9 values per block) on the
+  // pattern of local/global's point factor, `source`: per block of L, the offsets in
+  // `system` of its three rows (−1: fill, not in the matrix). Built for one factor of
+  // local/global (`structure`, `structure_factorisations`) and one pattern of `system`.
+  const void* structure = nullptr;
+  std::uint64_t structure_factorisations = 0;
+  std::vector<std::array<int, 3>> source;
+  std::vector<int> point_of;                 // factor row → point
+  std::vector<double> block_value, block_work, solve_work;
+  std::vector<int> head, next, first;        // the left-looking factorisation's lists
 };
 
 template <class Real>

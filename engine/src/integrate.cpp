@@ -183,7 +183,7 @@ constexpr IntegratorRow table[] = {
     {{Integrator::VelocityVerlet, "velocity_verlet", 2, true, "ω·dt < 2", ""},
      false, interval_two, DRAPE_STEP(velocity_verlet_step)},
     {{Integrator::RK4, "rk4", 4, true, "ω·dt < 2√2", ""}, false, rk4_limit, DRAPE_STEP(rk4_step)},
-    {{Integrator::ImplicitEuler, "implicit_euler", 1, false, "any step", "cg_tolerance, cg_max_iterations"},
+    {{Integrator::ImplicitEuler, "implicit_euler", 1, false, "any step", "cg_tolerance, cg_max_iterations, cg_preconditioner"},
      false, unconditional, DRAPE_STEP(implicit_euler_step)},
     {{Integrator::LocalGlobal, "local_global", 1, false, "any step", "local_global_iterations (cg_tolerance: converged)"},
      false, unconditional, DRAPE_STEP(local_global_step)},

@@ -19,6 +19,7 @@ struct StepParams {
   // local/global and vertex block descent: iterations per step
   int local_global_iterations = 10;
   int vertex_block_iterations = 10;
+  Preconditioner cg_preconditioner = Preconditioner::Auto;  // implicit Euler only
 };
 
 // One integrator's step of a whole sheet, pins included.

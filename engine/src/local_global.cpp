@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "forces.h"
+#include "terms/terms.h"
 
 namespace drape::detail {
 
@@ -44,8 +45,19 @@ void build_factor(LocalGlobalScratch& sc, const Sheet<Real>& s, double dt, bool 
   sc.damping = widen(s.damping);
   sc.anchor_point = s.anchors.point;
   sc.anchor_stiffness = widen(s.anchors.stiffness);
-  sc.rest = widen(t.rest_length);  // the topology is part of the key: these stay valid with it
+  // the topology is part of the key: these stay valid with it
+  sc.edge_a = t.a;
+  sc.edge_b = t.b;
+  sc.rest = widen(t.rest_length);
   sc.stiffness = widen(t.stiffness);
+  if (t.shear)
+    shear::for_each_spring(t, [&](std::uint32_t a, std::uint32_t b) {
+      sc.edge_a.push_back(a);
+      sc.edge_b.push_back(b);
+      sc.rest.push_back(double(t.shear->rest));
+      sc.stiffness.push_back(double(t.shear->stiffness));
+    });
+  sc.implicit_bending = factor_too && t.bending.has_value();
   sc.pin_point = s.pins.point;
   sc.pinned.assign(count, 0);
   for (std::uint32_t p : s.pins.point) sc.pinned[p] = 1;
@@ -56,7 +68,7 @@ void build_factor(LocalGlobalScratch& sc, const Sheet<Real>& s, double dt, bool 
     sc.start[r].resize(count);
     sc.spring_force[r].resize(count);
     sc.other_force[r].resize(count);
-    sc.direction[r].resize(t.springs());
+    sc.direction[r].resize(sc.edge_a.size());
   }
   sc.column_start.clear();
   sc.inverse_diagonal.clear();
@@ -67,14 +79,23 @@ void build_factor(LocalGlobalScratch& sc, const Sheet<Real>& s, double dt, bool 
   for (std::size_t p = 0; p < count; ++p) diagonal[p] = sc.mass[p] + (sc.damping.empty() ? 0.0 : dt * sc.damping[p]);
   for (std::size_t k = 0; k < sc.anchor_point.size(); ++k) diagonal[sc.anchor_point[k]] += dt2 * sc.anchor_stiffness[k];
   std::vector<Eigen::Triplet<double, int>> entries;
-  entries.reserve(count + t.springs());
-  for (std::uint32_t e = 0; e < t.springs(); ++e) {
-    const std::uint32_t a = t.a[e], b = t.b[e];
-    const double w = dt2 * static_cast<double>(t.stiffness[e]);
+  entries.reserve(count + sc.edge_a.size());
+  for (std::size_t e = 0; e < sc.edge_a.size(); ++e) {
+    const std::uint32_t a = sc.edge_a[e], b = sc.edge_b[e];
+    const double w = dt2 * sc.stiffness[e];
     diagonal[a] += w;
     diagonal[b] += w;
     if (!sc.pinned[a] && !sc.pinned[b]) entries.emplace_back(int(std::max(a, b)), int(std::min(a, b)), -w);
   }
+  // bending's Hessian k_b DᵀD = −J (terms/bending.h), the lower triangle
+  if (sc.implicit_bending)
+    bending::add_jacobian(t, [&](std::uint32_t p, std::uint32_t q, const Real (&j)[3][3]) {
+      const double w = -dt2 * double(j[0][0]);
+      if (p == q)
+        diagonal[p] += w;
+      else if (p > q && !sc.pinned[p] && !sc.pinned[q])
+        entries.emplace_back(int(p), int(q), w);
+    });
   for (std::size_t p = 0; p < count; ++p) entries.emplace_back(int(p), int(p), sc.pinned[p] ? 1.0 : diagonal[p]);
   LocalGlobalScratch::Matrix system(static_cast<Eigen::Index>(count), static_cast<Eigen::Index>(count));
   system.setFromTriplets(entries.begin(), entries.end());
@@ -89,6 +110,7 @@ void build_factor(LocalGlobalScratch& sc, const Sheet<Real>& s, double dt, bool 
   const auto& indices = factor.permutationP().indices();
   sc.permutation.assign(indices.data(), indices.data() + count);
   sc.work.resize(3 * count);
+  ++sc.factorisations;
 }
 
 // The local step at positions `x` (sc.solution): every spring's d_e; with `force`, also
@@ -114,6 +136,23 @@ void local_step(LocalGlobalScratch& sc, const std::vector<std::uint32_t>& ea, co
       }
     }
   }
+}
+
+// Bending's force at `x` (sc.solution), added to sc.spring_force: f = J x, exact for the
+// quadratic energy (its Jacobian is constant, terms/bending.h).
+template <class Real>
+void add_bending_force(LocalGlobalScratch& sc, const Topology<Real>& t) {
+  const double* x[3] = {sc.solution[0].data(), sc.solution[1].data(), sc.solution[2].data()};
+  bending::add_jacobian(t, [&](std::uint32_t p, std::uint32_t q, const Real (&j)[3][3]) {
+    for (int r = 0; r < 3; ++r) sc.spring_force[r][p] += double(j[0][0]) * x[r][q];
+  });
+}
+
+// Springs' (and implicit bending's) forces at sc.solution into sc.spring_force.
+template <class Real>
+void implicit_forces(LocalGlobalScratch& sc, const Topology<Real>& t) {
+  local_step(sc, sc.edge_a, sc.edge_b, sc.rest.data(), sc.stiffness.data(), std::uint32_t(sc.edge_a.size()), true);
+  if (sc.implicit_bending) add_bending_force(sc, t);
 }
 
 // The global step for all three axes: sc.rhs → sc.solution through L Lᵀ (permuted). The
@@ -169,9 +208,17 @@ void global_solve(LocalGlobalScratch& sc) {
 }  // namespace
 
 template <class Real>
+void prepare_factor(LocalGlobalScratch& sc, const Sheet<Real>& s, double dt) {
+  if (!factor_current(sc, s, dt) || sc.inverse_diagonal.size() != s.size()) build_factor(sc, s, dt, true);
+}
+
+template <class Real>
 void backward_euler_begin(LocalGlobalScratch& sc, Sheet<Real>& s, const StepParams<Real>& p, bool factor) {
   const double h = static_cast<double>(p.dt), h2 = h * h;
-  if (!factor_current(sc, s, h) || (factor && sc.inverse_diagonal.size() != s.size())) build_factor(sc, s, h, factor);
+  if (factor)
+    prepare_factor(sc, s, h);
+  else if (!factor_current(sc, s, h))
+    build_factor(sc, s, h, false);
 
   const auto& t = *s.topology;
   const std::size_t count = s.size();
@@ -188,7 +235,7 @@ void backward_euler_begin(LocalGlobalScratch& sc, Sheet<Real>& s, const StepPara
     sc.start[r].assign(x[r], x[r] + count);
     std::copy(x[r], x[r] + count, sc.solution[r].data());
   }
-  local_step(sc, t.a, t.b, sc.rest.data(), sc.stiffness.data(), t.springs(), true);
+  implicit_forces(sc, t);
   sheet_forces(s, cptr(s.position), cptr(s.velocity), ptr(s.force));
   const Real* f[3] = {s.force.x.data(), s.force.y.data(), s.force.z.data()};
   for (int r = 0; r < 3; ++r)
@@ -229,25 +276,29 @@ void backward_euler_finish(LocalGlobalScratch& sc, Sheet<Real>& s, const StepPar
   const bool damped = !sc.damping.empty();
   // Residual of the backward-Euler equations at the result, over the free points:
   //   M(x − x0 − h v0) + h C (x − x0) − h²(f_spring(x) + f_anchor(x) + f_other + M g),
-  // relative to the sizes of its two sides.
-  local_step(sc, t.a, t.b, sc.rest.data(), sc.stiffness.data(), t.springs(), true);
+  // relative to the sizes of its terms: the momentum change, the implicit forces and the
+  // held ones. (Relative to the two sides' sums, a sheet at rest, where both vanish while
+  // its springs hold its weight, measured 0/0 and reported every step unconverged.)
+  implicit_forces(sc, t);
   for (std::size_t k = 0; k < an.point.size(); ++k) {
     const double target[3] = {double(an.tx[k]), double(an.ty[k]), double(an.tz[k])};
     for (int r = 0; r < 3; ++r)
       sc.spring_force[r][an.point[k]] += sc.anchor_stiffness[k] * (target[r] - sc.solution[r][an.point[k]]);
   }
-  double residual2 = 0, left2 = 0, right2 = 0;
+  double residual2 = 0, left2 = 0, implicit2 = 0, held2 = 0;
   for (int r = 0; r < 3; ++r)
     for (std::size_t q = 0; q < count; ++q) {
       if (sc.pinned[q]) continue;
       const double xq = sc.solution[r][Eigen::Index(q)], x0 = sc.start[r][q];
       const double left = sc.mass[q] * (xq - x0 - h * double(v[r][q])) + (damped ? h * sc.damping[q] * (xq - x0) : 0.0);
-      const double right = h2 * (sc.spring_force[r][q] + sc.other_force[r][q] + sc.mass[q] * g[r]);
-      residual2 += (left - right) * (left - right);
+      const double implicit = h2 * sc.spring_force[r][q], held = h2 * (sc.other_force[r][q] + sc.mass[q] * g[r]);
+      const double residual = left - implicit - held;
+      residual2 += residual * residual;
       left2 += left * left;
-      right2 += right * right;
+      implicit2 += implicit * implicit;
+      held2 += held * held;
     }
-  const double scale = std::sqrt(left2) + std::sqrt(right2);
+  const double scale = std::sqrt(left2) + std::sqrt(implicit2) + std::sqrt(held2);
   const double residual = scale > 0 ? std::sqrt(residual2) / scale : 0.0;
   record_solve(s.last_solve, iterations, residual, residual <= p.cg_tolerance);
 
@@ -268,8 +319,10 @@ void local_global_step(Sheet<Real>& s, const StepParams<Real>& p) {
   backward_euler_begin(sc, s, p, true);
   const double h2 = double(p.dt) * double(p.dt);
   const auto& t = *s.topology;
-  const std::uint32_t springs = t.springs();
+  const std::uint32_t springs = std::uint32_t(sc.edge_a.size());
   const std::vector<double>& stiffness = sc.stiffness;
+  const std::uint32_t* ea = sc.edge_a.data();
+  const std::uint32_t* eb = sc.edge_b.data();
   const auto& an = s.anchors;
 
   // The constant parts of the global step's right-hand side besides M̃ x̂: h²·k·p0 of
@@ -284,23 +337,28 @@ void local_global_step(Sheet<Real>& s, const StepParams<Real>& p) {
     for (int r = 0; r < 3; ++r) sc.inertia[r][pins.point[k]] = target[r];
   }
   for (std::uint32_t e = 0; e < springs; ++e) {
-    const std::uint32_t a = t.a[e], b = t.b[e];
+    const std::uint32_t a = ea[e], b = eb[e];
     if (sc.pinned[a] == sc.pinned[b]) continue;
     const std::uint32_t pin = sc.pinned[a] ? a : b, free = sc.pinned[a] ? b : a;
     for (int r = 0; r < 3; ++r) sc.inertia[r][free] += h2 * stiffness[e] * sc.inertia[r][pin];
   }
+  if (sc.implicit_bending)  // bending's coupling to pinned points: −h²·K_bend·x_pin = h²·J·x_pin
+    bending::add_jacobian(t, [&](std::uint32_t p, std::uint32_t q, const Real (&j)[3][3]) {
+      if (sc.pinned[p] || !sc.pinned[q]) return;
+      for (int r = 0; r < 3; ++r) sc.inertia[r][p] += h2 * double(j[0][0]) * sc.inertia[r][q];
+    });
 
   const int iterations = std::max(1, p.local_global_iterations);
   for (int it = 0; it < iterations; ++it) {
-    local_step(sc, t.a, t.b, sc.rest.data(), stiffness.data(), springs, false);
+    local_step(sc, sc.edge_a, sc.edge_b, sc.rest.data(), stiffness.data(), springs, false);
     for (int r = 0; r < 3; ++r) {
       sc.rhs[r] = sc.inertia[r];
       double* rhs = sc.rhs[r].data();
       const double* d = sc.direction[r].data();
       for (std::uint32_t e = 0; e < springs; ++e) {
         const double w = h2 * stiffness[e] * d[e];
-        if (!sc.pinned[t.a[e]]) rhs[t.a[e]] += w;
-        if (!sc.pinned[t.b[e]]) rhs[t.b[e]] -= w;
+        if (!sc.pinned[ea[e]]) rhs[ea[e]] += w;
+        if (!sc.pinned[eb[e]]) rhs[eb[e]] -= w;
       }
     }
     global_solve(sc);
@@ -312,6 +370,8 @@ template void backward_euler_begin<double>(LocalGlobalScratch&, Sheet<double>&, 
 template void backward_euler_begin<float>(LocalGlobalScratch&, Sheet<float>&, const StepParams<float>&, bool);
 template void backward_euler_finish<double>(LocalGlobalScratch&, Sheet<double>&, const StepParams<double>&, int);
 template void backward_euler_finish<float>(LocalGlobalScratch&, Sheet<float>&, const StepParams<float>&, int);
+template void prepare_factor<double>(LocalGlobalScratch&, const Sheet<double>&, double);
+template void prepare_factor<float>(LocalGlobalScratch&, const Sheet<float>&, double);
 template void local_global_step<double>(Sheet<double>&, const StepParams<double>&);
 template void local_global_step<float>(Sheet<float>&, const StepParams<float>&);
 

@@ -238,7 +238,7 @@ template <class Real>
 detail::StepParams<Real> BasicWorld<Real>::Impl::step_params(double h) const {
   return {static_cast<Real>(h), static_cast<Real>(def.gravity.x), static_cast<Real>(def.gravity.y),
           static_cast<Real>(def.gravity.z), def.cg_tolerance, def.cg_max_iterations, def.local_global_iterations,
-          def.vertex_block_iterations};
+          def.vertex_block_iterations, def.cg_preconditioner};
 }
 
 template <class Real>

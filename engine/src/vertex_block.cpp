@@ -14,27 +14,30 @@ namespace drape::detail {
 
 namespace {
 
-// Springs per point, a greedy colouring in point order (two colours on a 4-neighbour grid),
+// Springs per point (the step's springs, shear diagonals included: LocalGlobalScratch), a
+// greedy colouring in point order (two colours on a 4-neighbour grid, four with diagonals),
 // and anchors per point.
 template <class Real>
 void build_adjacency(VertexBlockScratch& sc, const Sheet<Real>& s) {
-  const auto& t = *s.topology;
+  const std::vector<std::uint32_t>& ea = sc.step.edge_a;
+  const std::vector<std::uint32_t>& eb = sc.step.edge_b;
+  const std::uint32_t springs = std::uint32_t(ea.size());
   const std::size_t count = s.size();
   sc.topology = s.topology;
   sc.neighbour_start.assign(count + 1, 0);
-  for (std::uint32_t e = 0; e < t.springs(); ++e) {
-    ++sc.neighbour_start[t.a[e] + 1];
-    ++sc.neighbour_start[t.b[e] + 1];
+  for (std::uint32_t e = 0; e < springs; ++e) {
+    ++sc.neighbour_start[ea[e] + 1];
+    ++sc.neighbour_start[eb[e] + 1];
   }
   for (std::size_t p = 0; p < count; ++p) sc.neighbour_start[p + 1] += sc.neighbour_start[p];
   sc.neighbour.resize(sc.neighbour_start[count]);
   sc.neighbour_spring.resize(sc.neighbour_start[count]);
   std::vector<std::uint32_t> fill(sc.neighbour_start.begin(), sc.neighbour_start.end() - 1);
-  for (std::uint32_t e = 0; e < t.springs(); ++e) {
-    sc.neighbour[fill[t.a[e]]] = t.b[e];
-    sc.neighbour_spring[fill[t.a[e]]++] = e;
-    sc.neighbour[fill[t.b[e]]] = t.a[e];
-    sc.neighbour_spring[fill[t.b[e]]++] = e;
+  for (std::uint32_t e = 0; e < springs; ++e) {
+    sc.neighbour[fill[ea[e]]] = eb[e];
+    sc.neighbour_spring[fill[ea[e]]++] = e;
+    sc.neighbour[fill[eb[e]]] = ea[e];
+    sc.neighbour_spring[fill[eb[e]]++] = e;
   }
   std::vector<std::uint32_t> colour(count, 0);
   sc.colours.clear();
@@ -72,10 +75,10 @@ void vertex_block_step(Sheet<Real>& s, const StepParams<Real>& p) {
   if (!s.vertex_block_scratch || s.vertex_block_scratch.use_count() > 1)
     s.vertex_block_scratch = std::make_shared<VertexBlockScratch>();
   auto& vb = *s.vertex_block_scratch;
+  LocalGlobalScratch& sc = vb.step;
+  backward_euler_begin(sc, s, p, false);  // the springs' list first: the adjacency reads it
   if (vb.topology != s.topology || vb.neighbour_start.size() != s.size() + 1) build_adjacency(vb, s);
   if (vb.anchor_key != s.anchors.point || vb.anchor_start.size() != s.size() + 1) build_anchors(vb, s);
-  LocalGlobalScratch& sc = vb.step;
-  backward_euler_begin(sc, s, p, false);
 
   const double h = static_cast<double>(p.dt), inv_h2 = 1.0 / (h * h);
   const auto& an = s.anchors;

@@ -5,8 +5,10 @@
 // own 3 coordinates with the others held (a 3×3 solve, its springs' Hessians with the
 // transverse part clamped at 0 so the block stays positive definite). Points are grouped
 // by colour so that no two points of a colour share a spring (a 4-neighbour grid needs two:
-// red–black); a colour's points are independent, so they run in parallel, and the result
-// does not depend on the thread count. Fixed iteration budget (vertex_block_iterations).
+// red–black; with shear diagonals, which are springs here too, four); a colour's points are
+// independent, so they run in parallel, and the result does not depend on the thread count.
+// Fixed iteration budget (vertex_block_iterations). Bending stays held at the start of the
+// step: its triples join points two apart, which share a red–black colour.
 #pragma once
 
 #include <vector>

@@ -33,6 +33,8 @@ std::string validate(const WorldDef& d) {
   if (d.threads < 0) return problem("threads", "must be 0 (all cores) or positive", d.threads);
   if (!(d.cg_tolerance > 0) || !finite(d.cg_tolerance)) return problem("cg_tolerance", "must be positive and finite", d.cg_tolerance);
   if (d.cg_max_iterations < 1) return problem("cg_max_iterations", "must be at least 1", d.cg_max_iterations);
+  if (!preconditioner_from_name(preconditioner_name(d.cg_preconditioner)))
+    return problem("cg_preconditioner", "is not a preconditioner", double(d.cg_preconditioner));
   if (d.local_global_iterations < 1)
     return problem("local_global_iterations", "must be at least 1", d.local_global_iterations);
   if (d.vertex_block_iterations < 1)
@@ -371,6 +373,11 @@ template <class Real>
 typename BasicWorld<Real>::SolverStats BasicWorld<Real>::solver_stats(SheetId id) const {
   const detail::SolveStats& stats = impl_->sheet(id).last_solve;
   return {stats.iterations, stats.relative_residual, stats.converged, stats.unconverged_solves};
+}
+
+template <class Real>
+void BasicWorld<Real>::set_solver_stats(SheetId id, const SolverStats& stats) {
+  impl_->sheet(id).last_solve = {stats.iterations, stats.relative_residual, stats.converged, stats.unconverged_solves};
 }
 
 template <class Real>

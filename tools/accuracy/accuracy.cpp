@@ -1,7 +1,8 @@
 // drape-accuracy: measures the speed/accuracy trade of every integrator and precision on
 // reference problems whose answers do not come from the engine, and the stability region
 // of each integrator. Writes CSV files; tools/accuracy_report.py turns them into
-// docs/accuracy.md and plots. Usage: drape-accuracy OUT_DIR [--quick]
+// docs/accuracy.md and plots. Usage: drape-accuracy OUT_DIR [--quick] [--only runs,stiff,stability]
+// (--only: those CSV files alone, the others in OUT_DIR are left as they are)
 //
 // Problems:
 //   oscillator  two points and one spring, released from a stretch; analytic solution.
@@ -466,12 +467,34 @@ void stability_region(std::ofstream& out, const std::vector<double>& stiffnesses
 }  // namespace
 
 int main(int argc, char** argv) {
+  const char* usage = "usage: drape-accuracy OUT_DIR [--quick] [--only runs,stiff,stability]\n";
   if (argc < 2) {
-    std::cerr << "usage: drape-accuracy OUT_DIR [--quick]\n";
+    std::cerr << usage;
     return 2;
   }
   const std::string dir = argv[1];
-  const bool quick = argc > 2 && std::strcmp(argv[2], "--quick") == 0;
+  bool quick = false;
+  std::string only = "runs,stiff,stability";
+  for (int k = 2; k < argc; ++k) {
+    if (std::strcmp(argv[k], "--quick") == 0) {
+      quick = true;
+    } else if (std::strcmp(argv[k], "--only") == 0 && k + 1 < argc) {
+      only = argv[++k];
+    } else {
+      std::cerr << "drape-accuracy: unknown argument " << argv[k] << "\n" << usage;
+      return 2;
+    }
+  }
+  auto wanted = [&](const std::string& section) { return ("," + only + ",").find("," + section + ",") != std::string::npos; };
+  for (std::size_t at = 0; at <= only.size();) {
+    const std::size_t comma = std::min(only.find(',', at), only.size());
+    const std::string section = only.substr(at, comma - at);
+    if (section != "runs" && section != "stiff" && section != "stability") {
+      std::cerr << "drape-accuracy: --only: unknown section \"" << section << "\"\n" << usage;
+      return 2;
+    }
+    at = comma + 1;
+  }
   {
     std::ofstream probe(dir + "/accuracy_meta.csv");
     if (!probe) {
@@ -486,6 +509,7 @@ int main(int argc, char** argv) {
     const drape::WorldDef defaults = world_def(Integrator::ImplicitEuler, 1e-3);
     probe << "cg_tolerance," << defaults.cg_tolerance << "\n";
     probe << "cg_max_iterations," << defaults.cg_max_iterations << "\n";
+    probe << "cg_preconditioner," << drape::preconditioner_name(defaults.cg_preconditioner) << "\n";
     probe << "local_global_iterations," << defaults.local_global_iterations << "\n";
     probe << "vertex_block_iterations," << defaults.vertex_block_iterations << "\n";
     // the integrator table, so the report names, orders and classes them as the engine does
@@ -494,52 +518,56 @@ int main(int argc, char** argv) {
     probe << "stiff_seconds," << stiff_seconds << "\n";
   }
 
-  std::vector<Row> rows;
-  std::cerr << "oscillator...\n";
-  const std::vector<double> osc_steps = quick ? std::vector<double>{1e-2, 1e-3}
-                                              : std::vector<double>{1e-1, 5e-2, 2e-2, 1e-2, 5e-3, 2e-3, 1e-3,
-                                                                    5e-4, 2e-4, 1e-4, 5e-5, 2e-5, 1e-5};
-  oscillator_runs<drape::World>(rows, osc_steps);
-  oscillator_runs<drape::WorldF>(rows, osc_steps);
+  if (wanted("runs")) {
+    std::vector<Row> rows;
+    std::cerr << "oscillator...\n";
+    const std::vector<double> osc_steps = quick ? std::vector<double>{1e-2, 1e-3}
+                                                : std::vector<double>{1e-1, 5e-2, 2e-2, 1e-2, 5e-3, 2e-3, 1e-3,
+                                                                      5e-4, 2e-4, 1e-4, 5e-5, 2e-5, 1e-5};
+    oscillator_runs<drape::World>(rows, osc_steps);
+    oscillator_runs<drape::WorldF>(rows, osc_steps);
 
-  std::cerr << "rope...\n";
-  const Rope rope;
-  const Positions rope_ref = rope_equilibrium(rope);
-  const std::vector<double> rope_steps = quick ? std::vector<double>{1e-3}
-                                               : std::vector<double>{1.0 / 60, 1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2e-4};
-  rope_runs<drape::World>(rows, rope_steps, rope, rope_ref);
-  rope_runs<drape::WorldF>(rows, rope_steps, rope, rope_ref);
+    std::cerr << "rope...\n";
+    const Rope rope;
+    const Positions rope_ref = rope_equilibrium(rope);
+    const std::vector<double> rope_steps = quick ? std::vector<double>{1e-3}
+                                                 : std::vector<double>{1.0 / 60, 1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2e-4};
+    rope_runs<drape::World>(rows, rope_steps, rope, rope_ref);
+    rope_runs<drape::WorldF>(rows, rope_steps, rope, rope_ref);
 
-  std::cerr << "fig5 reference...\n";
-  Positions fig5_ref;
-  {
-    drape::World ref(world_def(Integrator::RK4, quick ? 1e-4 : 1e-5));
-    const auto id = ref.add_sheet(fig5_sheet());
-    ref.step(quick ? 10000 : 100000);
-    fig5_ref = positions(ref, id);
+    std::cerr << "fig5 reference...\n";
+    Positions fig5_ref;
+    {
+      drape::World ref(world_def(Integrator::RK4, quick ? 1e-4 : 1e-5));
+      const auto id = ref.add_sheet(fig5_sheet());
+      ref.step(quick ? 10000 : 100000);
+      fig5_ref = positions(ref, id);
+    }
+    std::cerr << "fig5...\n";
+    const std::vector<double> fig5_steps =
+        quick ? std::vector<double>{1e-3}
+              : std::vector<double>{1.0 / 60, 1e-2, 4e-3, 2e-3, 1e-3, 5e-4, 2e-4, 1e-4, 5e-5};
+    fig5_runs<drape::World>(rows, fig5_steps, fig5_ref);
+    fig5_runs<drape::WorldF>(rows, fig5_steps, fig5_ref);
+    write_runs(dir + "/accuracy_runs.csv", rows);
   }
-  std::cerr << "fig5...\n";
-  const std::vector<double> fig5_steps =
-      quick ? std::vector<double>{1e-3}
-            : std::vector<double>{1.0 / 60, 1e-2, 4e-3, 2e-3, 1e-3, 5e-4, 2e-4, 1e-4, 5e-5};
-  fig5_runs<drape::World>(rows, fig5_steps, fig5_ref);
-  fig5_runs<drape::WorldF>(rows, fig5_steps, fig5_ref);
-  write_runs(dir + "/accuracy_runs.csv", rows);
 
-  std::cerr << "stiff sheets...\n";
-  {
+  if (wanted("stiff")) {
+    std::cerr << "stiff sheets...\n";
     std::ofstream stiff(dir + "/accuracy_stiff.csv");
     stiff << "k,integrator,dt,iterations,steps,wall_per_simulated_s,stable,error,max_stretch,unconverged_solves\n";
     stiff.precision(6);
     stiff_runs(stiff, quick ? std::vector<double>{1e2, 1e5} : std::vector<double>{1e2, 1e3, 1e4, 1e5, 1e6, 1e7}, quick);
   }
 
-  std::cerr << "stability region...\n";
-  std::ofstream out(dir + "/accuracy_stability.csv");
-  out << "precision,integrator,k,estimate_dt,largest_stable_dt,at_search_limit,frame_run_steps,frame_run_wall_per_simulated_s,frame_run_stable,frame_run_cg_iterations\n";
-  out.precision(6);
-  const std::vector<double> ks = quick ? std::vector<double>{1, 1e4} : std::vector<double>{1, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8};
-  stability_region<drape::World>(out, ks);
-  stability_region<drape::WorldF>(out, ks);
+  if (wanted("stability")) {
+    std::cerr << "stability region...\n";
+    std::ofstream out(dir + "/accuracy_stability.csv");
+    out << "precision,integrator,k,estimate_dt,largest_stable_dt,at_search_limit,frame_run_steps,frame_run_wall_per_simulated_s,frame_run_stable,frame_run_cg_iterations\n";
+    out.precision(6);
+    const std::vector<double> ks = quick ? std::vector<double>{1, 1e4} : std::vector<double>{1, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8};
+    stability_region<drape::World>(out, ks);
+    stability_region<drape::WorldF>(out, ks);
+  }
   return 0;
 }

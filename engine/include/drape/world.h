@@ -25,12 +25,13 @@ struct WorldDef {
   Wind wind{};                         // for sheets with SheetDef::air only
   int threads = 0;                     // worker threads for step(); 0: all cores
 
-  // Implicit Euler's conjugate-gradient solve (3×3 block Jacobi preconditioner): stop at
-  // relative residual |r|/|b| below cg_tolerance or after cg_max_iterations iterations,
-  // whichever comes first. A solve stopped by the cap is counted in solver_stats() and in
-  // the StabilityReport.
+  // Implicit Euler's conjugate-gradient solve: stop at relative residual |r|/|b| below
+  // cg_tolerance or after cg_max_iterations iterations, whichever comes first. A solve
+  // stopped by the cap is counted in solver_stats() and in the StabilityReport.
+  // cg_preconditioner: see Preconditioner (types.h); Auto picks per sheet and step.
   double cg_tolerance = 1e-6;
   int cg_max_iterations = 200;
+  Preconditioner cg_preconditioner = Preconditioner::Auto;
 
   // Local/global (Integrator::LocalGlobal): iterations per step, the method's one knob
   // (more: closer to the converged backward-Euler step; cost linear in it).
@@ -245,6 +246,9 @@ class BasicWorld {
     std::uint64_t unconverged_solves = 0;
   };
   SolverStats solver_stats(SheetId id) const;
+  // Puts back what solver_stats() returned, e.g. from a checkpoint, so the counts of a
+  // resumed run go on from where they were.
+  void set_solver_stats(SheetId id, const SolverStats& stats);
   // s, simulated: step_count()·dt while the substep never changed (runs of equal substeps
   // are exact; advance() and adaptive steps add their own lengths)
   double time() const;
