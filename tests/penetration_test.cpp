@@ -1,0 +1,64 @@
+// The penetration measure the benchmarks report beside drape's and Bullet's stacks
+// (bench/penetration.h), against distances worked out by hand on flat sheets.
+#include <gtest/gtest.h>
+
+#include "penetration.h"
+
+#include <cmath>
+
+namespace {
+
+using drape::Vec3;
+using drape::bench::MeasuredSheet;
+using drape::bench::measure_penetration;
+
+constexpr std::uint32_t side = 8;
+constexpr double spacing = 0.1;  // m between grid points
+constexpr double reach = 0.05;
+
+// A flat side×side sheet at height z, point (i,j) at (j·spacing + x0, i·spacing, z).
+MeasuredSheet flat(int column, int layer, double z, double x0 = 0) {
+  MeasuredSheet s{column, layer, {}};
+  for (std::uint32_t i = 0; i < side; ++i)
+    for (std::uint32_t j = 0; j < side; ++j) s.points.push_back({x0 + j * spacing, i * spacing, z});
+  return s;
+}
+
+TEST(Penetration, ParallelSheetsAreApartByTheirGap) {
+  const auto p = measure_penetration({flat(0, 0, 0.0), flat(0, 1, 0.01)}, side, reach);
+  EXPECT_EQ(p.crossed, 0u);
+  EXPECT_EQ(p.max_depth, 0.0);
+  EXPECT_NEAR(p.min_gap, 0.01, 1e-15);
+}
+
+// An interior point of the upper sheet pushed 3 mm below the lower one has crossed it by
+// 3 mm; the lower sheet's point right under it is then above the upper sheet's dent, so it
+// has crossed too (by less: the dent's faces slope up from there).
+TEST(Penetration, PointPushedThroughTheSheetBelowIsCrossedByItsDepth) {
+  auto upper = flat(0, 1, 0.01);
+  upper.points[3 * side + 4].z = -0.003;
+  const auto p = measure_penetration({flat(0, 0, 0.0), upper}, side, reach);
+  EXPECT_EQ(p.crossed, 2u);
+  EXPECT_NEAR(p.max_depth, 0.003, 1e-15);
+  // The dent's faces rise 13 mm over a spacing of 100 mm; a lower point 10 mm under one of
+  // their upper corners is 10 mm · cos(atan(0.13)) from them, nearer than anything else.
+  EXPECT_NEAR(p.min_gap, 0.01 / std::sqrt(1 + 0.13 * 0.13), 1e-12);
+}
+
+// The same sheets with the lower one given the higher layer: every point of each is on the
+// wrong side of the other, so all cross (the order of layers is what "started above" means).
+TEST(Penetration, LayersOutOfOrderAreAllCrossed) {
+  const auto p = measure_penetration({flat(0, 1, 0.0), flat(0, 0, 0.01)}, side, reach);
+  // border points' nearest points on the other sheet are on its border: beside, not through
+  EXPECT_EQ(p.crossed, std::size_t(2 * (side - 2) * (side - 2)));
+  EXPECT_NEAR(p.max_depth, 0.01, 1e-15);
+}
+
+TEST(Penetration, SheetsOfOtherColumnsAndBeyondReachAreNotCompared) {
+  EXPECT_EQ(measure_penetration({flat(0, 1, 0.0), flat(1, 0, 0.01)}, side, reach).crossed, 0u);
+  const auto far = measure_penetration({flat(0, 1, 0.0), flat(0, 0, 0.06)}, side, reach);
+  EXPECT_EQ(far.crossed, 0u);
+  EXPECT_TRUE(std::isinf(far.min_gap));
+}
+
+}  // namespace
