@@ -45,6 +45,8 @@ inline Vec3 cross(Vec3 a, Vec3 b) { return {a.y * b.z - a.z * b.y, a.z * b.x - a
 
 // The point of triangle abc nearest to p, as barycentric weights (Ericson, Real-Time
 // Collision Detection, 5.1.5: Voronoi regions of the vertices, then edges, then the face).
+// The engine's narrow phase has its own (contacts.cpp); the measure keeps this one so that a
+// fault there cannot hide itself in the figures that judge it.
 inline std::array<double, 3> nearest_weights(Vec3 p, Vec3 a, Vec3 b, Vec3 c) {
   const Vec3 ab = sub(b, a), ac = sub(c, a), ap = sub(p, a);
   const double d1 = dot(ab, ap), d2 = dot(ac, ap);
@@ -70,8 +72,9 @@ inline std::array<double, 3> nearest_weights(Vec3 p, Vec3 a, Vec3 b, Vec3 c) {
     const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
     return {0, 1 - w, w};
   }
-  const double denom = 1 / (va + vb + vc);
-  const double v = vb * denom, w = vc * denom;
+  const double sum = va + vb + vc;
+  if (!(sum > 0)) return {1, 0, 0};  // a triangle collapsed to a line: its first corner
+  const double v = vb / sum, w = vc / sum;
   return {1 - v - w, v, w};
 }
 
