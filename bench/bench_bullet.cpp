@@ -18,6 +18,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <memory>
 #include <vector>
 
@@ -72,15 +73,20 @@ void BM_BulletCloth(benchmark::State& state) {
 }
 BENCHMARK(BM_BulletCloth)->ArgsProduct({{16, 32, 64, 128}, {0, 1000}})->Iterations(16);
 
-// Issue 13's stack (bench_common.h's Stack, layers 10 mm apart) stepped from rest for
-// `stack_span` simulated seconds in frames of 10 substeps, in drape and in Bullet, one
-// thread. A full second in Bullet takes minutes (one iteration of every repetition), so
-// both take the same shorter span; the counters carry it. CPU time of the one thread that
-// steps (drape's world with threads = 1 works on the caller's thread), so other jobs on a
-// shared machine shift both engines' figures alike.
-constexpr double stack_span = 0.1;  // s
-constexpr int stack_frame = 10;     // substeps per step()/stepSimulation call
-constexpr int stack_frames = int(stack_span / (stack_frame * drape::bench::Stack::dt) + 0.5);
+// Issue 13's stack (bench_common.h's Stack, layers 10 mm apart) stepped from rest in frames
+// of 10 substeps, in drape and in Bullet, one thread. A whole second in Bullet takes many
+// minutes (one iteration of every repetition), so tools/bench.sh's run takes both engines
+// through the first 0.1 s, the start of the fall; DRAPE_BENCH_STACK_SPAN=<seconds> sets
+// another span for a run by hand (the counters carry the span). CPU time of the one thread
+// that steps (drape's world with threads = 1 works on the caller's thread), so other jobs on
+// a shared machine shift both engines' figures alike.
+constexpr double stack_default_span = 0.1;  // s
+constexpr int stack_frame = 10;             // substeps per step()/stepSimulation call
+int stack_frames() {
+  double span = stack_default_span;
+  if (const char* text = std::getenv("DRAPE_BENCH_STACK_SPAN"); text && *text) span = std::atof(text);
+  return std::max(1, int(std::lround(span / (stack_frame * drape::bench::Stack::dt))));
+}
 constexpr double stack_layer_gap = 0.01;
 // Sheets searched around each point by the penetration measure: three layer gaps (its
 // cost grows with the cube of it: at 5 cm one measure took as long as 20 of drape's substeps).
@@ -115,11 +121,12 @@ struct StackMeasure {
 template <class Step, class Points>
 StackMeasure run_stack(benchmark::State& state, Step&& step, Points&& points) {
   StackMeasure measure;
-  for (int frame = 1; frame <= stack_frames; ++frame) {
+  const int frames = stack_frames();
+  for (int frame = 1; frame <= frames; ++frame) {
     step();
-    if (frame % stack_measure_every == 0 || frame == stack_frames) {
+    if (frame % stack_measure_every == 0 || frame == frames) {
       state.PauseTiming();
-      measure.take(points(), frame == stack_frames);
+      measure.take(points(), frame == frames);
       state.ResumeTiming();
     }
   }
@@ -130,7 +137,7 @@ StackMeasure run_stack(benchmark::State& state, Step&& step, Points&& points) {
 void report_stack(benchmark::State& state, const StackMeasure& measure) {
   using drape::bench::Stack;
   measure.report(state);
-  const double substeps = double(stack_frames) * stack_frame, simulated = substeps * Stack::dt;
+  const double substeps = double(stack_frames()) * stack_frame, simulated = substeps * Stack::dt;
   const double iterations = double(state.iterations());
   state.counters["simulated_s"] = simulated;
   state.counters["simulated_s_per_s"] = benchmark::Counter(simulated * iterations, benchmark::Counter::kIsRate);

@@ -383,7 +383,9 @@ class Report:
                  f"in frames of 10 substeps, in drape and in Bullet's soft bodies with their cloth–cloth contact on "
                  f"(`fCollision::VF_SS`, a node against the other sheet's faces), both on **one thread** (Bullet's "
                  f"soft bodies are single-threaded) and timed in CPU time, in the same run (bench/bench_bullet.cpp). A whole simulated second "
-                 f"of Bullet takes minutes, so both run the shorter span. Bullet's links are position constraints "
+                 f"of Bullet takes many minutes, so `tools/bench.sh` runs both through this shorter span, the start of "
+                 f"the fall, where the layers still move nearly together (a whole second by hand: "
+                 f"`DRAPE_BENCH_STACK_SPAN=1 drape_bench --benchmark_filter=StackContact`). Bullet's links are position constraints "
                  f"solved once per substep at the stiffness one XPBD iteration gives k = 100 N/m at this step, its "
                  f"collision margins sum to drape's contact thickness ({1e3 * c.get('contact_thickness_m', 0):g} mm), "
                  f"both frictionless.", "",
