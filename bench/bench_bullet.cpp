@@ -19,6 +19,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -97,17 +98,24 @@ constexpr int stack_measure_every = 5;
 
 struct StackMeasure {
   drape::bench::Penetration end, worst;
+  int unmeasured = 0;  // frames whose sheets were torn too far apart to measure
   void take(const std::vector<drape::bench::MeasuredSheet>& sheets, bool last) {
     const auto now = drape::bench::measure_penetration(sheets, drape::bench::Stack::side, stack_reach);
+    if (last) end = now;
+    if (!now.measured) {
+      ++unmeasured;
+      return;
+    }
     worst.crossed = std::max(worst.crossed, now.crossed);
     worst.max_depth = std::max(worst.max_depth, now.max_depth);
     worst.min_gap = std::min(worst.min_gap, now.min_gap);
-    if (last) end = now;
   }
   void report(benchmark::State& state) const {
-    state.counters["crossed_points"] = double(end.crossed);
-    state.counters["max_depth_m"] = end.max_depth;
-    state.counters["min_gap_m"] = end.min_gap;
+    const double nan = std::numeric_limits<double>::quiet_NaN();  // the last frame could not be measured
+    state.counters["crossed_points"] = end.measured ? double(end.crossed) : nan;
+    state.counters["max_depth_m"] = end.measured ? end.max_depth : nan;
+    state.counters["min_gap_m"] = end.measured ? end.min_gap : nan;
+    state.counters["unmeasured_frames"] = unmeasured;
     state.counters["worst_crossed_points"] = double(worst.crossed);
     state.counters["worst_depth_m"] = worst.max_depth;
     state.counters["worst_min_gap_m"] = worst.min_gap;

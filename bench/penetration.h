@@ -11,7 +11,9 @@
 // triangle's normal: a point of a higher layer that is now below a lower layer's sheet (or
 // the reverse) crossed it. A point whose nearest q lies on the other sheet's outer border is
 // beside that sheet, not through it. Sheets are searched only within `reach` of a point; a
-// point that went further through a sheet is not seen (the report says so).
+// point that went further through a sheet is not seen (the report says so). A stack whose
+// triangles would be listed in more than `max_listed` grid cells (torn-apart sheets) is not
+// measured: `measured` says so.
 #pragma once
 
 #include <drape/drape.h>
@@ -31,6 +33,7 @@ struct MeasuredSheet {
 };
 
 struct Penetration {
+  bool measured = true;     // false: some stack's triangles were spread too wide to search (it blew up)
   std::size_t crossed = 0;  // points on the other side of at least one sheet of their column
   double max_depth = 0;     // the largest distance of a crossed point past the sheet it crossed, m
   double min_gap = std::numeric_limits<double>::infinity();  // smallest distance of a point to another
@@ -80,7 +83,8 @@ inline std::array<double, 3> nearest_weights(Vec3 p, Vec3 a, Vec3 b, Vec3 c) {
 
 }  // namespace penetration_detail
 
-inline Penetration measure_penetration(const std::vector<MeasuredSheet>& sheets, std::uint32_t side, double reach) {
+inline Penetration measure_penetration(const std::vector<MeasuredSheet>& sheets, std::uint32_t side, double reach,
+                                       std::uint64_t max_listed = std::uint64_t(1) << 25) {
   using namespace penetration_detail;
   const std::uint32_t cells_per_side = side - 1, tris_per_sheet = 2 * cells_per_side * cells_per_side;
   // triangle t of a sheet: cell (i, j) = t / 2, its first or second triangle
@@ -126,8 +130,9 @@ inline Penetration measure_penetration(const std::vector<MeasuredSheet>& sheets,
       from = {cell_of(a.x, lo.x, n[0]), cell_of(a.y, lo.y, n[1]), cell_of(a.z, lo.z, n[2])};
       to = {cell_of(b.x, lo.x, n[0]), cell_of(b.y, lo.y, n[1]), cell_of(b.z, lo.z, n[2])};
     };
-    std::vector<std::uint32_t> start(std::size_t(n[0] * n[1] * n[2]) + 1, 0), entries;
-    auto triangle_cells = [&](std::uint32_t member, std::uint32_t t, auto&& visit) {
+    // the block of cells triangle t of a member meets; false for a non-finite triangle
+    auto triangle_block = [&](std::uint32_t member, std::uint32_t t, std::array<std::int64_t, 3>& from,
+                              std::array<std::int64_t, 3>& to) {
       const auto& pts = sheets[members[member]].points;
       const auto v = corners(t);
       Vec3 a = pts[v[0]], b = pts[v[0]];
@@ -135,9 +140,28 @@ inline Penetration measure_penetration(const std::vector<MeasuredSheet>& sheets,
         a = {std::min(a.x, pts[q].x), std::min(a.y, pts[q].y), std::min(a.z, pts[q].z)};
         b = {std::max(b.x, pts[q].x), std::max(b.y, pts[q].y), std::max(b.z, pts[q].z)};
       }
-      if (!std::isfinite(a.x + a.y + a.z + b.x + b.y + b.z)) return;
-      std::array<std::int64_t, 3> from, to;
+      if (!std::isfinite(a.x + a.y + a.z + b.x + b.y + b.z)) return false;
       cell_range(a, b, from, to);
+      return true;
+    };
+    // Sheets torn apart (an engine that blew up) have triangles across the whole grid: listing
+    // them would take more memory than the machine has. Such a state has no penetration to
+    // speak of; it is reported as not measured.
+    std::uint64_t listed = 0;
+    for (std::uint32_t m = 0; m < members.size(); ++m)
+      for (std::uint32_t t = 0; t < tris_per_sheet; ++t) {
+        std::array<std::int64_t, 3> from, to;
+        if (triangle_block(m, t, from, to))
+          listed += std::uint64_t((to[0] - from[0] + 1) * (to[1] - from[1] + 1) * (to[2] - from[2] + 1));
+      }
+    if (listed > max_listed) {
+      result.measured = false;
+      continue;
+    }
+    std::vector<std::uint32_t> start(std::size_t(n[0] * n[1] * n[2]) + 1, 0), entries;
+    auto triangle_cells = [&](std::uint32_t member, std::uint32_t t, auto&& visit) {
+      std::array<std::int64_t, 3> from, to;
+      if (!triangle_block(member, t, from, to)) return;
       for (std::int64_t x = from[0]; x <= to[0]; ++x)
         for (std::int64_t y = from[1]; y <= to[1]; ++y)
           for (std::int64_t z = from[2]; z <= to[2]; ++z) visit(std::size_t((x * n[1] + y) * n[2] + z));

@@ -61,4 +61,14 @@ TEST(Penetration, SheetsOfOtherColumnsAndBeyondReachAreNotCompared) {
   EXPECT_TRUE(std::isinf(far.min_gap));
 }
 
+// A sheet whose points are flung metres apart (an engine that blew up) has triangles across
+// the whole search grid; the measure says it could not measure instead of listing them all.
+TEST(Penetration, TornApartSheetsAreReportedUnmeasured) {
+  auto torn = flat(0, 1, 0.01);
+  for (std::size_t p = 0; p < torn.points.size(); p += 2) torn.points[p].z += 100.0 * double(p);
+  const auto p = measure_penetration({flat(0, 0, 0.0), torn}, side, reach, 100000);
+  EXPECT_FALSE(p.measured);
+  EXPECT_TRUE(measure_penetration({flat(0, 0, 0.0), flat(0, 1, 0.01)}, side, reach, 100000).measured);
+}
+
 }  // namespace
