@@ -10,7 +10,9 @@
 // gives the distance |p − q| and the side, the sign of (p − q)·n with n the nearest
 // triangle's normal: a point of a higher layer that is now below a lower layer's sheet (or
 // the reverse) crossed it. A point whose nearest q lies on the other sheet's outer border is
-// beside that sheet, not through it. Sheets are searched only within `reach` of a point; a
+// beside that sheet, not through it. The side is one triangle's: at a fold (the nearest point
+// on an edge or corner of triangles at a sharp angle) a point beside it may count as crossed;
+// the edge's or vertex's pseudo-normal would decide it (docs/architecture.md). Sheets are searched only within `reach` of a point; a
 // point that went further through a sheet is not seen (the report says so). A stack whose
 // triangles would be listed in more than `max_listed` grid cells (torn-apart sheets) is not
 // measured: `measured` says so.
