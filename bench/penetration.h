@@ -9,10 +9,12 @@
 // point and every other sheet of its column, the nearest point q on that sheet's triangles
 // gives the distance |p − q| and the side, the sign of (p − q)·n with n the nearest
 // triangle's normal: a point of a higher layer that is now below a lower layer's sheet (or
-// the reverse) crossed it. A point whose nearest q lies on the other sheet's outer border is
-// beside that sheet, not through it. The side is one triangle's: at a fold (the nearest point
-// on an edge or corner of triangles at a sharp angle) a point beside it may count as crossed;
-// the edge's or vertex's pseudo-normal would decide it (docs/architecture.md). Sheets are searched only within `reach` of a point; a
+// the reverse) crossed it. A point is
+// beside that sheet, not through it: q anywhere on the other sheet's outermost ring of cells
+// or that ring's inner edge, where free edges curl into folds (crossings there are not
+// counted). The side is one triangle's: at a fold elsewhere (q on a vertex or edge between
+// triangles at a sharp angle) a point beside it may count as crossed; the edge's or vertex's
+// pseudo-normal would decide it (docs/architecture.md). Sheets are searched only within `reach` of a point; a
 // point that went further through a sheet is not seen (the report says so). A stack whose
 // triangles would be listed in more than `max_listed` grid cells (torn-apart sheets) is not
 // measured: `measured` says so.
@@ -95,9 +97,9 @@ inline Penetration measure_penetration(const std::vector<MeasuredSheet>& sheets,
     const std::uint32_t a = i * side + j, b = a + 1, c = a + side + 1, d = a + side;
     return t % 2 == 0 ? std::array<std::uint32_t, 3>{a, b, c} : std::array<std::uint32_t, 3>{a, c, d};
   };
-  auto on_border = [&](std::uint32_t point) {
+  auto near_border = [&](std::uint32_t point) {  // on the border or next to it
     const std::uint32_t i = point / side, j = point % side;
-    return i == 0 || j == 0 || i == side - 1 || j == side - 1;
+    return i <= 1 || j <= 1 || i + 2 >= side || j + 2 >= side;
   };
 
   Penetration result;
@@ -219,9 +221,11 @@ inline Penetration measure_penetration(const std::vector<MeasuredSheet>& sheets,
                        w[0] * pts[v[0]].y + w[1] * pts[v[1]].y + w[2] * pts[v[2]].y,
                        w[0] * pts[v[0]].z + w[1] * pts[v[1]].z + w[2] * pts[v[2]].z};
           const double distance = std::sqrt(best[other]);
-          bool beside = true;  // q on the other sheet's outer border
-          for (int k = 0; k < 3; ++k)
-            if (w[k] > 1e-12 && !on_border(v[k])) beside = false;
+          // Beside the other sheet, not through it: q on its outermost ring of cells or that
+          // ring's inner edge, where free edges curl into folds (the side of a point next to a
+          // fold is not one triangle's to tell).
+          bool beside = false;
+          for (int k = 0; k < 3; ++k) beside = beside || (w[k] > 1e-12 && near_border(v[k]));
           const Vec3 normal = cross(sub(pts[v[1]], pts[v[0]]), sub(pts[v[2]], pts[v[0]]));
           const double s = dot(sub(p, q), normal);
           const bool above_at_start = own.layer > sheets[members[other]].layer;

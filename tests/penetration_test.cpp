@@ -17,10 +17,10 @@ constexpr double spacing = 0.1;  // m between grid points
 constexpr double reach = 0.05;
 
 // A flat side×side sheet at height z, point (i,j) at (j·spacing + x0, i·spacing, z).
-MeasuredSheet flat(int column, int layer, double z, double x0 = 0) {
+MeasuredSheet flat(int column, int layer, double z, double x0 = 0, double y0 = 0) {
   MeasuredSheet s{column, layer, {}};
   for (std::uint32_t i = 0; i < side; ++i)
-    for (std::uint32_t j = 0; j < side; ++j) s.points.push_back({x0 + j * spacing, i * spacing, z});
+    for (std::uint32_t j = 0; j < side; ++j) s.points.push_back({x0 + j * spacing, y0 + i * spacing, z});
   return s;
 }
 
@@ -49,8 +49,9 @@ TEST(Penetration, PointPushedThroughTheSheetBelowIsCrossedByItsDepth) {
 // wrong side of the other, so all cross (the order of layers is what "started above" means).
 TEST(Penetration, LayersOutOfOrderAreAllCrossed) {
   const auto p = measure_penetration({flat(0, 1, 0.0), flat(0, 0, 0.01)}, side, reach);
-  // border points' nearest points on the other sheet are on its border: beside, not through
-  EXPECT_EQ(p.crossed, std::size_t(2 * (side - 2) * (side - 2)));
+  // points over the other sheet's outermost ring of cells or its inner edge (rows and
+  // columns 0, 1, side-2, side-1) are beside it, not judged
+  EXPECT_EQ(p.crossed, std::size_t(2 * (side - 4) * (side - 4)));
   EXPECT_NEAR(p.max_depth, 0.01, 1e-15);
 }
 
@@ -69,6 +70,21 @@ TEST(Penetration, TornApartSheetsAreReportedUnmeasured) {
   const auto p = measure_penetration({flat(0, 0, 0.0), torn}, side, reach, 100000);
   EXPECT_FALSE(p.measured);
   EXPECT_TRUE(measure_penetration({flat(0, 0, 0.0), flat(0, 1, 0.01)}, side, reach, 100000).measured);
+}
+
+// The lower sheet's first row folded back over it (row 0 at y = 0.2, z = 0.01; the fold is
+// row 1, at y = 0.1), and one point of the upper sheet pulled down beside the fold, at
+// (0.35, 0.07, 0.002): above the lower sheet's plane, outside what is left of its footprint.
+// Its nearest point is on the fold's edge, (0.35, 0.1, 0), 0.03 m away, where the folded
+// flap's triangle (whose up side now faces down) would call it below: beside, not crossed.
+TEST(Penetration, PointBesideACurledEdgeIsNotCrossed) {
+  auto lower = flat(0, 0, 0.0);
+  for (std::uint32_t j = 0; j < side; ++j) lower.points[j] = {j * spacing, 0.2, 0.01};
+  auto upper = flat(0, 1, 0.05, 0.0, -0.03);
+  upper.points[side + 3] = {0.35, 0.07, 0.002};
+  const auto p = measure_penetration({lower, upper}, side, reach);
+  EXPECT_EQ(p.crossed, 0u);
+  EXPECT_LT(p.min_gap, reach);  // the sheets are within reach of each other: they were compared
 }
 
 }  // namespace
