@@ -396,7 +396,9 @@ class Report:
                  f"Penetration, measured the same way for both from the points alone (bench/penetration.h): for each "
                  f"point and each other sheet of its stack within {1e3 * c.get('reach_m', 0):g} mm, the nearest point on "
                  f"that sheet's triangles and the side it is on; a point now on the other side of a sheet it started "
-                 f"above or below has *crossed* it, its depth the distance past that surface. Min gap: the smallest "
+                 f"above or below has *crossed* it, its depth the distance past that surface; a point whose nearest "
+                 f"point is on the other sheet's outermost ring of cells, where free edges curl, is beside it, not "
+                 f"judged. Min gap: the smallest "
                  f"distance of a point to a sheet it has not crossed. \"At the end\" is the last frame; \"worst\" the "
                  f"worst of the frames measured, every {1e3 * c.get('measured_every_s', 0):g} ms; a frame whose sheets are "
                  f"torn apart (triangles spread over metres) is not measured. Lengths in mm.", "",
