@@ -78,6 +78,41 @@ void step_frames(benchmark::State& state, W& world, double points) {
   set_point_rate(state, points, frame_substeps);
 }
 
+// Issue 13's stacked sheets: 48 sheets of 64×64 points, 1 m wide, 1 kg, k = 100 N/m, corners
+// pinned, in 6 columns 1.5 m apart × 8 layers, dt = 1 ms. One description, so drape's world
+// (stack_world) and the same scene in another engine (bench_bullet.cpp) cannot drift apart.
+struct Stack {
+  static constexpr int columns = 6, layers = 8;
+  static constexpr std::uint32_t side = 64;  // points per side
+  static constexpr double width = 1.0, column_pitch = 1.5;
+  static constexpr double mass = 1.0, stiffness = 100.0, damping = 1e-3, dt = 1e-3;
+  // Sheet k of the world is column k / layers, layer k % layers (bottom first).
+  static Vec3 center(int column, int layer, double layer_gap) { return {column_pitch * column, 0.0, layer_gap * layer}; }
+};
+
+// The stack in drape. `layer_gap` 2 m keeps the sheets apart (no pair within contact range,
+// however far they sag and swing); 0.01 m puts each layer in contact with the next (the
+// contact range is 0.017 m by default).
+inline World stack_world(int threads, double layer_gap) {
+  WorldDef wd = world_def();
+  wd.dt = Stack::dt;
+  wd.threads = threads;
+  World world(wd);
+  SheetDef sd;
+  sd.m = sd.n = Stack::side - 1;
+  sd.width = sd.height = Stack::width;
+  sd.mass = Stack::mass;
+  sd.stiffness = Stack::stiffness;
+  sd.damping = Stack::damping;
+  sd.pins = corner_points(sd.m, sd.n);
+  for (int column = 0; column < Stack::columns; ++column)
+    for (int layer = 0; layer < Stack::layers; ++layer) {
+      sd.center = Stack::center(column, layer, layer_gap);
+      world.add_sheet(sd);
+    }
+  return world;
+}
+
 // Every integrator the engine has, from its table: a new integrator is benchmarked as
 // soon as it has a row.
 inline std::vector<Integrator> all_integrators() {

@@ -14,28 +14,7 @@
 
 namespace {
 
-// 48 sheets of 64×64 points, 1 m wide, corners pinned, in a stack of 6 columns × 8
-// layers. `layer_gap` 2 m keeps them apart (no pair within contact range, however far they
-// sag and swing); 0.01 m puts
-// each layer in contact with the next (the contact range is 0.017 m by default).
-drape::World stack_world(int threads, double layer_gap) {
-  drape::WorldDef wd = drape::bench::world_def();
-  wd.dt = 1e-3;
-  wd.threads = threads;
-  drape::World world(wd);
-  drape::SheetDef sd;
-  sd.m = sd.n = 63;
-  sd.mass = 1.0;
-  sd.stiffness = 100.0;
-  sd.damping = 1e-3;
-  sd.pins = drape::corner_points(sd.m, sd.n);
-  for (int column = 0; column < 6; ++column)
-    for (int layer = 0; layer < 8; ++layer) {
-      sd.center = {1.5 * column, 0.0, layer_gap * layer};
-      world.add_sheet(sd);
-    }
-  return world;
-}
+using drape::bench::stack_world;  // 48 sheets of 64×64 in 6 columns × 8 layers (bench_common.h)
 
 void report(benchmark::State& state, double points) {
   state.counters["points"] = points;

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -252,6 +253,28 @@ TEST_F(Cli, UnstableRunWarnsThenStopsWithoutWritingNaN) {
   }
   EXPECT_GT(files, 0);
   EXPECT_FALSE(fs::exists(out / "frame_00200.obj"));
+}
+
+// The last line's rates follow from what the scene says and the time the line prints:
+// points × substeps ÷ seconds, and frames × substeps × dt ÷ seconds (printed to 3 digits).
+TEST_F(Cli, RunReportsItsRatesFromItsPointsStepsAndTime) {
+  const fs::path scene = write("s.json", R"({"frames": 40, "dt": 0.001, "substeps": 25, "sheets": [{"grid": [20, 10],
+    "size": [1, 1], "stiffness": 100, "mass": 0.3, "anchors": [{"at": "corners", "stiffness": 300}]}]})");
+  const Result r = drape("run " + scene.string() + " --out " + (dir / "out").string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto at = r.err.find("frames to ");
+  ASSERT_NE(at, std::string::npos) << r.err;
+  double seconds = 0, mrate = 0, realtime = 0;
+  const std::string line = r.err.substr(r.err.find(" in ", at) + 4);
+  ASSERT_EQ(std::sscanf(line.c_str(), "%lf s (%lf M point-steps/s, %lf simulated s per wall s)", &seconds, &mrate,
+                        &realtime),
+            3)
+      << r.err;
+  ASSERT_GT(seconds, 0);
+  const double points = 21.0 * 11, substeps = 40.0 * 25, simulated = substeps * 0.001;
+  // seconds is printed to 3 digits: each rate is known to within that rounding and its own
+  EXPECT_NEAR(mrate, points * substeps / seconds / 1e6, 0.011 * mrate) << r.err;
+  EXPECT_NEAR(realtime, simulated / seconds, 0.011 * realtime) << r.err;
 }
 
 }  // namespace

@@ -8,6 +8,7 @@ Normally run by tools/bench.sh.
 """
 
 import argparse
+import hashlib
 import json
 import math
 import os
@@ -34,6 +35,8 @@ TARGET_CONTACT_OVER_APART = 4.0   # stacked sheets settling in contact vs apart,
 TARGET_CONTACT_SPEEDUP = 1.8      # 2 threads vs 1, in contact
 TARGET_FLOOR_PRICE = 0.40         # a floor under every point, vs bare
 TARGET_SELF_CONTACT_RATIO = 3.0   # a 128×128 sheet folded onto itself, with vs without
+TARGET_OVER_BULLET = 30.0         # the stacked sheets, drape ÷ Bullet per simulated second
+TARGET_SCENES_SPEEDUP = 10.0      # each shipped many-sheet scene against docs/scenes-baseline.json
 TARGET_PORTABLE_FRACTION = 0.90  # issue 15: a DRAPE_NATIVE=OFF build within 10 % of the native one
 TARGET_F32_OVER_F64 = 1.8  # issue 15: 48 sheets in float32 at least 1.8× float64, on AVX2
 
@@ -72,6 +75,14 @@ def load_runs(path):
             data = json.load(f)
     except (OSError, json.JSONDecodeError) as e:
         fail(f"cannot read benchmark JSON {path}: {e}")
+    runs = runs_of(data)
+    if not runs:
+        fail(f"{path} holds no benchmark results")
+    return data["context"], runs
+
+
+def runs_of(data):
+    """The runs of one drape_bench JSON output, by run name."""
     by_name = defaultdict(dict)
     for b in data.get("benchmarks", []):
         name = b.get("run_name", b["name"])
@@ -89,9 +100,7 @@ def load_runs(path):
             c = entries["cv"]
             cv = c["real_time"] if name.endswith("/real_time") else c["cpu_time"]
         runs[name] = Run(name, entry, cv)
-    if not runs:
-        fail(f"{path} holds no benchmark results")
-    return data["context"], runs
+    return runs
 
 
 def compiler_and_flags(build_dir):
@@ -152,8 +161,11 @@ def verdict(met):
 
 
 class Report:
-    def __init__(self, context, runs, build_dir, img_dir, md_dir, sweep_ranks=None, portable=None, forced=()):
+    def __init__(self, context, runs, build_dir, img_dir, md_dir, sweep_ranks=None, portable=None, forced=(),
+                 scenes_baseline=None, scenes_dir="scenes"):
         self.context, self.runs = context, runs
+        self.scenes_baseline = scenes_baseline  # tools/scenes_baseline.py's JSON, or None
+        self.scenes_dir = scenes_dir
         self.portable = portable  # (context, runs) of a DRAPE_NATIVE=OFF build's run, or None
         self.forced = list(forced)  # (context, runs) of that build run with DRAPE_SIMD_TARGET, one per set
         self.sweep_ranks = sweep_ranks  # tools/bench_ranks.py's JSON, or None
@@ -341,6 +353,121 @@ class Report:
                  "in µs, CPU time; × is Bullet's time over drape's (frames of semi_implicit_euler f64, Fig 13).", "",
                  "| points | drape | Bullet, drape's step | × | Bullet, 1 ms step | × |",
                  "|---|---|---|---|---|---|", *rows, "")
+
+    def contact_against_bullet(self):
+        """Issue 13: the stacked sheets in contact, drape and Bullet in the same run (bench_bullet.cpp)."""
+        ours = next((self.get(n) for n in self.runs if n.startswith("BM_StackContact_drape")), None)
+        theirs = next((self.get(n) for n in self.runs if n.startswith("BM_StackContact_Bullet")), None)
+        if ours is None or theirs is None:
+            self.out("## Contact scenes against Bullet", "",
+                     "Left out of this run: it needs both BM_StackContact_drape and BM_StackContact_Bullet "
+                     "(drape_bench built with Bullet, Debian's libbullet-dev; `tools/bench.sh` installs it).", "")
+            self.target("Stacked sheets in contact, drape ÷ Bullet per simulated second", "–",
+                        f"≥ {TARGET_OVER_BULLET:.0f}×", None, "Bullet not in this run")
+            return
+        c = ours.counters
+
+        def mm(x):  # not measured (torn-apart sheets) is NaN, none within reach infinite
+            return "–" if x is None or math.isinf(x) or math.isnan(x) else f"{1e3 * x:.2f}"
+
+        def count(x):
+            return "not measured" if x is None or math.isnan(x) else f"{int(x)}"
+
+        rows = []
+        for label, r in (("drape (semi-implicit Euler, eq 9 contact potential)", ours),
+                         ("Bullet 3.24 (btSoftRigidDynamicsWorld, VF_SS)", theirs)):
+            k = r.counters
+            rows.append(f"| {label} | {k['s_per_simulated_s']:.3g}{cv_text(r)} | {mrate(r.rate)} | "
+                        f"{count(k['crossed_points'])} | {mm(k['max_depth_m'])} | {mm(k['min_gap_m'])} | "
+                        f"{count(k['worst_crossed_points'])} | {mm(k['worst_depth_m'])} | {mm(k['worst_min_gap_m'])} | "
+                        f"{int(k.get('unmeasured_frames', 0))} |")
+        ratio = theirs.counters["s_per_simulated_s"] / c["s_per_simulated_s"]
+        span = c["simulated_s"]
+        self.out("## Contact scenes against Bullet", "",
+                 f"Issue 13's stacked sheets (48 sheets of 64×64 points, 1 m, 1 kg, k = 100 N/m, corners pinned, "
+                 f"6 stacks of 8 layers 10 mm apart, dt = 1 ms) stepped from rest for the first {span:g} simulated s "
+                 f"in frames of 10 substeps, in drape and in Bullet's soft bodies with their cloth–cloth contact on "
+                 f"(`fCollision::VF_SS`, a node against the other sheet's faces), both on **one thread** (Bullet's "
+                 f"soft bodies are single-threaded) and timed in CPU time, in the same run (bench/bench_bullet.cpp). A whole simulated second "
+                 f"of Bullet takes many minutes, so `tools/bench.sh` runs both through this shorter span, the start of "
+                 f"the fall, where the layers still move nearly together (a whole second by hand: "
+                 f"`DRAPE_BENCH_STACK_SPAN=1 drape_bench --benchmark_filter=StackContact`). Bullet's links are position constraints "
+                 f"solved once per substep at the stiffness one XPBD iteration gives k = 100 N/m at this step, its "
+                 f"collision margins sum to drape's contact thickness ({1e3 * c.get('contact_thickness_m', 0):g} mm), "
+                 f"both frictionless.", "",
+                 f"Penetration, measured the same way for both from the points alone (bench/penetration.h): for each "
+                 f"point and each other sheet of its stack within {1e3 * c.get('reach_m', 0):g} mm, the nearest point on "
+                 f"that sheet's triangles and the side it is on; a point now on the other side of a sheet it started "
+                 f"above or below has *crossed* it, its depth the distance past that surface; a point whose nearest "
+                 f"point is on the other sheet's outermost ring of cells, where free edges curl, is beside it, not "
+                 f"judged. Min gap: the smallest "
+                 f"distance of a point to a sheet it has not crossed. \"At the end\" is the last frame; \"worst\" the "
+                 f"worst of the frames measured, every {1e3 * c.get('measured_every_s', 0):g} ms; a frame whose sheets are "
+                 f"torn apart (triangles spread over metres) is not measured. Lengths in mm.", "",
+                 "| engine | CPU s per simulated s | M point-steps/s | crossed points | max depth | min gap "
+                 "| worst crossed | worst depth | worst min gap | frames not measured |",
+                 "|---|---|---|---|---|---|---|---|---|---|", *rows, "",
+                 f"drape ÷ Bullet per simulated second: **{ratio:.2f}×** (Bullet's time per simulated second over "
+                 f"drape's).", "")
+        self.target("Stacked sheets in contact, drape ÷ Bullet per simulated second (1 thread, "
+                    f"first {span:g} s)", f"{ratio:.2f}×", f"≥ {TARGET_OVER_BULLET:.0f}×", ratio >= TARGET_OVER_BULLET,
+                    "" if ratio >= TARGET_OVER_BULLET else f"{TARGET_OVER_BULLET / ratio:.1f}× short")
+
+    def scenes(self):
+        """Issue 13: the shipped scenes' cost now against the baseline tools/scenes_baseline.py recorded."""
+        now = {}
+        for name in list(self.runs):
+            m = re.fullmatch(r"BM_Scene/(\w+)/threads:(\d+)/iterations:\d+(?:/real_time)?", name)
+            if m:
+                now[(m.group(1), int(m.group(2)))] = self.get(name)
+        if not now:
+            return
+        base, record = {}, self.scenes_baseline
+        if record:
+            for name, r in runs_of(record.get("results", {})).items():
+                m = re.fullmatch(r"BM_Scene/(\w+)/threads:(\d+)/iterations:\d+(?:/real_time)?", name)
+                if m:
+                    base[(m.group(1), int(m.group(2)))] = r
+        changed = set()
+        for scene, digest in (record or {}).get("scene_sha256", {}).items():
+            try:
+                with open(os.path.join(self.scenes_dir, scene + ".json"), "rb") as f:
+                    if hashlib.sha256(f.read()).hexdigest() != digest:
+                        changed.add(scene)
+            except OSError:
+                changed.add(scene)
+        spans = [r.counters.get("simulated_s", 0) for r in now.values()]
+        intro = (f"Each shipped scene with several sheets, or draping one over an obstacle or along a constraint, "
+                 f"read by the drape program's loader and stepped as `drape run` steps it (the scene's frames, no "
+                 f"files written) from its start for its first simulated second ({min(spans):g}–{max(spans):g} s: "
+                 f"whole frames), or its whole run if shorter (bench/bench_scenes.cpp). One thread in CPU time (the "
+                 f"engine's cost, as little touched by other jobs on a shared machine as a figure gets), two in wall "
+                 f"time.")
+        if record:
+            load = ", ".join(f"{x:.2f}" for x in record.get("load_avg_before", []))
+            intro += (f" The baseline is the same benchmark built against the engine of {record['commit'][:7]} "
+                      f"by `tools/scenes_baseline.py` on {record.get('date', '?')} "
+                      f"([scenes-baseline.json](scenes-baseline.json), load average {load} when it started); × is "
+                      f"this run's point-steps per second over the baseline's.")
+        else:
+            intro += " No baseline (docs/scenes-baseline.json, written by `tools/scenes_baseline.py`) was found."
+        self.out("## Shipped scenes against the baseline", "", intro, "",
+                 "| scene | threads | sheets | points | s per simulated s | baseline | × |",
+                 "|---|---|---|---|---|---|---|")
+        for (scene, threads) in sorted(now):
+            r, b = now[(scene, threads)], base.get((scene, threads))
+            ratio = r.rate / b.rate if b and b.rate else None
+            note = " (scene changed since the baseline)" if scene in changed else ""
+            baseline = f"{b.counters['s_per_simulated_s']:.3g}" if b else "–"
+            self.out(f"| {scene}{note} | {threads} | {int(r.counters.get('sheets', 0))} | {int(r.points)} | "
+                     f"{r.counters['s_per_simulated_s']:.3g}{cv_text(r)} | {baseline} | "
+                     f"{f'{ratio:.2f}×' if ratio else '–'} |")
+            if threads == 1:
+                self.target(f"Scene {scene} now ÷ baseline (1 thread){note}", f"{ratio:.2f}×" if ratio else "–",
+                            f"≥ {TARGET_SCENES_SPEEDUP:.0f}×", ratio >= TARGET_SCENES_SPEEDUP if ratio else None,
+                            "" if not ratio or ratio >= TARGET_SCENES_SPEEDUP
+                            else f"{TARGET_SCENES_SPEEDUP / ratio:.1f}× short")
+        self.out("")
 
     def paper_size(self):
         r = self.get("BM_Paper1000Points/32")
@@ -1014,6 +1141,8 @@ class Report:
         self.cloth_terms()
         self.constraints()
         self.contacts()
+        self.contact_against_bullet()
+        self.scenes()
         self.broad_phase()
         self.stiff()
         self.notes()
@@ -1046,6 +1175,17 @@ class Report:
         return "\n".join(self.lines).rstrip() + "\n"
 
 
+def optional_json(path):
+    """The JSON at path, or None when there is no such file (its report section is then left out)."""
+    if not os.path.exists(path):
+        return None
+    try:
+        with open(path) as f:
+            return json.load(f)
+    except (OSError, json.JSONDecodeError) as e:
+        fail(f"cannot read {path}: {e}")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--json", required=True, help="benchmark_out JSON of drape_bench")
@@ -1057,21 +1197,19 @@ def main():
                     help="drape_bench JSON of a DRAPE_NATIVE=OFF build, compared with --json (section left out if absent)")
     ap.add_argument("--forced-json", nargs="*", default=[],
                     help="drape_bench JSONs of the portable build run with DRAPE_SIMD_TARGET set (one per set)")
+    ap.add_argument("--scenes-baseline", default="docs/scenes-baseline.json",
+                    help="tools/scenes_baseline.py's JSON, the shipped scenes' rates to divide by (ratios left out if absent)")
     ap.add_argument("--sweep-ranks", default="docs/sweep_ranks.json",
                     help="tools/bench_ranks.py's JSON (the section is left out when the file is missing)")
     args = ap.parse_args()
     context, runs = load_runs(args.json)
-    sweep_ranks = None
-    if os.path.exists(args.sweep_ranks):
-        try:
-            with open(args.sweep_ranks) as f:
-                sweep_ranks = json.load(f)
-        except (OSError, json.JSONDecodeError) as e:
-            fail(f"cannot read {args.sweep_ranks}: {e}")
+    sweep_ranks = optional_json(args.sweep_ranks)
     portable = load_runs(args.portable_json) if args.portable_json and os.path.exists(args.portable_json) else None
     forced = [load_runs(p) for p in args.forced_json if os.path.exists(p)]
+    scenes_baseline = optional_json(args.scenes_baseline)
     report = Report(context, runs, args.build_dir, args.img, os.path.dirname(os.path.abspath(args.out)), sweep_ranks,
-                    portable, forced)
+                    portable, forced, scenes_baseline,
+                    os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "scenes"))
     text = report.render(args.command)
     tmp = args.out + ".tmp"
     with open(tmp, "w") as f:

@@ -187,6 +187,7 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
 
   const auto start = std::chrono::steady_clock::now();
   const std::uint64_t first_step = world.step_count();
+  const double first_time = world.time();
   double points = 0;
   for (SheetId id : world.sheets()) points += double(world.view(id).x.size());
   Progress progress(log, "frame", frames, opt.progress_bar, first_frame - 1);
@@ -226,7 +227,9 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
       << std::setprecision(3) << seconds << " s";
   // the run's throughput, output included: what the scene costs on this machine
   const double point_steps = points * double(world.step_count() - first_step);
-  if (seconds > 0 && point_steps > 0) log << " (" << point_steps / seconds / 1e6 << " M point-steps/s)";
+  if (seconds > 0 && point_steps > 0)
+    log << " (" << point_steps / seconds / 1e6 << " M point-steps/s, " << (world.time() - first_time) / seconds
+        << " simulated s per wall s)";
   log << '\n';
   return exit_ok;
 }

@@ -1,0 +1,139 @@
+#!/usr/bin/env python3
+"""Records what the shipped scenes cost with an older commit's engine: docs/scenes-baseline.json.
+
+Issue 13 asks for the many-sheet scenes "at least 10x faster than today"; today has to be
+measured, not remembered. This script checks COMMIT out in a scratch git worktree, copies
+today's bench/bench_scenes.cpp into it, builds its drape_bench as tools/bench.sh builds
+(Release, -march=native, no tests, no Python module), runs the BM_Scene benchmarks on
+today's scene files (DRAPE_SCENES_DIR), and writes their results with the commit, the
+machine, the compiler and flags, and the load average around the run. tools/bench_report.py
+divides each scene's rate in a later run by the one recorded here. The worktree is removed
+afterwards.
+
+Usage: tools/scenes_baseline.py [--commit 0598513] [--out docs/scenes-baseline.json]
+A one-off measurement: rerun it only to move the baseline, on a machine as quiet as you can get.
+"""
+
+import argparse
+import datetime
+import hashlib
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench_report import compiler_and_flags  # noqa: E402
+from machine import cpu_model  # noqa: E402
+
+# As tools/bench.sh configures its build, so the baseline and a report's run differ only in
+# the engine's code.
+CMAKE_OPTIONS = ["-DCMAKE_BUILD_TYPE=Release", "-DDRAPE_NATIVE=ON", "-DDRAPE_WERROR=ON", "-DDRAPE_BUILD_TESTS=OFF",
+                 "-DDRAPE_BUILD_APPS=ON", "-DDRAPE_BUILD_PYTHON=OFF", "-DDRAPE_BUILD_TOOLS=OFF"]
+BENCH_SOURCE = "bench/bench_scenes.cpp"
+
+
+def fail(message):
+    print(f"scenes_baseline: {message}", file=sys.stderr)
+    sys.exit(1)
+
+
+def git(repo, *args):
+    result = subprocess.run(["git", "-C", repo, *args], capture_output=True, text=True)
+    if result.returncode != 0:
+        fail(f"git {' '.join(args)}: {result.stderr.strip()}")
+    return result.stdout.strip()
+
+
+def run(command, **kwargs):
+    print("scenes_baseline: " + " ".join(command), file=sys.stderr)
+    if subprocess.run(command, **kwargs).returncode != 0:
+        fail(f"failed: {' '.join(command)}")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--commit", default="0598513", help="the commit whose engine is the baseline")
+    ap.add_argument("--out", default="docs/scenes-baseline.json")
+    ap.add_argument("--repetitions", type=int, default=3, help="repetitions of each scene (the median is reported)")
+    ap.add_argument("--scratch", default=None,
+                    help="folder for the worktree and its build (must not exist; default: a new one under $TMPDIR). "
+                         "Beside this checkout, with CCACHE_BASEDIR set above both, ccache reuses unchanged objects")
+    ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel build jobs")
+    args = ap.parse_args()
+
+    repo = git(os.path.dirname(os.path.abspath(__file__)), "rev-parse", "--show-toplevel")
+    commit = git(repo, "rev-parse", "--verify", args.commit + "^{commit}")
+    subject = git(repo, "log", "-1", "--format=%s", commit)
+    source = os.path.join(repo, BENCH_SOURCE)
+    scenes_dir = os.path.join(repo, "scenes")
+    if not os.path.isfile(source):
+        fail(f"{source} is missing")
+
+    if args.scratch and os.path.exists(args.scratch):
+        fail(f"--scratch {args.scratch} exists; give a new folder")
+    tree = os.path.abspath(args.scratch) if args.scratch else tempfile.mkdtemp(prefix=f"drape-baseline-{commit[:7]}-")
+    git(repo, "worktree", "add", "--detach", tree, commit)
+    try:
+        shutil.copy(source, os.path.join(tree, BENCH_SOURCE))
+        build = os.path.join(tree, "build")
+        launcher = ["-DCMAKE_CXX_COMPILER_LAUNCHER=ccache"] if shutil.which("ccache") else []
+        run(["cmake", "-S", tree, "-B", build, *CMAKE_OPTIONS, *launcher], stdout=subprocess.DEVNULL)
+        run(["nice", "-n", "5", "cmake", "--build", build, "--target", "drape_bench", f"-j{args.jobs}"],
+            stdout=subprocess.DEVNULL)
+        raw = os.path.join(build, "scenes.json")
+        command = [os.path.join(build, "bench", "drape_bench"), "--benchmark_filter=^BM_Scene/",
+                   f"--benchmark_repetitions={args.repetitions}", "--benchmark_enable_random_interleaving=true",
+                   "--benchmark_report_aggregates_only=true"]
+        load_before = list(os.getloadavg())
+        run([*command, f"--benchmark_out={raw}", "--benchmark_out_format=json"],
+            env={**os.environ, "DRAPE_SCENES_DIR": scenes_dir}, stdout=subprocess.DEVNULL)
+        load_after = list(os.getloadavg())
+        with open(raw) as f:
+            results = json.load(f)
+        compiler, flags = compiler_and_flags(build)
+    finally:
+        subprocess.run(["git", "-C", repo, "worktree", "remove", "--force", tree], capture_output=True)
+        shutil.rmtree(tree, ignore_errors=True)
+        subprocess.run(["git", "-C", repo, "worktree", "prune"], capture_output=True)
+
+    names = sorted({m.group(1) for b in results.get("benchmarks", [])
+                    if (m := re.match(r"BM_Scene/(\w+)/", b.get("run_name", b["name"])))})
+    if not names:
+        fail("the run produced no BM_Scene results")
+    scene_sha256 = {}
+    for name in names:
+        with open(os.path.join(scenes_dir, name + ".json"), "rb") as f:
+            scene_sha256[name] = hashlib.sha256(f.read()).hexdigest()
+    record = {
+        "what": "BM_Scene (bench/bench_scenes.cpp) built against the engine of `commit`, run on the scene files "
+                "whose hashes are listed; tools/bench_report.py divides later rates by these",
+        "commit": commit,
+        "commit_subject": subject,
+        "scenes_from": git(repo, "rev-parse", "HEAD"),
+        "scene_sha256": scene_sha256,
+        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "machine": {"cpu": cpu_model(), "logical_cores": os.cpu_count()},
+        "compiler": compiler,
+        "flags": flags,
+        "cmake_options": CMAKE_OPTIONS,
+        "command": [os.path.relpath(command[0], tree), *command[1:]],
+        "load_avg_before": load_before,
+        "load_avg_after": load_after,
+        "note": "a one-off measurement on a shared 2-core machine; the load averages say how busy it was",
+        "results": results,
+    }
+    os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
+    tmp = args.out + ".tmp"
+    with open(tmp, "w") as f:
+        json.dump(record, f, indent=1)
+        f.write("\n")
+    os.replace(tmp, args.out)
+    print(f"scenes_baseline: wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()
