@@ -366,6 +366,55 @@ TEST(Contacts, KeptCandidatesFindWhatAFreshSearchFindsBitForBit) {
   EXPECT_LT(own.searches, std::uint64_t(steps) / 2);
 }
 
+// The lists are kept while the sheets move TOGETHER (contacts.h: the relative motion of
+// patches decides, not the absolute one): two rumpled sheets carried 2 mm a step along a
+// common drift, which varies across the sheets (a slow turn about z, so no single
+// translation describes it), with a 20 µm jitter on top. Every step's forces equal a
+// fresh search's bit for bit, and the lists are made only a few times, although points
+// move more than the whole skin every few steps. Then one sheet alone moves 1.5 mm a step
+// towards the other: the lists must be remade, and still match.
+TEST(Contacts, KeptCandidatesFollowTheSheetsRelativeMotionNotTheirAbsoluteOne) {
+  auto [a, b] = close_sheets(6);
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> jitter(-2e-5, 2e-5);
+  PairContacts<double> kept;
+  ContactScratch<double> scratch;
+  auto carry = [&](Sheet<double>& s, double dx, double dz, double turn) {
+    for (std::size_t p = 0; p < s.size(); ++p) {
+      const double x = s.position.x[p], y = s.position.y[p];
+      s.position.x[p] = x * std::cos(turn) - y * std::sin(turn) + dx + jitter(rng);
+      s.position.y[p] = x * std::sin(turn) + y * std::cos(turn) + jitter(rng);
+      s.position.z[p] += dz + jitter(rng);
+    }
+  };
+  const int steps = 40;
+  std::size_t touching = 0;
+  for (int step = 0; step < steps; ++step) {
+    carry(a, 0.002, 0.0, 0.002);
+    carry(b, 0.002, 0.0, 0.002);
+    PairContacts<double> fresh;
+    pair_contacts(a, boxes(a), b, boxes(b), kParams, kept, scratch);
+    pair_contacts(a, boxes(a), b, boxes(b), kParams, fresh, scratch);
+    expect_same_forces(kept.on_a, fresh.on_a, step);
+    expect_same_forces(kept.on_b, fresh.on_b, step);
+    touching += kept.on_a.size();
+  }
+  EXPECT_GT(touching, 0u);
+  // 80 mm of common motion: lists kept while each point stayed within 0.45 of the skin
+  // (≤ R/2 = 8.5 mm) of where it was would have been made at least 20 times
+  EXPECT_LE(kept.searches, 5u);
+  const std::uint64_t before = kept.searches;
+  for (int step = 0; step < 10; ++step) {
+    carry(b, 0.0, -0.0015, 0.0);
+    PairContacts<double> fresh;
+    pair_contacts(a, boxes(a), b, boxes(b), kParams, kept, scratch);
+    pair_contacts(a, boxes(a), b, boxes(b), kParams, fresh, scratch);
+    expect_same_forces(kept.on_a, fresh.on_a, steps + step);
+    expect_same_forces(kept.on_b, fresh.on_b, steps + step);
+  }
+  EXPECT_GE(kept.searches, before + 1);  // 15 mm closer: more than the skin allows
+}
+
 // The nearest point of triangle abc to p and its barycentric weights, by a route of its
 // own: the plane's foot if its area coordinates are all non-negative, else the nearest
 // point of the three edges (weights 1 − t and t on the edge's ends).

@@ -194,13 +194,13 @@ void repel(const Sheet<Real>& qs, std::uint32_t q, V3<Real> p, const Sheet<Real>
     if (wt[k] != 0) on_s.push(best.tri[k], -wt[k] * F.x, -wt[k] * F.y, -wt[k] * F.z);
 }
 
-// Point p of q (at x) against `near`, its cells of s whose boxes are within R, in any
-// order, with their boxes' squared gaps: the cell whose box is nearest is tested first,
-// then the others whose boxes are nearer than the best triangle so far (a cell whose box
-// is no nearer cannot win); the nearest triangle repels.
+// Point p of q (at x) against `near`, its cells of s whose boxes are within R, with their
+// boxes' squared gaps (reordered here): cells in ascending order of their boxes' gaps (the
+// first of equal ones first), until a box is no nearer than the best triangle so far (it
+// cannot hold a nearer one); the nearest triangle repels.
 template <class Real>
 void repel_nearest(const Sheet<Real>& q, std::uint32_t p, V3<Real> x, const Sheet<Real>& s,
-                   const typename ContactScratch<Real>::Near* near, std::uint32_t found, const ContactParams<Real>& prm,
+                   typename ContactScratch<Real>::Near* near, std::uint32_t found, const ContactParams<Real>& prm,
                    ContactForces<Real>& on_q, ContactForces<Real>& on_s) {
   const std::uint32_t cols = s.topology->cols();
   auto test = [&](std::uint32_t p00, Nearest<Real>& best) {
@@ -209,16 +209,20 @@ void repel_nearest(const Sheet<Real>& q, std::uint32_t p, V3<Real> x, const Shee
     consider(x, 2 * p00, p00, p01, p11, x00, x01, x11, best);
     consider(x, 2 * p00 + 1, p00, p11, p10, x00, x11, x10, best);
   };
-  std::uint32_t nearest = 0;
-  for (std::uint32_t e = 1; e < found; ++e)
-    if (near[e].gap2 < near[nearest].gap2) nearest = e;
   const Real R2 = prm.range * prm.range;
   Nearest<Real> best{};
   best.dist2 = R2;
   best.key = ~std::uint32_t(0);
-  test(near[nearest].corner, best);
-  for (std::uint32_t e = 0; e < found; ++e)
-    if (e != nearest && near[e].gap2 < best.dist2) test(near[e].corner, best);
+  // Nearest box first, until the nearest box left is no nearer than the best triangle:
+  // one selection step per cell tested, and most points test one or two.
+  for (std::uint32_t k = 0; k < found; ++k) {
+    std::uint32_t nearest = k;
+    for (std::uint32_t e = k + 1; e < found; ++e)
+      if (near[e].gap2 < near[nearest].gap2) nearest = e;
+    if (!(near[nearest].gap2 < best.dist2)) break;
+    std::swap(near[k], near[nearest]);
+    test(near[k].corner, best);
+  }
   if (best.dist2 < R2) repel(q, p, x, s, best, prm, on_q, on_s);
 }
 
@@ -420,35 +424,95 @@ void points_against_lists(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
     }
 }
 
-// Whether no point of s has moved farther than √limit2 from `then`: blocks of points, each
-// a vectorised maximum, stopping at the first block that has.
+// How the points of each patch of s moved since `then`: per patch, the middle of its
+// points' displacements (the centre of their box) and the largest distance of a
+// displacement from it. Two passes over each patch's points, the patches' own points
+// (rows and columns 8p … 8p + 8, as their boxes).
 template <class Real>
-bool within(const Sheet<Real>& s, const Vec3Array<Real>& then, Real limit2) {
-  const Real *x = s.position.x.data(), *y = s.position.y.data(), *z = s.position.z.data();
-  const Real *tx = then.x.data(), *ty = then.y.data(), *tz = then.z.data();
-  constexpr std::size_t block = 512;
-  for (std::size_t p0 = 0; p0 < s.size(); p0 += block) {
-    const std::size_t p1 = std::min(s.size(), p0 + block);
-    Real most = 0;
-#pragma omp simd reduction(max : most)
-    for (std::size_t p = p0; p < p1; ++p) {
-      const Real dx = x[p] - tx[p], dy = y[p] - ty[p], dz = z[p] - tz[p];
-      most = std::max(most, dx * dx + dy * dy + dz * dz);
+void patch_motion(const Sheet<Real>& s, const SheetBoxes<Real>& bs, const Vec3Array<Real>& then,
+                  std::vector<Real> (&mid)[3], std::vector<Real>& radius) {
+  constexpr std::uint32_t P = SheetBoxes<Real>::kPatch;
+  const std::uint32_t cols = bs.n + 1, patches = bs.patch_rows * bs.patch_cols;
+  for (int k = 0; k < 3; ++k) mid[k].resize(patches);
+  radius.resize(patches);
+  const Real* now[3] = {s.position.x.data(), s.position.y.data(), s.position.z.data()};
+  const Real* old[3] = {then.x.data(), then.y.data(), then.z.data()};
+  for (std::uint32_t pi = 0; pi < bs.patch_rows; ++pi)
+    for (std::uint32_t pj = 0; pj < bs.patch_cols; ++pj) {
+      const std::uint32_t i0 = pi * P, i1 = std::min(i0 + P, bs.m), j0 = pj * P, j1 = std::min(j0 + P, bs.n);
+      const std::uint32_t patch = pi * bs.patch_cols + pj;
+      for (int k = 0; k < 3; ++k) {
+        Real lo = now[k][i0 * cols + j0] - old[k][i0 * cols + j0], hi = lo;
+        for (std::uint32_t i = i0; i <= i1; ++i)
+          for (std::uint32_t j = j0; j <= j1; ++j) {
+            const Real d = now[k][i * cols + j] - old[k][i * cols + j];
+            lo = std::min(lo, d);
+            hi = std::max(hi, d);
+          }
+        // NaN stays: the check below then fails
+        mid[k][patch] = std::isnan(lo) || std::isnan(hi) ? lo + hi : Real(0.5) * (lo + hi);
+      }
+      Real most = 0;
+      for (std::uint32_t i = i0; i <= i1; ++i)
+        for (std::uint32_t j = j0; j <= j1; ++j) {
+          Real r2 = 0;
+          for (int k = 0; k < 3; ++k) {
+            const Real e = now[k][i * cols + j] - old[k][i * cols + j] - mid[k][patch];
+            r2 += e * e;
+          }
+          most = r2 > most || std::isnan(r2) ? r2 : most;
+        }
+      radius[patch] = std::sqrt(most);
     }
-    if (!(most <= limit2)) return false;
-  }
-  return true;
+}
+
+// The gap between every patch box of a and every patch box of b, at row a·patches(b) + b.
+template <class Real>
+void patch_clearance(const SheetBoxes<Real>& ba, const SheetBoxes<Real>& bb, std::vector<Real>& clearance) {
+  const std::uint32_t pa = ba.patch_rows * ba.patch_cols, pb = bb.patch_rows * bb.patch_cols;
+  clearance.resize(std::size_t(pa) * pb);
+  for (std::uint32_t A = 0; A < pa; ++A)
+    for (std::uint32_t B = 0; B < pb; ++B) {
+      Real g2 = 0;
+      for (int k = 0; k < 3; ++k) {
+        const Real e = positive_part(bb.patch_lo[k][B] - ba.patch_hi[k][A]) +
+                       positive_part(ba.patch_lo[k][A] - bb.patch_hi[k][B]);
+        g2 += e * e;
+      }
+      clearance[std::size_t(A) * pb + B] = std::sqrt(g2);
+    }
 }
 
 // Whether the lists kept in `w` were made for these sheets and still hold every cell
-// within R of every point (PairContacts): no point moved more than 0.45·skin since.
+// within R of every point (PairContacts): for every patch A of a and B of b, the most a
+// point of one can have come nearer to a cell of the other (A's and B's spreads of
+// displacement plus the difference of their middles) stays within 0.9 of the slack the
+// lists had: the skin, or the patches' gap then less R if that is more.
 template <class Real>
-bool lists_hold(PairContacts<Real>& w, const Sheet<Real>& a, const Sheet<Real>& b) {
+bool lists_hold(PairContacts<Real>& w, const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sheet<Real>& b,
+                const SheetBoxes<Real>& bb, const ContactParams<Real>& prm, ContactScratch<Real>& sc) {
   if (w.kept_a != &a || w.kept_b != &b || w.kept_topology_a != a.topology.get() ||
       w.kept_topology_b != b.topology.get() || w.made_at_a.x.size() != a.size() || w.made_at_b.x.size() != b.size())
     return false;
-  const Real limit2 = (Real(0.45) * w.skin) * (Real(0.45) * w.skin);
-  const bool hold = within(a, w.made_at_a, limit2) && (&a == &b || within(b, w.made_at_b, limit2));
+  patch_motion(a, ba, w.made_at_a, sc.mid_a, sc.radius_a);
+  if (&a != &b) patch_motion(b, bb, w.made_at_b, sc.mid_b, sc.radius_b);
+  const auto& mid_b = &a != &b ? sc.mid_b : sc.mid_a;
+  const auto& radius_b = &a != &b ? sc.radius_b : sc.radius_a;
+  const std::uint32_t pa = ba.patch_rows * ba.patch_cols, pb = bb.patch_rows * bb.patch_cols;
+  if (w.clearance.size() != std::size_t(pa) * pb) return false;
+  bool hold = true;
+  for (std::uint32_t A = 0; A < pa && hold; ++A) {
+    const Real* clear = w.clearance.data() + std::size_t(A) * pb;
+    unsigned ok = 1;
+    for (std::uint32_t B = 0; B < pb; ++B) {
+      const Real dx = sc.mid_a[0][A] - mid_b[0][B], dy = sc.mid_a[1][A] - mid_b[1][B],
+                 dz = sc.mid_a[2][A] - mid_b[2][B];
+      const Real drift = sc.radius_a[A] + radius_b[B] + std::sqrt(dx * dx + dy * dy + dz * dz);
+      const Real slack = std::max(w.skin, clear[B] - prm.range);
+      ok &= unsigned(drift <= Real(0.9) * slack);  // false for NaN
+    }
+    hold = ok != 0;
+  }
   w.kept_for += hold;
   return hold;
 }
@@ -471,7 +535,9 @@ void remember(Vec3Array<Real>& to, const Sheet<Real>& s) {
 }
 
 template <class Real>
-void keep_lists_for(PairContacts<Real>& w, const Sheet<Real>& a, const Sheet<Real>& b, Real skin) {
+void keep_lists_for(PairContacts<Real>& w, const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sheet<Real>& b,
+                    const SheetBoxes<Real>& bb, Real skin) {
+  patch_clearance(ba, bb, w.clearance);
   w.skin = skin;
   w.kept_for = 0;
   w.kept_a = &a;
@@ -560,7 +626,7 @@ void pair_contacts(const Sheet<Real>& a, const SheetBoxes<Real>& boxes_a, const 
   work.on_b.clear();
   ContactParams<Real> pair = prm;
   pair.friction = static_cast<Real>(std::max(a.friction, b.friction));
-  if (lists_hold(work, a, b)) {
+  if (lists_hold(work, a, boxes_a, b, boxes_b, prm, scratch)) {
     points_against_lists(a, boxes_a, b, boxes_b, work.a_near_b, pair, work.on_a, work.on_b, scratch);
     points_against_lists(b, boxes_b, a, boxes_a, work.b_near_a, pair, work.on_b, work.on_a, scratch);
     return;
@@ -568,7 +634,7 @@ void pair_contacts(const Sheet<Real>& a, const SheetBoxes<Real>& boxes_a, const 
   const Real skin = next_skin(work, prm);
   points_against_cells(a, boxes_a, b, boxes_b, -1, pair, work.on_a, work.on_b, scratch, &work.a_near_b, skin);
   points_against_cells(b, boxes_b, a, boxes_a, -1, pair, work.on_b, work.on_a, scratch, &work.b_near_a, skin);
-  keep_lists_for(work, a, b, skin);
+  keep_lists_for(work, a, boxes_a, b, boxes_b, skin);
 }
 
 template <class Real>
@@ -586,14 +652,14 @@ void self_contacts(const Sheet<Real>& s, const SheetBoxes<Real>& boxes, const Co
   work.on_b.clear();
   ContactParams<Real> own = prm;
   own.friction = static_cast<Real>(s.friction);
-  if (lists_hold(work, s, s)) {
+  if (lists_hold(work, s, boxes, s, boxes, prm, scratch)) {
     points_against_lists(s, boxes, s, boxes, work.a_near_b, own, work.on_a, work.on_a, scratch);
     return;
   }
   const Real skin = next_skin(work, prm);
   points_against_cells(s, boxes, s, boxes, int(self_contact_ring(s, prm)), own, work.on_a, work.on_a, scratch,
                        &work.a_near_b, skin);
-  keep_lists_for(work, s, s, skin);
+  keep_lists_for(work, s, boxes, s, boxes, skin);
 }
 
 template <class Real>

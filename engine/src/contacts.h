@@ -125,6 +125,8 @@ struct ContactScratch {
   std::vector<Real> gap2;                      // one query point: squared gaps to those boxes
   std::vector<std::uint32_t> pick;             // one query point: which of them are within R,
   std::vector<Near> near;                      // and those cells
+  std::vector<Real> mid_a[3], mid_b[3];        // per patch of each sheet of a pair: the middle
+  std::vector<Real> radius_a, radius_b;        // and spread of its points' displacements
 };
 
 // Candidate cells of one direction of a pair: for point p of the query sheet, the cells
@@ -156,6 +158,7 @@ struct PairContacts {
   const Topology<Real>* kept_topology_a = nullptr;
   const Topology<Real>* kept_topology_b = nullptr;
   Vec3Array<Real> made_at_a, made_at_b;  // their positions then
+  std::vector<Real> clearance;           // then: the gap of patch A of a to patch B of b
   Candidates a_near_b, b_near_a;         // points of a against cells of b, and back
   Real skin = 0;                         // of the kept lists (0: none made yet)
   std::uint32_t kept_for = 0;            // substeps the kept lists have served
