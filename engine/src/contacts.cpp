@@ -124,7 +124,7 @@ struct Nearest {
 };
 
 template <class Real>
-void consider(V3<Real> p, std::uint32_t key, std::uint32_t i0, std::uint32_t i1, std::uint32_t i2, V3<Real> a,
+[[gnu::always_inline]] inline void consider(V3<Real> p, std::uint32_t key, std::uint32_t i0, std::uint32_t i1, std::uint32_t i2, V3<Real> a,
               V3<Real> b, V3<Real> c, Nearest<Real>& best) {
   const V3<Real> w = closest_weights(p, a, b, c);
   const V3<Real> q{w.x * a.x + w.y * b.x + w.z * c.x, w.x * a.y + w.y * b.y + w.z * c.y,
@@ -195,12 +195,13 @@ void repel(const Sheet<Real>& qs, std::uint32_t q, V3<Real> p, const Sheet<Real>
 }
 
 // Point p of q (at x) against `near`, its cells of s whose boxes are within R, with their
-// boxes' squared gaps (reordered here): cells in ascending order of their boxes' gaps (the
-// first of equal ones first), until a box is no nearer than the best triangle so far (it
-// cannot hold a nearer one); the nearest triangle repels.
+// boxes' squared gaps: the cell whose box is nearest (the first of equally near ones) is
+// tested first, then the others in their order while their boxes are still nearer than the
+// best triangle (a cell whose box is no nearer cannot hold a nearer one); the nearest
+// triangle repels.
 template <class Real>
 void repel_nearest(const Sheet<Real>& q, std::uint32_t p, V3<Real> x, const Sheet<Real>& s,
-                   typename ContactScratch<Real>::Near* near, std::uint32_t found, const ContactParams<Real>& prm,
+                   const typename ContactScratch<Real>::Near* near, std::uint32_t found, const ContactParams<Real>& prm,
                    ContactForces<Real>& on_q, ContactForces<Real>& on_s) {
   const std::uint32_t cols = s.topology->cols();
   auto test = [&](std::uint32_t p00, Nearest<Real>& best) {
@@ -213,16 +214,12 @@ void repel_nearest(const Sheet<Real>& q, std::uint32_t p, V3<Real> x, const Shee
   Nearest<Real> best{};
   best.dist2 = R2;
   best.key = ~std::uint32_t(0);
-  // Nearest box first, until the nearest box left is no nearer than the best triangle:
-  // one selection step per cell tested, and most points test one or two.
-  for (std::uint32_t k = 0; k < found; ++k) {
-    std::uint32_t nearest = k;
-    for (std::uint32_t e = k + 1; e < found; ++e)
-      if (near[e].gap2 < near[nearest].gap2) nearest = e;
-    if (!(near[nearest].gap2 < best.dist2)) break;
-    std::swap(near[k], near[nearest]);
-    test(near[k].corner, best);
-  }
+  std::uint32_t nearest = 0;
+  for (std::uint32_t e = 1; e < found; ++e)
+    if (near[e].gap2 < near[nearest].gap2) nearest = e;
+  test(near[nearest].corner, best);
+  for (std::uint32_t e = 0; e < found; ++e)
+    if (e != nearest && near[e].gap2 < best.dist2) test(near[e].corner, best);
   if (best.dist2 < R2) repel(q, p, x, s, best, prm, on_q, on_s);
 }
 
@@ -522,7 +519,7 @@ bool lists_hold(PairContacts<Real>& w, const Sheet<Real>& a, const SheetBoxes<Re
 template <class Real>
 Real next_skin(const PairContacts<Real>& w, const ContactParams<Real>& prm) {
   if (!(w.skin > 0)) return prm.skin;
-  if (w.kept_for == 0 || w.kept_for > 32) return std::max(w.skin / 2, prm.range / 16);
+  if (w.kept_for > 32) return std::max(w.skin / 2, prm.range / 16);
   if (w.kept_for < 4) return std::min(w.skin * 2, prm.range / 2);
   return w.skin;
 }
@@ -618,23 +615,52 @@ void build_boxes(const Sheet<Real>& s, SheetBoxes<Real>& out) {
   }
 }
 
+namespace {
+
+// Substeps a pair searches without lists after lists at the widest skin did not outlive
+// their substep: making them costs more than it saves while the sheets move that fast.
+constexpr std::uint32_t kListRest = 16;
+
+// Both directions of a pair (one for a sheet with itself, `ring` ≥ 0): through the kept
+// lists while they hold, else a search that makes new ones, or, while the pair rests from
+// lists that did not outlive a substep at the widest skin, a search that makes none.
+template <class Real>
+void contacts_of_pair(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sheet<Real>& b,
+                      const SheetBoxes<Real>& bb, int ring, const ContactParams<Real>& prm, PairContacts<Real>& w,
+                      ContactScratch<Real>& sc) {
+  const bool self = &a == &b;
+  w.on_a.clear();
+  w.on_b.clear();
+  ContactForces<Real>& on_b = self ? w.on_a : w.on_b;
+  ContactParams<Real> pair = prm;
+  pair.friction = static_cast<Real>(std::max(a.friction, b.friction));
+  if (w.resting == 0 && lists_hold(w, a, ba, b, bb, prm, sc)) {
+    points_against_lists(a, ba, b, bb, w.a_near_b, pair, w.on_a, on_b, sc);
+    if (!self) points_against_lists(b, bb, a, ba, w.b_near_a, pair, on_b, w.on_a, sc);
+    return;
+  }
+  if (w.resting == 0 && w.kept_a && w.kept_for == 0 && w.skin >= prm.range / 2) w.resting = kListRest;
+  if (w.resting > 0) {
+    --w.resting;
+    w.kept_a = w.kept_b = nullptr;
+    w.skin = 0;  // lists start again at the first skin
+    points_against_cells(a, ba, b, bb, ring, pair, w.on_a, on_b, sc);
+    if (!self) points_against_cells(b, bb, a, ba, ring, pair, on_b, w.on_a, sc);
+    return;
+  }
+  const Real skin = next_skin(w, prm);
+  points_against_cells(a, ba, b, bb, ring, pair, w.on_a, on_b, sc, &w.a_near_b, skin);
+  if (!self) points_against_cells(b, bb, a, ba, ring, pair, on_b, w.on_a, sc, &w.b_near_a, skin);
+  keep_lists_for(w, a, ba, b, bb, skin);
+}
+
+}  // namespace
+
 template <class Real>
 void pair_contacts(const Sheet<Real>& a, const SheetBoxes<Real>& boxes_a, const Sheet<Real>& b,
                    const SheetBoxes<Real>& boxes_b, const ContactParams<Real>& prm, PairContacts<Real>& work,
                    ContactScratch<Real>& scratch) {
-  work.on_a.clear();
-  work.on_b.clear();
-  ContactParams<Real> pair = prm;
-  pair.friction = static_cast<Real>(std::max(a.friction, b.friction));
-  if (lists_hold(work, a, boxes_a, b, boxes_b, prm, scratch)) {
-    points_against_lists(a, boxes_a, b, boxes_b, work.a_near_b, pair, work.on_a, work.on_b, scratch);
-    points_against_lists(b, boxes_b, a, boxes_a, work.b_near_a, pair, work.on_b, work.on_a, scratch);
-    return;
-  }
-  const Real skin = next_skin(work, prm);
-  points_against_cells(a, boxes_a, b, boxes_b, -1, pair, work.on_a, work.on_b, scratch, &work.a_near_b, skin);
-  points_against_cells(b, boxes_b, a, boxes_a, -1, pair, work.on_b, work.on_a, scratch, &work.b_near_a, skin);
-  keep_lists_for(work, a, boxes_a, b, boxes_b, skin);
+  contacts_of_pair(a, boxes_a, b, boxes_b, -1, prm, work, scratch);
 }
 
 template <class Real>
@@ -648,18 +674,7 @@ std::uint32_t self_contact_ring(const Sheet<Real>& s, const ContactParams<Real>&
 template <class Real>
 void self_contacts(const Sheet<Real>& s, const SheetBoxes<Real>& boxes, const ContactParams<Real>& prm,
                    PairContacts<Real>& work, ContactScratch<Real>& scratch) {
-  work.on_a.clear();
-  work.on_b.clear();
-  ContactParams<Real> own = prm;
-  own.friction = static_cast<Real>(s.friction);
-  if (lists_hold(work, s, boxes, s, boxes, prm, scratch)) {
-    points_against_lists(s, boxes, s, boxes, work.a_near_b, own, work.on_a, work.on_a, scratch);
-    return;
-  }
-  const Real skin = next_skin(work, prm);
-  points_against_cells(s, boxes, s, boxes, int(self_contact_ring(s, prm)), own, work.on_a, work.on_a, scratch,
-                       &work.a_near_b, skin);
-  keep_lists_for(work, s, boxes, s, boxes, skin);
+  contacts_of_pair(s, boxes, s, boxes, int(self_contact_ring(s, prm)), prm, work, scratch);
 }
 
 template <class Real>

@@ -21,20 +21,21 @@
 //
 // Candidates come from boxes each sheet makes once per substep and shares with all of its
 // pairs (SheetBoxes), never all points against all cells, and never a structure per pair.
-// A sheet's grid is cut into patches of 8×8 cells; its topology gives them, so there is
-// nothing to sort: a box per cell and a box per patch, both from the positions in one
-// pass. A patch's box holds its cells and also its points (rows and columns 8p … 8p + 8),
-// so the same box is the query side's block of points. Points of sheet q against the
-// cells of sheet s go block by block: a block whose box, grown by R, misses s's box is
-// skipped; otherwise the patches of s within R of it are picked with one vectorised pass
-// over s's patch boxes (none: the block is skipped). Each run of up to 8 consecutive
-// points of a row of the block then gathers, from those patches, the cells within R of
-// the run's box into contiguous arrays, and each of its points measures the gap to every
-// gathered box in one vectorised pass, keeping those under R. The cell whose box is
-// nearest is tested first, then the others while their boxes are no farther than the best
-// triangle: a cell whose box is farther cannot win. Of triangles at the same distance the
-// lowest (first corner, then first triangle of the cell) wins, so the winner is the exact
-// nearest triangle with a fixed tie-break, whatever order the candidates came in.
+// The grid's topology gives the hierarchy, so nothing is sorted or binned: a box per cell,
+// per strip (a row of 8 cells) and per patch (8×8 cells). A patch's box holds its cells
+// and also its points (rows and columns 8p … 8p + 8), so the same box serves as the query
+// side's block of points. Points of sheet q against the cells of sheet s go block by
+// block: a block whose box, grown by R, misses s's box is skipped; otherwise the patches
+// of s within R of it (one branch-free pass over s's patch boxes), and of those the strips
+// within R of it, are gathered contiguous, or the block is skipped when there is none.
+// Each point of the block then measures its gap to every gathered strip box in one
+// vectorised pass and, for the strips within R, to their 8 cells' boxes (a fixed count:
+// one or two vector operations), keeping the cells within R. The cell whose box is
+// nearest is tested first, then the others in the order met while their boxes are still
+// nearer than the best triangle (a cell whose box is no nearer cannot hold a nearer one).
+// The winner is the nearest triangle; the order only decides between triangles whose
+// distances agree to rounding (of exactly equal ones the lowest cell, then the cell's
+// first triangle), and then the force on the point is the same.
 #pragma once
 
 #include <cstdint>
@@ -141,14 +142,21 @@ struct Candidates {
 //
 // Candidates are kept from one substep to the next: each point's list holds the cells
 // whose boxes were within R + skin of it when the list was made (by the search above, run
-// with R + skin). While no point of either sheet has moved more than 0.45·skin since,
-// every cell now within R of a point is on its list (a box's gap to a point changes by at
-// most the two displacements), so reading the list finds exactly the cells the search
-// would, in its order: the forces are the same bit for bit. The search runs again only
-// when a point has moved that far, or the pair's sheets are not the ones the lists were
-// made for; that substep takes its forces in the same pass. The skin follows the pair's
-// motion: halved (down to R/16) when lists did not outlive their substep or served more
-// than 32, doubled (up to R/2) when fewer than 4.
+// with R + skin), in the order the search met them. A point can come nearer to a cell by
+// at most how far the two moved RELATIVE to each other, so the lists hold while, for
+// every patch A of one sheet and B of the other (the same patch boxes: a patch's points
+// are its block), A's spread of displacements since then (the largest distance of a
+// point's displacement from the middle of them all) plus B's plus the distance between
+// the two middles stays within 0.9 of the slack the lists had: the skin, or the two
+// patches' gap then less R if that is more (patches far apart may drift far). A stack that
+// sags and swings together keeps its lists; a point off its list is then still beyond R,
+// so reading the lists finds exactly the cells the search would, in its order: the forces
+// are the same bit for bit. Otherwise, or when the pair's sheets are not the ones the
+// lists were made for, the search runs again and takes that substep's forces in the same
+// pass. The skin follows the pair: R/4 at first, doubled (up to R/2) when the last lists
+// served fewer than 4 substeps, halved (down to R/16) when more than 32. Lists at R/2 that
+// did not outlive their substep make the pair search without lists for the next 16
+// substeps (making them costs more than it saves while the sheets move that fast).
 template <class Real>
 struct PairContacts {
   std::uint32_t a = 0, b = 0;  // positions in the world's sheet order
@@ -162,6 +170,7 @@ struct PairContacts {
   Candidates a_near_b, b_near_a;         // points of a against cells of b, and back
   Real skin = 0;                         // of the kept lists (0: none made yet)
   std::uint32_t kept_for = 0;            // substeps the kept lists have served
+  std::uint32_t resting = 0;             // substeps left to search without lists
   std::uint64_t searches = 0;            // how often the lists were made (for tests)
 };
 
