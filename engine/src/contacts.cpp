@@ -82,7 +82,7 @@ V3<Real> at(const Sheet<Real>& s, std::uint32_t p) {
 // Barycentric weights (of a, b, c) of the point of triangle abc closest to p, found by
 // the Voronoi region of p: a vertex, an edge or the face.
 template <class Real>
-V3<Real> closest_weights(V3<Real> p, V3<Real> a, V3<Real> b, V3<Real> c) {
+[[gnu::always_inline]] inline V3<Real> closest_weights(V3<Real> p, V3<Real> a, V3<Real> b, V3<Real> c) {
   const V3<Real> ab = sub(b, a), ac = sub(c, a), ap = sub(p, a);
   const Real d1 = dot(ab, ap), d2 = dot(ac, ap);
   if (d1 <= 0 && d2 <= 0) return {1, 0, 0};
@@ -421,10 +421,30 @@ void points_against_lists(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
     }
 }
 
-// How the points of each patch of s moved since `then`: per patch, the middle of its
-// points' displacements (the centre of their box) and the largest distance of a
-// displacement from it. Two passes over each patch's points, the patches' own points
-// (rows and columns 8p … 8p + 8, as their boxes).
+// Whether no point of s has moved farther than √limit2 from `then`: blocks of points, each
+// a vectorised maximum, stopping at the first block that has.
+template <class Real>
+bool within(const Sheet<Real>& s, const Vec3Array<Real>& then, Real limit2) {
+  const Real *x = s.position.x.data(), *y = s.position.y.data(), *z = s.position.z.data();
+  const Real *tx = then.x.data(), *ty = then.y.data(), *tz = then.z.data();
+  constexpr std::size_t block = 512;
+  for (std::size_t p0 = 0; p0 < s.size(); p0 += block) {
+    const std::size_t p1 = std::min(s.size(), p0 + block);
+    Real most = 0;
+#pragma omp simd reduction(max : most)
+    for (std::size_t p = p0; p < p1; ++p) {
+      const Real dx = x[p] - tx[p], dy = y[p] - ty[p], dz = z[p] - tz[p];
+      most = std::max(most, dx * dx + dy * dy + dz * dz);
+    }
+    if (!(most <= limit2)) return false;
+  }
+  return true;
+}
+
+// How the points of each patch of s moved since `then`: per patch, the centre of the box
+// of its points' displacements and that box's half-diagonal, which no displacement is
+// farther from the centre than. One pass over each patch's points (rows and columns
+// 8p … 8p + 8, as their boxes).
 template <class Real>
 void patch_motion(const Sheet<Real>& s, const SheetBoxes<Real>& bs, const Vec3Array<Real>& then,
                   std::vector<Real> (&mid)[3], std::vector<Real>& radius) {
@@ -438,28 +458,23 @@ void patch_motion(const Sheet<Real>& s, const SheetBoxes<Real>& bs, const Vec3Ar
     for (std::uint32_t pj = 0; pj < bs.patch_cols; ++pj) {
       const std::uint32_t i0 = pi * P, i1 = std::min(i0 + P, bs.m), j0 = pj * P, j1 = std::min(j0 + P, bs.n);
       const std::uint32_t patch = pi * bs.patch_cols + pj;
+      Real r2 = 0, nan = 0;  // nan: NaN if a displacement is (not a number, or infinite)
       for (int k = 0; k < 3; ++k) {
-        Real lo = now[k][i0 * cols + j0] - old[k][i0 * cols + j0], hi = lo;
-        for (std::uint32_t i = i0; i <= i1; ++i)
+        Real lo = std::numeric_limits<Real>::infinity(), hi = -lo;
+        for (std::uint32_t i = i0; i <= i1; ++i) {
+          const Real* a = now[k] + std::size_t(i) * cols;
+          const Real* b = old[k] + std::size_t(i) * cols;
           for (std::uint32_t j = j0; j <= j1; ++j) {
-            const Real d = now[k][i * cols + j] - old[k][i * cols + j];
-            lo = std::min(lo, d);
-            hi = std::max(hi, d);
+            const Real d = a[j] - b[j];
+            lo = d < lo ? d : lo;  // a NaN is lost here, but not in `nan`
+            hi = d > hi ? d : hi;
+            nan += d * Real(0);
           }
-        // NaN stays: the check below then fails
-        mid[k][patch] = std::isnan(lo) || std::isnan(hi) ? lo + hi : Real(0.5) * (lo + hi);
-      }
-      Real most = 0;
-      for (std::uint32_t i = i0; i <= i1; ++i)
-        for (std::uint32_t j = j0; j <= j1; ++j) {
-          Real r2 = 0;
-          for (int k = 0; k < 3; ++k) {
-            const Real e = now[k][i * cols + j] - old[k][i * cols + j] - mid[k][patch];
-            r2 += e * e;
-          }
-          most = r2 > most || std::isnan(r2) ? r2 : most;
         }
-      radius[patch] = std::sqrt(most);
+        mid[k][patch] = Real(0.5) * (lo + hi);
+        r2 += Real(0.25) * (hi - lo) * (hi - lo);
+      }
+      radius[patch] = std::sqrt(r2) + nan;  // NaN fails the check
     }
 }
 
@@ -481,7 +496,8 @@ void patch_clearance(const SheetBoxes<Real>& ba, const SheetBoxes<Real>& bb, std
 }
 
 // Whether the lists kept in `w` were made for these sheets and still hold every cell
-// within R of every point (PairContacts): for every patch A of a and B of b, the most a
+// within R of every point (PairContacts): no point moved more than 0.45·skin, or, for
+// every patch A of a and B of b, the most a
 // point of one can have come nearer to a cell of the other (A's and B's spreads of
 // displacement plus the difference of their middles) stays within 0.9 of the slack the
 // lists had: the skin, or the patches' gap then less R if that is more.
@@ -491,6 +507,13 @@ bool lists_hold(PairContacts<Real>& w, const Sheet<Real>& a, const SheetBoxes<Re
   if (w.kept_a != &a || w.kept_b != &b || w.kept_topology_a != a.topology.get() ||
       w.kept_topology_b != b.topology.get() || w.made_at_a.x.size() != a.size() || w.made_at_b.x.size() != b.size())
     return false;
+  // No point moved more than 0.45·skin: no gap shrank by more than 0.9·skin (cheap, and
+  // enough for a pair at rest); otherwise the patches' relative motion decides.
+  const Real limit2 = (Real(0.45) * w.skin) * (Real(0.45) * w.skin);
+  if (within(a, w.made_at_a, limit2) && (&a == &b || within(b, w.made_at_b, limit2))) {
+    ++w.kept_for;
+    return true;
+  }
   patch_motion(a, ba, w.made_at_a, sc.mid_a, sc.radius_a);
   if (&a != &b) patch_motion(b, bb, w.made_at_b, sc.mid_b, sc.radius_b);
   const auto& mid_b = &a != &b ? sc.mid_b : sc.mid_a;
@@ -594,15 +617,28 @@ void build_boxes(const Sheet<Real>& s, SheetBoxes<Real>& out) {
         out.strip_hi[k][std::size_t(i) * out.patch_cols + pj] = hi;
       }
   // Patch boxes over their points: rows [8pi, 8pi + 8] (to the last row in the last patch
-  // row), the same for columns; a NaN point makes its patch's box NaN (include_points).
+  // row), the same for columns. With cells, the union of the patch's strips (whose cells
+  // have exactly those corners); a line of points, from the points.
   for (std::uint32_t pi = 0; pi < out.patch_rows; ++pi) {
-    const std::uint32_t i0 = pi * P, i1 = std::min(i0 + P, m);  // inclusive
+    const std::uint32_t i0 = pi * P, i1 = std::min(i0 + P, m);
     for (std::uint32_t pj = 0; pj < out.patch_cols; ++pj) {
       const std::uint32_t j0 = pj * P, j1 = std::min(j0 + P, n);
       Aabb box = empty_box();
-      for (std::uint32_t i = i0; i <= i1; ++i) {
-        const std::size_t p0 = std::size_t(i) * cols + j0;
-        include_points(box, axis[0] + p0, axis[1] + p0, axis[2] + p0, j1 - j0 + 1);
+      if (m > 0 && n > 0) {
+        for (int k = 0; k < 3; ++k) {
+          Real lo = std::numeric_limits<Real>::infinity(), hi = -lo;
+          for (std::uint32_t i = i0; i < i1; ++i) {
+            lo = std::min(lo, out.strip_lo[k][std::size_t(i) * out.patch_cols + pj]);
+            hi = std::max(hi, out.strip_hi[k][std::size_t(i) * out.patch_cols + pj]);
+          }
+          box.lo[k] = lo;
+          box.hi[k] = hi;
+        }
+      } else {
+        for (std::uint32_t i = i0; i <= i1; ++i) {
+          const std::size_t p0 = std::size_t(i) * cols + j0;
+          include_points(box, axis[0] + p0, axis[1] + p0, axis[2] + p0, j1 - j0 + 1);
+        }
       }
       const std::size_t patch = std::size_t(pi) * out.patch_cols + pj;
       for (int k = 0; k < 3; ++k) {
