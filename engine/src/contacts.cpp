@@ -194,15 +194,18 @@ void repel(const Sheet<Real>& qs, std::uint32_t q, V3<Real> p, const Sheet<Real>
     if (wt[k] != 0) on_s.push(best.tri[k], -wt[k] * F.x, -wt[k] * F.y, -wt[k] * F.z);
 }
 
+constexpr std::uint32_t kNoCell = ~std::uint32_t(0);
+
 // Point p of q (at x) against `near`, its cells of s whose boxes are within R, with their
-// boxes' squared gaps: the cell whose box is nearest (the first of equally near ones) is
-// tested first, then the others in their order while their boxes are still nearer than the
-// best triangle (a cell whose box is no nearer cannot hold a nearer one); the nearest
-// triangle repels.
+// boxes' squared gaps: `last` (the point's nearest cell of the last substep, if it had
+// one) is tested first, else the cell whose box is nearest (the first of equally near
+// ones), then the others in their order while their boxes are still nearer than the best
+// triangle (a cell whose box is no nearer cannot hold a nearer one); the nearest triangle
+// repels, and becomes `last`.
 template <class Real>
 void repel_nearest(const Sheet<Real>& q, std::uint32_t p, V3<Real> x, const Sheet<Real>& s,
                    const typename ContactScratch<Real>::Near* near, std::uint32_t found, const ContactParams<Real>& prm,
-                   ContactForces<Real>& on_q, ContactForces<Real>& on_s) {
+                   ContactForces<Real>& on_q, ContactForces<Real>& on_s, std::uint32_t& last) {
   const std::uint32_t cols = s.topology->cols();
   auto test = [&](std::uint32_t p00, Nearest<Real>& best) {
     const std::uint32_t p01 = p00 + 1, p10 = p00 + cols, p11 = p10 + 1;
@@ -214,13 +217,24 @@ void repel_nearest(const Sheet<Real>& q, std::uint32_t p, V3<Real> x, const Shee
   Nearest<Real> best{};
   best.dist2 = R2;
   best.key = ~std::uint32_t(0);
-  std::uint32_t nearest = 0;
-  for (std::uint32_t e = 1; e < found; ++e)
-    if (near[e].gap2 < near[nearest].gap2) nearest = e;
-  test(near[nearest].corner, best);
+  // Last substep's nearest cell first (a guess that is usually right, which makes the
+  // bound tight at once), else the cell whose box is nearest.
+  std::uint32_t first = last;
+  if (first == kNoCell) {
+    std::uint32_t nearest = 0;
+    for (std::uint32_t e = 1; e < found; ++e)
+      if (near[e].gap2 < near[nearest].gap2) nearest = e;
+    first = near[nearest].corner;
+  }
+  test(first, best);
   for (std::uint32_t e = 0; e < found; ++e)
-    if (e != nearest && near[e].gap2 < best.dist2) test(near[e].corner, best);
-  if (best.dist2 < R2) repel(q, p, x, s, best, prm, on_q, on_s);
+    if (near[e].corner != first && near[e].gap2 < best.dist2) test(near[e].corner, best);
+  if (best.dist2 < R2) {
+    last = best.tri[0];  // the cell's first corner: both triangles start there
+    repel(q, p, x, s, best, prm, on_q, on_s);
+  } else {
+    last = kNoCell;
+  }
 }
 
 // Points of q against the cells of s through both sheets' boxes (contacts.h): block by
@@ -236,7 +250,7 @@ template <class Real>
 void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, const Sheet<Real>& s,
                           const SheetBoxes<Real>& bs, int ring, const ContactParams<Real>& prm,
                           ContactForces<Real>& on_q, ContactForces<Real>& on_s, ContactScratch<Real>& sc,
-                          Candidates* lists = nullptr, Real skin = 0) {
+                          std::uint32_t* last, Candidates* lists = nullptr, Real skin = 0) {
   if (lists) {
     lists->begin.assign(q.size(), 0);
     lists->count.assign(q.size(), 0);
@@ -367,7 +381,7 @@ void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
             }
             found = within;
           }
-          if (found > 0) repel_nearest(q, p, x, s, near, found, prm, on_q, on_s);
+          if (found > 0) repel_nearest(q, p, x, s, near, found, prm, on_q, on_s, last[p]);
         }
     }
 }
@@ -379,7 +393,8 @@ void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
 template <class Real>
 void points_against_lists(const Sheet<Real>& q, const SheetBoxes<Real>& bq, const Sheet<Real>& s,
                           const SheetBoxes<Real>& bs, const Candidates& lists, const ContactParams<Real>& prm,
-                          ContactForces<Real>& on_q, ContactForces<Real>& on_s, ContactScratch<Real>& sc) {
+                          ContactForces<Real>& on_q, ContactForces<Real>& on_s, ContactScratch<Real>& sc,
+                          std::uint32_t* last) {
   if (lists.cell.empty()) return;
   const Real R2 = prm.range * prm.range;
   std::uint32_t widest = 0;
@@ -416,7 +431,7 @@ void points_against_lists(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
             near[found] = {cell[t], gap2[t]};
             found += gap2[t] < R2;
           }
-          if (found > 0) repel_nearest(q, p, x, s, near, found, prm, on_q, on_s);
+          if (found > 0) repel_nearest(q, p, x, s, near, found, prm, on_q, on_s, last[p]);
         }
     }
 }
@@ -670,9 +685,16 @@ void contacts_of_pair(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sh
   ContactForces<Real>& on_b = self ? w.on_a : w.on_b;
   ContactParams<Real> pair = prm;
   pair.friction = static_cast<Real>(std::max(a.friction, b.friction));
+  if (w.guessed_a != a.topology.get() || w.guessed_b != b.topology.get() || w.last_a.size() != a.size() ||
+      w.last_b.size() != b.size()) {  // guesses only for the grids they were made on
+    w.last_a.assign(a.size(), kNoCell);
+    w.last_b.assign(b.size(), kNoCell);
+    w.guessed_a = a.topology.get();
+    w.guessed_b = b.topology.get();
+  }
   if (w.resting == 0 && lists_hold(w, a, ba, b, bb, prm, sc)) {
-    points_against_lists(a, ba, b, bb, w.a_near_b, pair, w.on_a, on_b, sc);
-    if (!self) points_against_lists(b, bb, a, ba, w.b_near_a, pair, on_b, w.on_a, sc);
+    points_against_lists(a, ba, b, bb, w.a_near_b, pair, w.on_a, on_b, sc, w.last_a.data());
+    if (!self) points_against_lists(b, bb, a, ba, w.b_near_a, pair, on_b, w.on_a, sc, w.last_b.data());
     return;
   }
   if (w.resting == 0 && w.kept_a && w.kept_for == 0 && w.skin >= prm.range / 2) w.resting = kListRest;
@@ -680,13 +702,13 @@ void contacts_of_pair(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sh
     --w.resting;
     w.kept_a = w.kept_b = nullptr;
     w.skin = 0;  // lists start again at the first skin
-    points_against_cells(a, ba, b, bb, ring, pair, w.on_a, on_b, sc);
-    if (!self) points_against_cells(b, bb, a, ba, ring, pair, on_b, w.on_a, sc);
+    points_against_cells(a, ba, b, bb, ring, pair, w.on_a, on_b, sc, w.last_a.data());
+    if (!self) points_against_cells(b, bb, a, ba, ring, pair, on_b, w.on_a, sc, w.last_b.data());
     return;
   }
   const Real skin = next_skin(w, prm);
-  points_against_cells(a, ba, b, bb, ring, pair, w.on_a, on_b, sc, &w.a_near_b, skin);
-  if (!self) points_against_cells(b, bb, a, ba, ring, pair, on_b, w.on_a, sc, &w.b_near_a, skin);
+  points_against_cells(a, ba, b, bb, ring, pair, w.on_a, on_b, sc, w.last_a.data(), &w.a_near_b, skin);
+  if (!self) points_against_cells(b, bb, a, ba, ring, pair, on_b, w.on_a, sc, w.last_b.data(), &w.b_near_a, skin);
   keep_lists_for(w, a, ba, b, bb, skin);
 }
 

@@ -33,7 +33,9 @@
 // one or two vector operations), keeping the cells within R. The cell whose box is
 // nearest is tested first, then the others in the order met while their boxes are still
 // nearer than the best triangle (a cell whose box is no nearer cannot hold a nearer one).
-// The winner is the nearest triangle; the order only decides between triangles whose
+// A point's nearest cell of the last substep (per pair and direction) is tested before all
+// of them: usually still the nearest, it makes the bound tight at once. The winner is the
+// nearest triangle whatever is tried first; the order only decides between triangles whose
 // distances agree to rounding (of exactly equal ones the lowest cell, then the cell's
 // first triangle), and then the force on the point is the same.
 #pragma once
@@ -171,6 +173,11 @@ struct PairContacts {
   Real skin = 0;                         // of the kept lists (0: none made yet)
   std::uint32_t kept_for = 0;            // substeps the kept lists have served
   std::uint32_t resting = 0;             // substeps left to search without lists
+  // Per point of a (against b) and of b (against a): its nearest cell last substep (first
+  // corner; ~0 for none), tested first; and the grids those cells belong to.
+  std::vector<std::uint32_t> last_a, last_b;
+  const Topology<Real>* guessed_a = nullptr;
+  const Topology<Real>* guessed_b = nullptr;
   std::uint64_t searches = 0;            // how often the lists were made (for tests)
 };
 
