@@ -327,6 +327,18 @@ void jostle(Sheet<double>& s, std::mt19937& rng) {
   }
 }
 
+// One step of `kept` and of a fresh PairContacts on the same sheets: the same forces,
+// entry for entry, bit for bit. Returns the number of entries on a.
+std::size_t kept_matches_fresh(const Sheet<double>& a, const Sheet<double>& b, PairContacts<double>& kept,
+                               ContactScratch<double>& scratch, int step) {
+  PairContacts<double> fresh;
+  pair_contacts(a, boxes(a), b, boxes(b), kParams, kept, scratch);
+  pair_contacts(a, boxes(a), b, boxes(b), kParams, fresh, scratch);
+  expect_same_forces(kept.on_a, fresh.on_a, step);
+  expect_same_forces(kept.on_b, fresh.on_b, step);
+  return kept.on_a.size();
+}
+
 TEST(Contacts, KeptCandidatesFindWhatAFreshSearchFindsBitForBit) {
   auto [a, b] = close_sheets(4);
   std::mt19937 rng(5);
@@ -337,12 +349,7 @@ TEST(Contacts, KeptCandidatesFindWhatAFreshSearchFindsBitForBit) {
   for (int step = 0; step < steps; ++step) {
     jostle(a, rng);
     jostle(b, rng);
-    PairContacts<double> fresh;
-    pair_contacts(a, boxes(a), b, boxes(b), kParams, kept, scratch);
-    pair_contacts(a, boxes(a), b, boxes(b), kParams, fresh, scratch);
-    expect_same_forces(kept.on_a, fresh.on_a, step);
-    expect_same_forces(kept.on_b, fresh.on_b, step);
-    touching += kept.on_a.size();
+    touching += kept_matches_fresh(a, b, kept, scratch, step);
   }
   EXPECT_GT(touching, 0u);
   EXPECT_GT(kept.searches, 2u);             // remade when points had moved far enough
@@ -392,12 +399,7 @@ TEST(Contacts, KeptCandidatesFollowTheSheetsRelativeMotionNotTheirAbsoluteOne) {
   for (int step = 0; step < steps; ++step) {
     carry(a, 0.002, 0.0, 0.002);
     carry(b, 0.002, 0.0, 0.002);
-    PairContacts<double> fresh;
-    pair_contacts(a, boxes(a), b, boxes(b), kParams, kept, scratch);
-    pair_contacts(a, boxes(a), b, boxes(b), kParams, fresh, scratch);
-    expect_same_forces(kept.on_a, fresh.on_a, step);
-    expect_same_forces(kept.on_b, fresh.on_b, step);
-    touching += kept.on_a.size();
+    touching += kept_matches_fresh(a, b, kept, scratch, step);
   }
   EXPECT_GT(touching, 0u);
   // 80 mm of common motion: lists kept while each point stayed within 0.45 of the skin
@@ -406,11 +408,7 @@ TEST(Contacts, KeptCandidatesFollowTheSheetsRelativeMotionNotTheirAbsoluteOne) {
   const std::uint64_t before = kept.searches;
   for (int step = 0; step < 10; ++step) {
     carry(b, 0.0, -0.0015, 0.0);
-    PairContacts<double> fresh;
-    pair_contacts(a, boxes(a), b, boxes(b), kParams, kept, scratch);
-    pair_contacts(a, boxes(a), b, boxes(b), kParams, fresh, scratch);
-    expect_same_forces(kept.on_a, fresh.on_a, steps + step);
-    expect_same_forces(kept.on_b, fresh.on_b, steps + step);
+    kept_matches_fresh(a, b, kept, scratch, steps + step);
   }
   EXPECT_GE(kept.searches, before + 1);  // 15 mm closer: more than the skin allows
 }

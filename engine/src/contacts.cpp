@@ -37,29 +37,11 @@ Real positive_part(Real a) { return (a + std::abs(a)) * Real(0.5); }
 
 // gap2[t] = squared distance from x to box t, for t < count: one vectorised pass. Along
 // each axis the gap is max(lo − x, x − hi, 0) = max(lo − x, 0) + max(x − hi, 0), as
-// lo ≤ hi makes at least one of the two zero.
+// lo ≤ hi makes at least one of the two zero. Inlined, so a constant count (a strip's 8)
+// becomes a few vector operations.
 template <class Real>
-void box_gaps(V3<Real> x, const Real* const lo[3], const Real* const hi[3], std::uint32_t count,
-              Real* __restrict gap2) {
-  const Real* __restrict lx = lo[0];
-  const Real* __restrict ly = lo[1];
-  const Real* __restrict lz = lo[2];
-  const Real* __restrict hx = hi[0];
-  const Real* __restrict hy = hi[1];
-  const Real* __restrict hz = hi[2];
-  for (std::uint32_t t = 0; t < count; ++t) {
-    const Real ex = positive_part(lx[t] - x.x) + positive_part(x.x - hx[t]);
-    const Real ey = positive_part(ly[t] - x.y) + positive_part(x.y - hy[t]);
-    const Real ez = positive_part(lz[t] - x.z) + positive_part(x.z - hz[t]);
-    gap2[t] = ex * ex + ey * ey + ez * ez;
-  }
-}
-
-// box_gaps for the 8 boxes of a strip, a fixed count the compiler unrolls into a few
-// vector operations.
-template <class Real>
-inline void box_gaps_of_strip(V3<Real> x, const Real* const lo[3], const Real* const hi[3], Real* __restrict gap2) {
-  constexpr std::uint32_t count = SheetBoxes<Real>::kPatch;
+[[gnu::always_inline]] inline void box_gaps(V3<Real> x, const Real* const lo[3], const Real* const hi[3],
+                                            std::uint32_t count, Real* __restrict gap2) {
   const Real* __restrict lx = lo[0];
   const Real* __restrict ly = lo[1];
   const Real* __restrict lz = lo[2];
@@ -124,15 +106,17 @@ struct Nearest {
 };
 
 template <class Real>
-[[gnu::always_inline]] inline void consider(V3<Real> p, std::uint32_t key, std::uint32_t i0, std::uint32_t i1, std::uint32_t i2, V3<Real> a,
-              V3<Real> b, V3<Real> c, Nearest<Real>& best) {
+[[gnu::always_inline]] inline void consider(V3<Real> p, std::uint32_t key, std::uint32_t i0, std::uint32_t i1,
+                                            std::uint32_t i2, V3<Real> a, V3<Real> b, V3<Real> c,
+                                            Nearest<Real>& best) {
   const V3<Real> w = closest_weights(p, a, b, c);
   const V3<Real> q{w.x * a.x + w.y * b.x + w.z * c.x, w.x * a.y + w.y * b.y + w.z * c.y,
                    w.x * a.z + w.y * b.z + w.z * c.z};
   const V3<Real> d = sub(p, q);
   const Real dist2 = dot(d, d);
   // the nearest, and of equally near ones the lowest key: the same whatever the order
-  if (dist2 < best.dist2 || (dist2 == best.dist2 && key < best.key)) best = {dist2, key, {i0, i1, i2}, {a, b, c}, w};
+  if (dist2 < best.dist2 || (dist2 == best.dist2 && key < best.key))
+    best = {dist2, key, {i0, i1, i2}, {a, b, c}, w};
 }
 
 // The point against the nearest triangle: pushes the force on the point to `on_q` and the
@@ -352,7 +336,7 @@ void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
             const std::uint32_t t = pick[e], c0 = rcorner[t], cells = rcount[t];
             const Real* lo[3] = {clo[0] + c0, clo[1] + c0, clo[2] + c0};
             const Real* hi[3] = {chi[0] + c0, chi[1] + c0, chi[2] + c0};
-            box_gaps_of_strip(x, lo, hi, cell_gap2);  // all 8: the arrays are padded
+            box_gaps(x, lo, hi, P, cell_gap2);  // all 8: the arrays are padded
             if (ring >= 0) {  // self-contact: not the cells of the point's own neighbourhood
               const std::int64_t ci = rrow[t];
               if (ci >= std::int64_t(i) - ring && ci < std::int64_t(i) + ring) {
