@@ -30,11 +30,11 @@
 // within R of it, are gathered contiguous, or the block is skipped when there is none.
 // Each point of the block then measures its gap to every gathered strip box in one
 // vectorised pass and, for the strips within R, to their 8 cells' boxes (a fixed count:
-// one or two vector operations), keeping the cells within R. The cell whose box is
-// nearest is tested first, then the others in the order met while their boxes are still
-// nearer than the best triangle (a cell whose box is no nearer cannot hold a nearer one).
-// A point's nearest cell of the last substep (per pair and direction) is tested before all
-// of them: usually still the nearest, it makes the bound tight at once. The winner is the
+// one or two vector operations), keeping the cells within R. First the point's nearest
+// cell of the last substep is tested (kept per pair and direction: usually still the
+// nearest, it makes the bound tight at once), or without one the cell whose box is
+// nearest; then the others in the order met while their boxes are still nearer than the
+// best triangle (a cell whose box is no nearer cannot hold a nearer one). The winner is the
 // nearest triangle whatever is tried first; the order only decides between triangles whose
 // distances agree to rounding (of exactly equal ones the lowest cell, then the cell's
 // first triangle), and then the force on the point is the same.
