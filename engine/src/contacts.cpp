@@ -541,7 +541,7 @@ bool lists_hold(PairContacts<Real>& w, const Sheet<Real>& a, const SheetBoxes<Re
 template <class Real>
 Real next_skin(const PairContacts<Real>& w, const ContactParams<Real>& prm) {
   if (!(w.skin > 0)) return prm.skin;
-  if (w.kept_for > 32) return std::max(w.skin / 2, prm.range / 16);
+  if (w.kept_for == 0 || w.kept_for > 32) return std::max(w.skin / 2, prm.range / 16);
   if (w.kept_for < 4) return std::min(w.skin * 2, prm.range / 2);
   return w.skin;
 }
@@ -652,13 +652,13 @@ void build_boxes(const Sheet<Real>& s, SheetBoxes<Real>& out) {
 
 namespace {
 
-// Substeps a pair searches without lists after lists at the widest skin did not outlive
+// Substeps a pair searches without lists after lists at the narrowest skin did not outlive
 // their substep: making them costs more than it saves while the sheets move that fast.
 constexpr std::uint32_t kListRest = 16;
 
 // Both directions of a pair (one for a sheet with itself, `ring` ≥ 0): through the kept
 // lists while they hold, else a search that makes new ones, or, while the pair rests from
-// lists that did not outlive a substep at the widest skin, a search that makes none.
+// lists that did not outlive a substep at the narrowest skin, a search that makes none.
 template <class Real>
 void contacts_of_pair(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sheet<Real>& b,
                       const SheetBoxes<Real>& bb, int ring, const ContactParams<Real>& prm, PairContacts<Real>& w,
@@ -681,7 +681,7 @@ void contacts_of_pair(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sh
     if (!self) points_against_lists(b, bb, a, ba, w.b_near_a, pair, on_b, w.on_a, sc, w.last_b.data());
     return;
   }
-  if (w.resting == 0 && w.kept_a && w.kept_for == 0 && w.skin >= prm.range / 2) w.resting = kListRest;
+  if (w.resting == 0 && w.kept_a && w.kept_for == 0 && w.skin <= prm.range / 16) w.resting = kListRest;
   if (w.resting > 0) {
     --w.resting;
     w.kept_a = w.kept_b = nullptr;

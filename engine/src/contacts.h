@@ -155,10 +155,11 @@ struct Candidates {
 // so reading the lists finds exactly the cells the search would, in its order: the forces
 // are the same bit for bit. Otherwise, or when the pair's sheets are not the ones the
 // lists were made for, the search runs again and takes that substep's forces in the same
-// pass. The skin follows the pair: R/4 at first, doubled (up to R/2) when the last lists
-// served fewer than 4 substeps, halved (down to R/16) when more than 32. Lists at R/2 that
-// did not outlive their substep make the pair search without lists for the next 16
-// substeps (making them costs more than it saves while the sheets move that fast).
+// pass. The skin follows the pair: R/4 at first, halved (down to R/16) when the last lists
+// did not outlive their substep or served more than 32, doubled (up to R/2) when fewer
+// than 4. Lists at R/16 that did not outlive their substep make the pair search without
+// lists for the next 16 substeps (making them costs more than it saves while the sheets
+// move that fast), then start again at R/4.
 template <class Real>
 struct PairContacts {
   std::uint32_t a = 0, b = 0;  // positions in the world's sheet order
