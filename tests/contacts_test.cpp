@@ -45,6 +45,12 @@ double brute_energy(const Sheet<double>& q, const Sheet<double>& s, const Potent
   return sum;
 }
 
+SheetBoxes<double> boxes(const Sheet<double>& s) {
+  SheetBoxes<double> out;
+  build_boxes(s, out);
+  return out;
+}
+
 const ContactParams<double> kParams = ContactParams<double>::make(0.005, 0.002, 1e-4, 6.0);
 
 // Two small sheets a few millimetres apart, the upper one rumpled, so most points lie
@@ -76,8 +82,8 @@ P3 total(const ContactForces<double>& f) {
 TEST(Contacts, ForceIsMinusGradientOfBruteForcePotentialOverAllCells) {
   auto [a, b] = close_sheets(3);
   PairContacts<double> work;
-  ContactGrid<double> grid;
-  pair_contacts(a, sheet_bounds(a), b, sheet_bounds(b), kParams, work, grid);
+  ContactScratch<double> scratch;
+  pair_contacts(a, boxes(a), b, boxes(b), kParams, work, scratch);
   ASSERT_GT(work.on_a.size(), 50u);
 
   const Potential E{kParams.thickness, kParams.xi, kParams.strength, kParams.range};
@@ -111,8 +117,8 @@ TEST(Contacts, PairForcesConserveLinearAndAngularMomentum) {
   for (unsigned seed = 1; seed <= 5; ++seed) {
     auto [a, b] = close_sheets(seed);
     PairContacts<double> work;
-    ContactGrid<double> grid;
-    pair_contacts(a, sheet_bounds(a), b, sheet_bounds(b), kParams, work, grid);
+    ContactScratch<double> scratch;
+    pair_contacts(a, boxes(a), b, boxes(b), kParams, work, scratch);
     ASSERT_GT(work.on_a.size() + work.on_b.size(), 0u);
     P3 force{0, 0, 0}, torque{0, 0, 0};
     double scale = 0, torque_scale = 0;
@@ -147,8 +153,8 @@ TEST(Contacts, ForceOnAPointLyingOnTheSurfaceIsFiniteAndMatchesTheBound) {
   single.center = {-1.0 + 0.75, -1.0 + 0.25, 0.0};  // on the surface: d = 0
   const auto s = build_sheet<double>(surface), q = build_sheet<double>(single);
   PairContacts<double> work;
-  ContactGrid<double> grid;
-  pair_contacts(q, sheet_bounds(q), s, sheet_bounds(s), kParams, work, grid);
+  ContactScratch<double> scratch;
+  pair_contacts(q, boxes(q), s, boxes(s), kParams, work, scratch);
   ASSERT_EQ(work.on_a.size(), 1u);
   const double bound = kParams.strength / kParams.xi * (std::exp(kParams.thickness / kParams.xi) - kParams.tail);
   EXPECT_DOUBLE_EQ(work.on_a.fx[0], 0.0);
@@ -178,8 +184,8 @@ TEST(Contacts, FrictionOnAPointIsMuTimesLoadOrWhatStopsItsSlipWithinTheStep) {
     single.initial_velocity = {speed, 0, 0};
     const auto s = build_sheet<double>(surface), q = build_sheet<double>(single);
     PairContacts<double> work;
-    ContactGrid<double> grid;
-    pair_contacts(q, sheet_bounds(q), s, sheet_bounds(s), prm, work, grid);
+    ContactScratch<double> scratch;
+    pair_contacts(q, boxes(q), s, boxes(s), prm, work, scratch);
     ASSERT_EQ(work.on_a.size(), 1u);
     const double expected = speed > 0.5 ? 0.3 * load : speed / (prm.dt * (1.0 + 9.0 * (0.0625 + 0.25 + 0.0625)));
     EXPECT_NEAR(work.on_a.fx[0], -expected, 1e-12 * load) << "speed " << speed;
@@ -208,11 +214,11 @@ TEST(Contacts, FrictionBetweenSheetsIsEqualAndOppositeAndOnlyDissipates) {
     ContactParams<double> prm = kParams;
     prm.dt = 1e-3;
     PairContacts<double> plain, rubbing;
-    ContactGrid<double> grid;
-    pair_contacts(a, sheet_bounds(a), b, sheet_bounds(b), prm, plain, grid);
+    ContactScratch<double> scratch;
+    pair_contacts(a, boxes(a), b, boxes(b), prm, plain, scratch);
     b.friction = 0.4;  // the larger of the two coefficients acts
     a.friction = 0.1;
-    pair_contacts(a, sheet_bounds(a), b, sheet_bounds(b), prm, rubbing, grid);
+    pair_contacts(a, boxes(a), b, boxes(b), prm, rubbing, scratch);
     ASSERT_EQ(plain.on_a.size(), rubbing.on_a.size());
     ASSERT_EQ(plain.on_b.size(), rubbing.on_b.size());
     P3 sum{0, 0, 0};
@@ -243,8 +249,8 @@ TEST(Contacts, NoForceBeyondTheRange) {
   auto [a, b] = close_sheets(1);
   for (double& z : b.position.z) z += 0.005 + kParams.range;  // every point now beyond R
   PairContacts<double> work;
-  ContactGrid<double> grid;
-  pair_contacts(a, sheet_bounds(a), b, sheet_bounds(b), kParams, work, grid);
+  ContactScratch<double> scratch;
+  pair_contacts(a, boxes(a), b, boxes(b), kParams, work, scratch);
   EXPECT_EQ(work.on_a.size() + work.on_b.size(), 0u);
 }
 
@@ -255,8 +261,8 @@ TEST(Contacts, FlatSheetDoesNotRepelItself) {
   d.width = d.height = 0.05;  // spacing well below the contact range: the ring must cover it
   const auto s = build_sheet<double>(d);
   PairContacts<double> work;
-  ContactGrid<double> grid;
-  self_contacts(s, sheet_bounds(s), kParams, work, grid);
+  ContactScratch<double> scratch;
+  self_contacts(s, boxes(s), kParams, work, scratch);
   EXPECT_EQ(work.on_a.size(), 0u);
 }
 
@@ -283,8 +289,8 @@ TEST(Contacts, FoldedSheetPushesItsHalvesApartAndConservesMomentum) {
   const auto s = folded_sheet(d, 0.008);
   const std::uint32_t cols = d.n + 1;
   PairContacts<double> work;
-  ContactGrid<double> grid;
-  self_contacts(s, sheet_bounds(s), kParams, work, grid);
+  ContactScratch<double> scratch;
+  self_contacts(s, boxes(s), kParams, work, scratch);
   ASSERT_GT(work.on_a.size(), 0u);
   double up = 0, down = 0, scale = 0;
   for (std::size_t e = 0; e < work.on_a.size(); ++e) {
@@ -297,7 +303,7 @@ TEST(Contacts, FoldedSheetPushesItsHalvesApartAndConservesMomentum) {
 }
 
 // Candidate lists kept across substeps (contacts.h, PairContacts) find exactly what a fresh
-// grid finds: two rumpled sheets, and a folded sheet against itself, are jostled step by
+// search finds: two rumpled sheets, and a folded sheet against itself, are jostled step by
 // step (points moving up to 0.5 mm a step, so the lists outlive a few steps and are then
 // remade), and every step's forces with the kept lists equal, bit for bit and entry for
 // entry, those of a PairContacts made afresh. It fails if the lists are kept while a point
@@ -321,26 +327,33 @@ void jostle(Sheet<double>& s, std::mt19937& rng) {
   }
 }
 
-TEST(Contacts, KeptCandidatesFindWhatAFreshGridFindsBitForBit) {
+// One step of `kept` and of a fresh PairContacts on the same sheets: the same forces,
+// entry for entry, bit for bit. Returns the number of entries on a.
+std::size_t kept_matches_fresh(const Sheet<double>& a, const Sheet<double>& b, PairContacts<double>& kept,
+                               ContactScratch<double>& scratch, int step) {
+  PairContacts<double> fresh;
+  pair_contacts(a, boxes(a), b, boxes(b), kParams, kept, scratch);
+  pair_contacts(a, boxes(a), b, boxes(b), kParams, fresh, scratch);
+  expect_same_forces(kept.on_a, fresh.on_a, step);
+  expect_same_forces(kept.on_b, fresh.on_b, step);
+  return kept.on_a.size();
+}
+
+TEST(Contacts, KeptCandidatesFindWhatAFreshSearchFindsBitForBit) {
   auto [a, b] = close_sheets(4);
   std::mt19937 rng(5);
   PairContacts<double> kept;
-  ContactGrid<double> grid;
+  ContactScratch<double> scratch;
   const int steps = 60;
   std::size_t touching = 0;
   for (int step = 0; step < steps; ++step) {
     jostle(a, rng);
     jostle(b, rng);
-    PairContacts<double> fresh;
-    pair_contacts(a, sheet_bounds(a), b, sheet_bounds(b), kParams, kept, grid);
-    pair_contacts(a, sheet_bounds(a), b, sheet_bounds(b), kParams, fresh, grid);
-    expect_same_forces(kept.on_a, fresh.on_a, step);
-    expect_same_forces(kept.on_b, fresh.on_b, step);
-    touching += kept.on_a.size();
+    touching += kept_matches_fresh(a, b, kept, scratch, step);
   }
   EXPECT_GT(touching, 0u);
-  EXPECT_GT(kept.grid_builds, 2u);             // remade when points had moved far enough
-  EXPECT_LT(kept.grid_builds, std::uint64_t(steps) / 2);  // and kept in between
+  EXPECT_GT(kept.searches, 2u);             // remade when points had moved far enough
+  EXPECT_LT(kept.searches, std::uint64_t(steps) / 2);  // and kept in between
 
   SheetDef d;
   d.m = 20;
@@ -352,12 +365,52 @@ TEST(Contacts, KeptCandidatesFindWhatAFreshGridFindsBitForBit) {
   for (int step = 0; step < steps; ++step) {
     jostle(s, rng);
     PairContacts<double> fresh;
-    self_contacts(s, sheet_bounds(s), kParams, own, grid);
-    self_contacts(s, sheet_bounds(s), kParams, fresh, grid);
+    self_contacts(s, boxes(s), kParams, own, scratch);
+    self_contacts(s, boxes(s), kParams, fresh, scratch);
     expect_same_forces(own.on_a, fresh.on_a, step);
   }
-  EXPECT_GT(own.grid_builds, 2u);
-  EXPECT_LT(own.grid_builds, std::uint64_t(steps) / 2);
+  EXPECT_GT(own.searches, 2u);
+  EXPECT_LT(own.searches, std::uint64_t(steps) / 2);
+}
+
+// The lists are kept while the sheets move TOGETHER (contacts.h: the relative motion of
+// patches decides, not the absolute one): two rumpled sheets carried 2 mm a step along a
+// common drift, which varies across the sheets (a slow turn about z, so no single
+// translation describes it), with a 20 µm jitter on top. Every step's forces equal a
+// fresh search's bit for bit, and the lists are made only a few times, although points
+// move more than the whole skin every few steps. Then one sheet alone moves 1.5 mm a step
+// towards the other: the lists must be remade, and still match.
+TEST(Contacts, KeptCandidatesFollowTheSheetsRelativeMotionNotTheirAbsoluteOne) {
+  auto [a, b] = close_sheets(6);
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> jitter(-2e-5, 2e-5);
+  PairContacts<double> kept;
+  ContactScratch<double> scratch;
+  auto carry = [&](Sheet<double>& s, double dx, double dz, double turn) {
+    for (std::size_t p = 0; p < s.size(); ++p) {
+      const double x = s.position.x[p], y = s.position.y[p];
+      s.position.x[p] = x * std::cos(turn) - y * std::sin(turn) + dx + jitter(rng);
+      s.position.y[p] = x * std::sin(turn) + y * std::cos(turn) + jitter(rng);
+      s.position.z[p] += dz + jitter(rng);
+    }
+  };
+  const int steps = 40;
+  std::size_t touching = 0;
+  for (int step = 0; step < steps; ++step) {
+    carry(a, 0.002, 0.0, 0.002);
+    carry(b, 0.002, 0.0, 0.002);
+    touching += kept_matches_fresh(a, b, kept, scratch, step);
+  }
+  EXPECT_GT(touching, 0u);
+  // 80 mm of common motion: lists kept while each point stayed within 0.45 of the skin
+  // (≤ R/2 = 8.5 mm) of where it was would have been made at least 20 times
+  EXPECT_LE(kept.searches, 5u);
+  const std::uint64_t before = kept.searches;
+  for (int step = 0; step < 10; ++step) {
+    carry(b, 0.0, -0.0015, 0.0);
+    kept_matches_fresh(a, b, kept, scratch, steps + step);
+  }
+  EXPECT_GE(kept.searches, before + 1);  // 15 mm closer: more than the skin allows
 }
 
 // The nearest point of triangle abc to p and its barycentric weights, by a route of its
@@ -504,8 +557,8 @@ TEST(Contacts, PairMatchesEveryPointAgainstEveryTriangle) {
   for (unsigned seed = 1; seed <= 12; ++seed) {
     auto [a, b] = crumpled_pair(seed);
     PairContacts<double> work;
-    ContactGrid<double> grid;  // one grid for every seed, as a thread reuses it across pairs
-    pair_contacts(a, sheet_bounds(a), b, sheet_bounds(b), kParams, work, grid);
+    ContactScratch<double> scratch;  // one scratch for every seed, as a thread reuses it across pairs
+    pair_contacts(a, boxes(a), b, boxes(b), kParams, work, scratch);
     const Dense ab = brute_contacts(a, b, -1), ba = brute_contacts(b, a, -1);
     ASSERT_GT(ab.entries_q, a.size() / 4) << "seed " << seed;  // most points in contact
     std::vector<P3> on_a = ab.on_q, on_b = ab.on_s;
@@ -543,8 +596,8 @@ TEST(Contacts, SelfContactMatchesEveryPointAgainstEveryTriangleOutsideTheRing) {
       s.position.z[p] += 0.002 * unit(rng) + 0.004 * std::sin(50 * s.position.x[p] + seed);
     }
     PairContacts<double> work;
-    ContactGrid<double> grid;
-    self_contacts(s, sheet_bounds(s), kParams, work, grid);
+    ContactScratch<double> scratch;
+    self_contacts(s, boxes(s), kParams, work, scratch);
     // The ring by its definition in contacts.h, not by calling the engine's function.
     const double spacing = std::min(d.width / d.n, d.height / d.m);
     const int ring = std::min(16, 1 + int(std::ceil(kParams.range / spacing)));

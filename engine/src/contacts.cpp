@@ -2,7 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
-#include <optional>
+#include <limits>
 
 namespace drape::detail {
 
@@ -37,10 +37,11 @@ Real positive_part(Real a) { return (a + std::abs(a)) * Real(0.5); }
 
 // gap2[t] = squared distance from x to box t, for t < count: one vectorised pass. Along
 // each axis the gap is max(lo − x, x − hi, 0) = max(lo − x, 0) + max(x − hi, 0), as
-// lo ≤ hi makes at least one of the two zero.
+// lo ≤ hi makes at least one of the two zero. Inlined, so a constant count (a strip's 8)
+// becomes a few vector operations.
 template <class Real>
-void box_gaps(V3<Real> x, const Real* const lo[3], const Real* const hi[3], std::uint32_t count,
-              Real* __restrict gap2) {
+[[gnu::always_inline]] inline void box_gaps(V3<Real> x, const Real* const lo[3], const Real* const hi[3],
+                                            std::uint32_t count, Real* __restrict gap2) {
   const Real* __restrict lx = lo[0];
   const Real* __restrict ly = lo[1];
   const Real* __restrict lz = lo[2];
@@ -63,7 +64,7 @@ V3<Real> at(const Sheet<Real>& s, std::uint32_t p) {
 // Barycentric weights (of a, b, c) of the point of triangle abc closest to p, found by
 // the Voronoi region of p: a vertex, an edge or the face.
 template <class Real>
-V3<Real> closest_weights(V3<Real> p, V3<Real> a, V3<Real> b, V3<Real> c) {
+[[gnu::always_inline]] inline V3<Real> closest_weights(V3<Real> p, V3<Real> a, V3<Real> b, V3<Real> c) {
   const V3<Real> ab = sub(b, a), ac = sub(c, a), ap = sub(p, a);
   const Real d1 = dot(ab, ap), d2 = dot(ac, ap);
   if (d1 <= 0 && d2 <= 0) return {1, 0, 0};
@@ -94,24 +95,28 @@ V3<Real> closest_weights(V3<Real> p, V3<Real> a, V3<Real> b, V3<Real> c) {
   return {1 - v - w, v, w};
 }
 
-// The nearest triangle found so far for one point.
+// The nearest triangle found so far for one point; `key` orders triangles at the same
+// distance: 2·(the cell's first corner) + (0 or 1, the cell's triangle).
 template <class Real>
 struct Nearest {
   Real dist2;
+  std::uint32_t key;
   std::uint32_t tri[3];
   V3<Real> v[3], w;
 };
 
 template <class Real>
-void consider(V3<Real> p, std::uint32_t i0, std::uint32_t i1, std::uint32_t i2, V3<Real> a, V3<Real> b, V3<Real> c,
-              Nearest<Real>& best) {
+[[gnu::always_inline]] inline void consider(V3<Real> p, std::uint32_t key, std::uint32_t i0, std::uint32_t i1,
+                                            std::uint32_t i2, V3<Real> a, V3<Real> b, V3<Real> c,
+                                            Nearest<Real>& best) {
   const V3<Real> w = closest_weights(p, a, b, c);
   const V3<Real> q{w.x * a.x + w.y * b.x + w.z * c.x, w.x * a.y + w.y * b.y + w.z * c.y,
                    w.x * a.z + w.y * b.z + w.z * c.z};
   const V3<Real> d = sub(p, q);
   const Real dist2 = dot(d, d);
-  if (!(dist2 < best.dist2)) return;  // ties keep the first: the candidate order is fixed
-  best = {dist2, {i0, i1, i2}, {a, b, c}, w};
+  // the nearest, and of equally near ones the lowest key: the same whatever the order
+  if (dist2 < best.dist2 || (dist2 == best.dist2 && key < best.key))
+    best = {dist2, key, {i0, i1, i2}, {a, b, c}, w};
 }
 
 // The point against the nearest triangle: pushes the force on the point to `on_q` and the
@@ -173,349 +178,247 @@ void repel(const Sheet<Real>& qs, std::uint32_t q, V3<Real> p, const Sheet<Real>
     if (wt[k] != 0) on_s.push(best.tri[k], -wt[k] * F.x, -wt[k] * F.y, -wt[k] * F.z);
 }
 
-// Where a position falls in the narrow-phase grid over a region: grid cell `cell(k, v)`
-// along axis k, monotone in v, so a range of positions maps to a range of cells; bins
-// numbered with axis ax[2] innermost, so a row of bins along it is contiguous.
-struct GridLayout {
-  double lo[3], inv[3];
-  int dims[3], ax[3];  // ax: axes from outermost to innermost
-  double width[3];     // the widest binned box along each axis
-  double margin[3];    // slack against rounding when a query range is turned into cells
-  int cell(int k, double v) const { return std::clamp(int((v - lo[k]) * inv[k]), 0, dims[k] - 1); }
-  std::size_t bin(const int c[3]) const {
-    return (std::size_t(c[ax[0]]) * dims[ax[1]] + c[ax[1]]) * dims[ax[2]] + c[ax[2]];
-  }
-  std::size_t bins() const { return std::size_t(dims[0]) * dims[1] * dims[2]; }
-};
+constexpr std::uint32_t kNoCell = ~std::uint32_t(0);
 
-// Bins the cells of s whose boxes, grown by R, meet `region` into grid's CSR arrays.
-// Nothing when there is none.
-template <class Real>
-std::optional<GridLayout> bin_cells(const Sheet<Real>& s, const Aabb& region, double R, ContactGrid<Real>& grid) {
-  GridLayout layout;
-  using Cell = typename ContactGrid<Real>::Cell;
-  const auto& ts = *s.topology;
-  const std::uint32_t n = ts.n, cols = ts.cols();
-  // The cells whose boxes, grown by R, meet the region: only they can be within R of a
-  // point inside it. `width`: their widest box along each axis.
-  grid.cells.clear();
-  double* width = layout.width;
-  std::fill(width, width + 3, 0.0);
-  const auto& X = s.position;
-  for (std::uint32_t i = 0; i < ts.m; ++i)
-    for (std::uint32_t j = 0; j < n; ++j) {
-      const std::uint32_t p[4] = {i * cols + j, i * cols + j + 1, (i + 1) * cols + j, (i + 1) * cols + j + 1};
-      Cell cell{{}, {}, p[0], 0};
-      Aabb box;
-      for (int k = 0; k < 3; ++k) {
-        const auto& a = k == 0 ? X.x : k == 1 ? X.y : X.z;
-        cell.lo[k] = std::min(std::min(a[p[0]], a[p[1]]), std::min(a[p[2]], a[p[3]]));
-        cell.hi[k] = std::max(std::max(a[p[0]], a[p[1]]), std::max(a[p[2]], a[p[3]]));
-        box.lo[k] = cell.lo[k] - R;
-        box.hi[k] = cell.hi[k] + R;
-      }
-      if (!overlaps(box, region)) continue;
-      for (int k = 0; k < 3; ++k) width[k] = std::max(width[k], double(cell.hi[k] - cell.lo[k]));
-      grid.cells.push_back(cell);
-    }
-  if (grid.cells.empty()) return std::nullopt;
-
-  // A cell is binned once, by its box's low corner. A point x reaches every cell whose box
-  // is within R of it by the grid cells over [x − R − width, x + R] (its box's low corner
-  // lies there, its "span"), widened by `margin` against rounding. The grid cells of one
-  // row along the innermost axis are contiguous, so a query reads one stretch per row it
-  // crosses: the axis with the most cells goes innermost and is cut finer (a quarter of the
-  // span, against a whole span across), as its cells cost no extra stretch. Never more
-  // grid cells than twice the binned cells, so building stays linear.
-  double span[3], size[3];
-  double* margin = layout.margin;
-  for (int k = 0; k < 3; ++k) {
-    span[k] = 2 * R + width[k];
-    margin[k] = 1e-6 * (span[k] + std::abs(region.lo[k]) + std::abs(region.hi[k]));
-  }
-  int inner = 0;
-  for (int k = 1; k < 3; ++k)
-    if ((region.hi[k] - region.lo[k]) / span[k] > (region.hi[inner] - region.lo[inner]) / span[inner]) inner = k;
-  int* ax = layout.ax;
-  for (int k = 0, o = 0; k < 3; ++k)
-    if (k != inner) ax[o++] = k;
-  ax[2] = inner;
-  for (int k = 0; k < 3; ++k) size[k] = k == ax[2] ? span[k] / 4 : span[k];
-  const double cap = 2.0 * grid.cells.size() + 8;
-  int* dims = layout.dims;
-  for (;;) {
-    double total = 1;
-    for (int k = 0; k < 3; ++k) {
-      dims[k] = std::max(1, std::min(256, int((region.hi[k] - region.lo[k]) / size[k])));
-      total *= dims[k];
-    }
-    if (total <= cap) break;
-    for (double& e : size) e *= 1.5;
-  }
-  for (int k = 0; k < 3; ++k) {
-    const double e = region.hi[k] - region.lo[k];
-    layout.lo[k] = region.lo[k];
-    layout.inv[k] = e > 0 ? dims[k] / e : 0.0;
-  }
-
-  // Counting sort into CSR arrays, in the sheet's cell order: each grid cell's candidates
-  // ascend, and its boxes lie contiguous for the gap test.
-  const std::size_t grid_cells = layout.bins();
-  grid.start.assign(grid_cells + 1, 0);
-  for (Cell& cell : grid.cells) {
-    const int c[3] = {layout.cell(0, cell.lo[0]), layout.cell(1, cell.lo[1]), layout.cell(2, cell.lo[2])};
-    cell.bin = std::uint32_t(layout.bin(c));
-    ++grid.start[cell.bin + 1];
-  }
-  for (std::size_t g = 0; g < grid_cells; ++g) grid.start[g + 1] += grid.start[g];
-  const std::size_t binned = grid.cells.size();
-  for (int k = 0; k < 3; ++k) {
-    grid.lo[k].resize(binned);
-    grid.hi[k].resize(binned);
-    grid.run_lo[k].resize(binned);
-    grid.run_hi[k].resize(binned);
-  }
-  grid.corner.resize(binned);
-  grid.run_corner.resize(binned);
-  grid.gap2.resize(binned);
-  grid.near.resize(binned);
-  grid.pick.resize(binned);
-  for (const Cell& cell : grid.cells) {
-    const std::uint32_t t = grid.start[cell.bin]++;  // start[g] becomes the end of g, then
-    for (int k = 0; k < 3; ++k) {                     // the shift below restores it
-      grid.lo[k][t] = cell.lo[k];
-      grid.hi[k][t] = cell.hi[k];
-    }
-    grid.corner[t] = cell.corner;
-  }
-  for (std::size_t g = grid_cells; g > 0; --g) grid.start[g] = grid.start[g - 1];
-  grid.start[0] = 0;
-  return layout;
-}
-
-// Point p of q (at x) against `near`, its cells of s within R in ascending cell order with
-// their boxes' squared gaps: the cell whose box is nearest (the first of equally near ones)
-// is tested first, then the others in order while their boxes are still nearer than the
-// best triangle (a cell whose box is no nearer cannot win); the nearest triangle repels.
+// Point p of q (at x) against `near`, its cells of s whose boxes are within R, with their
+// boxes' squared gaps: `last` (the point's nearest cell of the last substep, if it had
+// one) is tested first, else the cell whose box is nearest (the first of equally near
+// ones), then the others in their order while their boxes are still nearer than the best
+// triangle (a cell whose box is no nearer cannot hold a nearer one); the nearest triangle
+// repels, and becomes `last`.
 template <class Real>
 void repel_nearest(const Sheet<Real>& q, std::uint32_t p, V3<Real> x, const Sheet<Real>& s,
-                   const typename ContactGrid<Real>::Near* near, std::uint32_t found, const ContactParams<Real>& prm,
-                   ContactForces<Real>& on_q, ContactForces<Real>& on_s) {
+                   const typename ContactScratch<Real>::Near* near, std::uint32_t found, const ContactParams<Real>& prm,
+                   ContactForces<Real>& on_q, ContactForces<Real>& on_s, std::uint32_t& last) {
   const std::uint32_t cols = s.topology->cols();
   auto test = [&](std::uint32_t p00, Nearest<Real>& best) {
     const std::uint32_t p01 = p00 + 1, p10 = p00 + cols, p11 = p10 + 1;
     const V3<Real> x00 = at(s, p00), x01 = at(s, p01), x10 = at(s, p10), x11 = at(s, p11);
-    consider(x, p00, p01, p11, x00, x01, x11, best);
-    consider(x, p00, p11, p10, x00, x11, x10, best);
+    consider(x, 2 * p00, p00, p01, p11, x00, x01, x11, best);
+    consider(x, 2 * p00 + 1, p00, p11, p10, x00, x11, x10, best);
   };
-  std::uint32_t nearest = 0;
-  for (std::uint32_t e = 1; e < found; ++e)
-    if (near[e].gap2 < near[nearest].gap2) nearest = e;
   const Real R2 = prm.range * prm.range;
   Nearest<Real> best{};
   best.dist2 = R2;
-  test(near[nearest].corner, best);
+  best.key = ~std::uint32_t(0);
+  // Last substep's nearest cell first (a guess that is usually right, which makes the
+  // bound tight at once), else the cell whose box is nearest.
+  std::uint32_t first = last;
+  if (first == kNoCell) {
+    std::uint32_t nearest = 0;
+    for (std::uint32_t e = 1; e < found; ++e)
+      if (near[e].gap2 < near[nearest].gap2) nearest = e;
+    first = near[nearest].corner;
+  }
+  test(first, best);
   for (std::uint32_t e = 0; e < found; ++e)
-    if (e != nearest && near[e].gap2 < best.dist2) test(near[e].corner, best);
-  if (best.dist2 < R2) repel(q, p, x, s, best, prm, on_q, on_s);
+    if (near[e].corner != first && near[e].gap2 < best.dist2) test(near[e].corner, best);
+  if (best.dist2 < R2) {
+    last = best.tri[0];  // the cell's first corner: both triangles start there
+    repel(q, p, x, s, best, prm, on_q, on_s);
+  } else {
+    last = kNoCell;
+  }
 }
 
-// The candidates of every point of q inside `region`: the cells of s whose boxes are within
-// R (≥ prm.range) of it, found through a uniform grid over the region, in ascending cell
-// order, into `out` (emptied first; points outside the region get none). `ring` < 0: no
-// exclusion; otherwise q == s and cells within `ring` rows/columns of the point are left
-// out. In the same pass each point is repelled from its nearest triangle among the
-// candidates within prm.range, exactly as points_against_candidates would.
+// Points of q against the cells of s through both sheets' boxes (contacts.h): block by
+// block, the patches of s within reach of the block and, of those, the strips within
+// reach of it, gathered contiguous; point by point, the gathered strips within R, and of
+// their cells those within R, of which the nearest triangle repels. `ring` < 0: no
+// exclusion; otherwise q is s and the cells within `ring` rows/columns of the point are
+// left out.
+//
+// With `lists`, it also makes each point's candidate list (PairContacts): the cells whose
+// boxes are within R + skin of it, in the order this search meets them.
 template <class Real>
-void candidates_in_grid(const Sheet<Real>& q, const Sheet<Real>& s, const Aabb& region, Real R, int ring,
-                        const ContactParams<Real>& prm, Candidates& out, ContactForces<Real>& on_q,
-                        ContactForces<Real>& on_s, ContactGrid<Real>& grid) {
-  const std::uint32_t qsize = std::uint32_t(q.size());
-  out.start.assign(qsize + 1, 0);
-  out.cell.clear();
-  if (s.topology->m == 0 || s.topology->n == 0) return;  // a line of points has no cells
-  const std::uint32_t cols = s.topology->cols();
-  const Real R2 = R * R;
-  const std::optional<GridLayout> binned = bin_cells(s, region, double(R), grid);
-  if (!binned) return;
-  const GridLayout layout = *binned;  // a copy no call can reach: it stays in registers
-  const double* width = layout.width;
-  const double* margin = layout.margin;
-  const int* ax = layout.ax;
-
-  // Points go in runs of up to `run_points` consecutive points of one row, near each other.
-  // A run asks the grid once, for the cells within R of its box (each axis apart, widened
-  // by `margin`), and gathers them contiguous; each point then measures its gap to every
-  // gathered box in one pass. A run with no cell near is skipped whole.
-  constexpr std::uint32_t run_points = 8;
-  Real* rlo[3] = {grid.run_lo[0].data(), grid.run_lo[1].data(), grid.run_lo[2].data()};
-  Real* rhi[3] = {grid.run_hi[0].data(), grid.run_hi[1].data(), grid.run_hi[2].data()};
-  std::uint32_t* rcorner = grid.run_corner.data();
-  Real* gap2 = grid.gap2.data();
-  std::uint32_t* pick = grid.pick.data();
-  typename ContactGrid<Real>::Near* near = grid.near.data();
-  const Real inner2 = prm.range * prm.range;
-  const std::uint32_t qcols = q.topology->cols();
+void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, const Sheet<Real>& s,
+                          const SheetBoxes<Real>& bs, int ring, const ContactParams<Real>& prm,
+                          ContactForces<Real>& on_q, ContactForces<Real>& on_s, ContactScratch<Real>& sc,
+                          std::uint32_t* last, Candidates* lists = nullptr, Real skin = 0) {
+  if (lists) {
+    lists->begin.assign(q.size(), 0);
+    lists->count.assign(q.size(), 0);
+    lists->cell.clear();
+  }
+  if (bs.m == 0 || bs.n == 0) return;  // a line of points has no cells
+  constexpr std::uint32_t P = SheetBoxes<Real>::kPatch;
+  const Real R2 = prm.range * prm.range;
+  const Real L2 = (prm.range + skin) * (prm.range + skin);  // cells kept on a list: ≥ R²
+  // Box tests are a necessary condition only: widened against rounding, so a cell the
+  // exact test (gap² < L²) keeps is never dropped before it.
+  const double reach = double(prm.range + skin) * (1 + 1e-6) + 1e-12;
+  if (!overlaps(bq.box.inflated(reach), bs.box)) return;
+  const std::uint32_t scols = bs.n + 1, qcols = bq.n + 1;
+  const std::uint32_t spatches = bs.patch_rows * bs.patch_cols;
+  const std::size_t strips = std::size_t(bs.m) * bs.patch_cols;
+  sc.patches.resize(spatches);
+  for (int k = 0; k < 3; ++k) {
+    sc.run_lo[k].resize(strips);
+    sc.run_hi[k].resize(strips);
+  }
+  sc.run_corner.resize(strips);
+  sc.run_row.resize(strips);
+  sc.run_col.resize(strips);
+  sc.gap2.resize(std::max<std::size_t>(strips, P));
+  sc.pick.resize(strips);
+  sc.near.resize(strips * P);
+  Real* rlo[3] = {sc.run_lo[0].data(), sc.run_lo[1].data(), sc.run_lo[2].data()};
+  Real* rhi[3] = {sc.run_hi[0].data(), sc.run_hi[1].data(), sc.run_hi[2].data()};
+  std::uint32_t* rcorner = sc.run_corner.data();  // a strip's first cell
+  std::uint32_t* rrow = sc.run_row.data();        // its grid row
+  std::uint32_t* rcount = sc.run_col.data();      // its number of cells
+  Real* gap2 = sc.gap2.data();
+  std::uint32_t* pick = sc.pick.data();
+  typename ContactScratch<Real>::Near* near = sc.near.data();
+  const Real* plo[3] = {bs.patch_lo[0].data(), bs.patch_lo[1].data(), bs.patch_lo[2].data()};
+  const Real* phi[3] = {bs.patch_hi[0].data(), bs.patch_hi[1].data(), bs.patch_hi[2].data()};
+  const Real* clo[3] = {bs.cell_lo[0].data(), bs.cell_lo[1].data(), bs.cell_lo[2].data()};
+  const Real* chi[3] = {bs.cell_hi[0].data(), bs.cell_hi[1].data(), bs.cell_hi[2].data()};
   const auto& Q = q.position;
-  auto inside = [&](std::uint32_t p) {
-    return !(Q.x[p] < region.lo[0] || Q.x[p] > region.hi[0] || Q.y[p] < region.lo[1] || Q.y[p] > region.hi[1] ||
-             Q.z[p] < region.lo[2] || Q.z[p] > region.hi[2]);
-  };
-  for (std::uint32_t p0 = 0; p0 < qsize;) {
-    const std::uint32_t p1 = std::min({p0 + run_points, (p0 / qcols + 1) * qcols, qsize});
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (std::uint32_t p = p0; p < p1; ++p) {
-      if (!inside(p)) continue;
-      const double v[3] = {Q.x[p], Q.y[p], Q.z[p]};
+  Real cell_gap2[P];
+
+  for (std::uint32_t bi = 0; bi < bq.patch_rows; ++bi)
+    for (std::uint32_t bj = 0; bj < bq.patch_cols; ++bj) {
+      const std::uint32_t block = bi * bq.patch_cols + bj;
+      Aabb bb;
       for (int k = 0; k < 3; ++k) {
-        lo[k] = std::min(lo[k], v[k]);
-        hi[k] = std::max(hi[k], v[k]);
+        bb.lo[k] = bq.patch_lo[k][block];
+        bb.hi[k] = bq.patch_hi[k][block];
       }
-    }
-    const std::uint32_t run_first = p0;
-    p0 = p1;
-    if (!(lo[0] <= hi[0])) continue;  // no point of the run inside the region
-    int g0[3], g1[3];
-    double keep_lo[3], keep_hi[3];  // a cell can be within R of a point of the run only
-    for (int k = 0; k < 3; ++k) {   // if its box's low corner is below keep_hi and its
-      keep_lo[k] = lo[k] - double(R) - margin[k];  // high corner above keep_lo, on every axis
-      keep_hi[k] = hi[k] + double(R) + margin[k];
-      g0[k] = layout.cell(k, keep_lo[k] - width[k]);
-      g1[k] = layout.cell(k, keep_hi[k]);
-    }
-    std::uint32_t count = 0;
-    int c[3];
-    for (c[ax[0]] = g0[ax[0]]; c[ax[0]] <= g1[ax[0]]; ++c[ax[0]])
-      for (c[ax[1]] = g0[ax[1]]; c[ax[1]] <= g1[ax[1]]; ++c[ax[1]]) {
-        c[ax[2]] = g0[ax[2]];
-        const std::uint32_t first = grid.start[layout.bin(c)];
-        c[ax[2]] = g1[ax[2]];
-        const std::uint32_t last = grid.start[layout.bin(c) + 1];
-        for (std::uint32_t t = first; t < last; ++t) {
+      if (!overlaps(bb.inflated(reach), bs.box)) continue;
+      // The patches of s within reach of the block, kept without a branch.
+      std::uint32_t np = 0;
+      for (std::uint32_t t = 0; t < spatches; ++t) {
+        unsigned keep = 1;
+        for (int k = 0; k < 3; ++k)
+          keep &= unsigned(double(plo[k][t]) <= bb.hi[k] + reach) & unsigned(double(phi[k][t]) >= bb.lo[k] - reach);
+        sc.patches[np] = t;
+        np += keep;
+      }
+      if (np == 0) continue;
+      // Their strips within reach of the block, gathered contiguous.
+      std::uint32_t count = 0;
+      for (std::uint32_t e = 0; e < np; ++e) {
+        const std::uint32_t t = sc.patches[e];
+        const std::uint32_t ti = t / bs.patch_cols, tj = t % bs.patch_cols;
+        const std::uint32_t ci1 = std::min((ti + 1) * P, bs.m), cj0 = tj * P, cj1 = std::min(cj0 + P, bs.n);
+        for (std::uint32_t ci = ti * P; ci < ci1; ++ci) {
+          const std::size_t strip = std::size_t(ci) * bs.patch_cols + tj;
           unsigned keep = 1;  // branch-free: bitwise on 0/1, not && on bools
           for (int k = 0; k < 3; ++k) {
-            rlo[k][count] = grid.lo[k][t];
-            rhi[k][count] = grid.hi[k][t];
-            keep &= unsigned(grid.lo[k][t] <= keep_hi[k]) & unsigned(grid.hi[k][t] >= keep_lo[k]);
+            rlo[k][count] = bs.strip_lo[k][strip];
+            rhi[k][count] = bs.strip_hi[k][strip];
+            keep &= unsigned(double(bs.strip_lo[k][strip]) <= bb.hi[k] + reach) &
+                    unsigned(double(bs.strip_hi[k][strip]) >= bb.lo[k] - reach);
           }
-          rcorner[count] = grid.corner[t];
+          rcorner[count] = ci * scols + cj0;
+          rrow[count] = ci;
+          rcount[count] = cj1 - cj0;
           count += keep;
         }
       }
-    if (count == 0) continue;
-
-    for (std::uint32_t p = run_first; p < p1; ++p) {
-      if (!inside(p)) continue;
-      const V3<Real> x{Q.x[p], Q.y[p], Q.z[p]};
-      box_gaps(x, rlo, rhi, count, gap2);
-      // The cells within R, kept without a branch (which pass differs from point to
-      // point); self-contact then drops the point's own neighbourhood.
-      std::uint32_t found = 0;
-      for (std::uint32_t t = 0; t < count; ++t) {
-        pick[found] = t;
-        found += gap2[t] < R2;
-      }
-      if (ring >= 0) {
-        const std::int64_t pi = p / qcols, pj = p % qcols;
-        std::uint32_t kept = 0;
-        for (std::uint32_t e = 0; e < found; ++e) {
-          const std::int64_t ci = rcorner[pick[e]] / cols, cj = rcorner[pick[e]] % cols;
-          pick[kept] = pick[e];
-          kept += !(ci >= pi - ring && ci < pi + ring && cj >= pj - ring && cj < pj + ring);
+      if (count == 0) continue;
+      const std::uint32_t i0 = bq.first(bi), i1 = bq.end_point(bi, bq.patch_rows, bq.m);
+      const std::uint32_t j0 = bq.first(bj), j1 = bq.end_point(bj, bq.patch_cols, bq.n);
+      for (std::uint32_t i = i0; i < i1; ++i)
+        for (std::uint32_t j = j0; j < j1; ++j) {
+          const std::uint32_t p = i * qcols + j;
+          const V3<Real> x{Q.x[p], Q.y[p], Q.z[p]};
+          // The gathered strips within R, then their cells within R.
+          box_gaps(x, rlo, rhi, count, gap2);
+          std::uint32_t strips_near = 0;
+          for (std::uint32_t t = 0; t < count; ++t) {
+            pick[strips_near] = t;
+            strips_near += gap2[t] < L2;
+          }
+          std::uint32_t found = 0;
+          for (std::uint32_t e = 0; e < strips_near; ++e) {
+            const std::uint32_t t = pick[e], c0 = rcorner[t], cells = rcount[t];
+            const Real* lo[3] = {clo[0] + c0, clo[1] + c0, clo[2] + c0};
+            const Real* hi[3] = {chi[0] + c0, chi[1] + c0, chi[2] + c0};
+            box_gaps(x, lo, hi, P, cell_gap2);  // all 8: the arrays are padded
+            if (ring >= 0) {  // self-contact: not the cells of the point's own neighbourhood
+              const std::int64_t ci = rrow[t];
+              if (ci >= std::int64_t(i) - ring && ci < std::int64_t(i) + ring) {
+                const std::int64_t cj0 = c0 - ci * scols;
+                for (std::uint32_t c = 0; c < cells; ++c) {
+                  const std::int64_t cj = cj0 + c;
+                  near[found] = {c0 + c, cell_gap2[c]};
+                  found += cell_gap2[c] < L2 && !(cj >= std::int64_t(j) - ring && cj < std::int64_t(j) + ring);
+                }
+                continue;
+              }
+            }
+            for (std::uint32_t c = 0; c < cells; ++c) {
+              near[found] = {c0 + c, cell_gap2[c]};
+              found += cell_gap2[c] < L2;
+            }
+          }
+          if (lists) {  // the list, then only the cells within R
+            lists->begin[p] = std::uint32_t(lists->cell.size());
+            lists->count[p] = found;
+            std::uint32_t within = 0;
+            for (std::uint32_t e = 0; e < found; ++e) {
+              lists->cell.push_back(near[e].corner);
+              near[within] = near[e];
+              within += near[e].gap2 < R2;
+            }
+            found = within;
+          }
+          if (found > 0) repel_nearest(q, p, x, s, near, found, prm, on_q, on_s, last[p]);
         }
-        found = kept;
-      }
-      // In ascending cell order, whichever grid cells they came from: the order in which
-      // they are tested, and so which of two equally near triangles wins, is the sheet's.
-      for (std::uint32_t e = 0; e < found; ++e) near[e] = {rcorner[pick[e]], gap2[pick[e]]};
-      for (std::uint32_t e = 1; e < found; ++e)
-        for (std::uint32_t f = e; f > 0 && near[f].corner < near[f - 1].corner; --f) std::swap(near[f], near[f - 1]);
-      std::uint32_t within = 0;
-      for (std::uint32_t e = 0; e < found; ++e) {
-        out.cell.push_back(near[e].corner);
-        near[within] = near[e];
-        within += near[e].gap2 < inner2;
-      }
-      out.start[p + 1] = found;
-      if (within > 0) repel_nearest(q, p, x, s, near, within, prm, on_q, on_s);
     }
-  }
-  for (std::uint32_t p = 0; p < qsize; ++p) out.start[p + 1] += out.start[p];
 }
 
-// Points of q against their candidate cells of s: each point measures its gap to every
-// candidate's box now, keeps those under R, and tests their triangles for the nearest one,
-// the nearest box first and then the others in ascending cell order while their boxes are
-// still nearer than the best triangle (a cell whose box is no nearer cannot win).
+// Points of q against their candidate lists of cells of s (PairContacts), in the order
+// points_against_cells visits points and meets cells: each point measures its gap to
+// its listed cells' boxes now and keeps those under R, which are then exactly the cells
+// points_against_cells would find, in its order, so the forces are the same bit for bit.
 template <class Real>
-void points_against_candidates(const Sheet<Real>& q, const Sheet<Real>& s, const Candidates& cand,
-                               const ContactParams<Real>& prm, ContactForces<Real>& on_q, ContactForces<Real>& on_s,
-                               ContactGrid<Real>& grid) {
-  if (cand.cell.empty()) return;
-  const std::uint32_t m = s.topology->m, n = s.topology->n, cols = s.topology->cols();
+void points_against_lists(const Sheet<Real>& q, const SheetBoxes<Real>& bq, const Sheet<Real>& s,
+                          const SheetBoxes<Real>& bs, const Candidates& lists, const ContactParams<Real>& prm,
+                          ContactForces<Real>& on_q, ContactForces<Real>& on_s, ContactScratch<Real>& sc,
+                          std::uint32_t* last) {
+  if (lists.cell.empty()) return;
   const Real R2 = prm.range * prm.range;
-  // every cell's box now, by its first corner: a cell is a candidate of many points
-  const auto& X = s.position;
-  for (int k = 0; k < 3; ++k) {
-    grid.cell_lo[k].resize(s.size());
-    grid.cell_hi[k].resize(s.size());
-  }
-  for (std::uint32_t i = 0; i < m; ++i)
-    for (int k = 0; k < 3; ++k) {
-      const Real* a = (k == 0 ? X.x : k == 1 ? X.y : X.z).data() + std::size_t(i) * cols;
-      const Real* b = a + cols;
-      Real* __restrict lo = grid.cell_lo[k].data() + std::size_t(i) * cols;
-      Real* __restrict hi = grid.cell_hi[k].data() + std::size_t(i) * cols;
-      for (std::uint32_t j = 0; j < n; ++j) {
-        lo[j] = std::min(std::min(a[j], a[j + 1]), std::min(b[j], b[j + 1]));
-        hi[j] = std::max(std::max(a[j], a[j + 1]), std::max(b[j], b[j + 1]));
-      }
-    }
   std::uint32_t widest = 0;
-  for (std::size_t p = 0; p + 1 < cand.start.size(); ++p) widest = std::max(widest, cand.start[p + 1] - cand.start[p]);
+  for (std::uint32_t c : lists.count) widest = std::max(widest, c);
   for (int k = 0; k < 3; ++k) {
-    grid.run_lo[k].resize(widest);
-    grid.run_hi[k].resize(widest);
+    sc.run_lo[k].resize(widest);
+    sc.run_hi[k].resize(widest);
   }
-  grid.gap2.resize(widest);
-  grid.near.resize(widest);
-  Real* rlo[3] = {grid.run_lo[0].data(), grid.run_lo[1].data(), grid.run_lo[2].data()};
-  Real* rhi[3] = {grid.run_hi[0].data(), grid.run_hi[1].data(), grid.run_hi[2].data()};
-  Real* gap2 = grid.gap2.data();
-  typename ContactGrid<Real>::Near* near = grid.near.data();
-  const std::uint32_t qsize = std::uint32_t(q.size());
-  for (std::uint32_t p = 0; p < qsize; ++p) {
-    const std::uint32_t b = cand.start[p], count = cand.start[p + 1] - b;
-    if (count == 0) continue;
-    const std::uint32_t* cell = cand.cell.data() + b;
-    for (int k = 0; k < 3; ++k)
-      for (std::uint32_t t = 0; t < count; ++t) {
-        rlo[k][t] = grid.cell_lo[k][cell[t]];
-        rhi[k][t] = grid.cell_hi[k][cell[t]];
-      }
-    const V3<Real> x = at(q, p);
-    box_gaps(x, rlo, rhi, count, gap2);
-    std::uint32_t found = 0;  // kept without a branch, in the list's ascending order
-    for (std::uint32_t t = 0; t < count; ++t) {
-      near[found] = {cell[t], gap2[t]};
-      found += gap2[t] < R2;
+  sc.gap2.resize(widest);
+  sc.near.resize(widest);
+  Real* rlo[3] = {sc.run_lo[0].data(), sc.run_lo[1].data(), sc.run_lo[2].data()};
+  Real* rhi[3] = {sc.run_hi[0].data(), sc.run_hi[1].data(), sc.run_hi[2].data()};
+  Real* gap2 = sc.gap2.data();
+  typename ContactScratch<Real>::Near* near = sc.near.data();
+  const std::uint32_t qcols = bq.n + 1;
+  for (std::uint32_t bi = 0; bi < bq.patch_rows; ++bi)
+    for (std::uint32_t bj = 0; bj < bq.patch_cols; ++bj) {
+      const std::uint32_t i0 = bq.first(bi), i1 = bq.end_point(bi, bq.patch_rows, bq.m);
+      const std::uint32_t j0 = bq.first(bj), j1 = bq.end_point(bj, bq.patch_cols, bq.n);
+      for (std::uint32_t i = i0; i < i1; ++i)
+        for (std::uint32_t j = j0; j < j1; ++j) {
+          const std::uint32_t p = i * qcols + j, count = lists.count[p];
+          if (count == 0) continue;
+          const std::uint32_t* cell = lists.cell.data() + lists.begin[p];
+          for (int k = 0; k < 3; ++k)
+            for (std::uint32_t t = 0; t < count; ++t) {
+              rlo[k][t] = bs.cell_lo[k][cell[t]];
+              rhi[k][t] = bs.cell_hi[k][cell[t]];
+            }
+          const V3<Real> x = at(q, p);
+          box_gaps(x, rlo, rhi, count, gap2);
+          std::uint32_t found = 0;  // kept without a branch, in the list's order
+          for (std::uint32_t t = 0; t < count; ++t) {
+            near[found] = {cell[t], gap2[t]};
+            found += gap2[t] < R2;
+          }
+          if (found > 0) repel_nearest(q, p, x, s, near, found, prm, on_q, on_s, last[p]);
+        }
     }
-    if (found > 0) repel_nearest(q, p, x, s, near, found, prm, on_q, on_s);
-  }
 }
-
-Aabb intersection(const Aabb& a, const Aabb& b) {
-  Aabb r;
-  for (int k = 0; k < 3; ++k) {
-    r.lo[k] = std::max(a.lo[k], b.lo[k]);
-    r.hi[k] = std::min(a.hi[k], b.hi[k]);
-  }
-  return r;
-}
-
-}  // namespace
-
-namespace {
 
 // Whether no point of s has moved farther than √limit2 from `then`: blocks of points, each
 // a vectorised maximum, stopping at the first block that has.
@@ -537,15 +440,98 @@ bool within(const Sheet<Real>& s, const Vec3Array<Real>& then, Real limit2) {
   return true;
 }
 
-// Whether the lists kept in `w` were made for these sheets and still hold every cell
-// within R of every point (PairContacts): no point moved more than 0.45·skin since.
+// How the points of each patch of s moved since `then`: per patch, the centre of the box
+// of its points' displacements and that box's half-diagonal, which no displacement is
+// farther from the centre than. One pass over each patch's points (rows and columns
+// 8p … 8p + 8, as their boxes).
 template <class Real>
-bool lists_hold(PairContacts<Real>& w, const Sheet<Real>& a, const Sheet<Real>& b) {
+void patch_motion(const Sheet<Real>& s, const SheetBoxes<Real>& bs, const Vec3Array<Real>& then,
+                  std::vector<Real> (&mid)[3], std::vector<Real>& radius) {
+  constexpr std::uint32_t P = SheetBoxes<Real>::kPatch;
+  const std::uint32_t cols = bs.n + 1, patches = bs.patch_rows * bs.patch_cols;
+  for (int k = 0; k < 3; ++k) mid[k].resize(patches);
+  radius.resize(patches);
+  const Real* now[3] = {s.position.x.data(), s.position.y.data(), s.position.z.data()};
+  const Real* old[3] = {then.x.data(), then.y.data(), then.z.data()};
+  for (std::uint32_t pi = 0; pi < bs.patch_rows; ++pi)
+    for (std::uint32_t pj = 0; pj < bs.patch_cols; ++pj) {
+      const std::uint32_t i0 = pi * P, i1 = std::min(i0 + P, bs.m), j0 = pj * P, j1 = std::min(j0 + P, bs.n);
+      const std::uint32_t patch = pi * bs.patch_cols + pj;
+      Real r2 = 0, nan = 0;  // nan: NaN if a displacement is (not a number, or infinite)
+      for (int k = 0; k < 3; ++k) {
+        Real lo = std::numeric_limits<Real>::infinity(), hi = -lo;
+        for (std::uint32_t i = i0; i <= i1; ++i) {
+          const Real* a = now[k] + std::size_t(i) * cols;
+          const Real* b = old[k] + std::size_t(i) * cols;
+          for (std::uint32_t j = j0; j <= j1; ++j) {
+            const Real d = a[j] - b[j];
+            lo = d < lo ? d : lo;  // a NaN is lost here, but not in `nan`
+            hi = d > hi ? d : hi;
+            nan += d * Real(0);
+          }
+        }
+        mid[k][patch] = Real(0.5) * (lo + hi);
+        r2 += Real(0.25) * (hi - lo) * (hi - lo);
+      }
+      radius[patch] = std::sqrt(r2) + nan;  // NaN fails the check
+    }
+}
+
+// The gap between every patch box of a and every patch box of b, at row a·patches(b) + b.
+template <class Real>
+void patch_clearance(const SheetBoxes<Real>& ba, const SheetBoxes<Real>& bb, std::vector<Real>& clearance) {
+  const std::uint32_t pa = ba.patch_rows * ba.patch_cols, pb = bb.patch_rows * bb.patch_cols;
+  clearance.resize(std::size_t(pa) * pb);
+  for (std::uint32_t A = 0; A < pa; ++A)
+    for (std::uint32_t B = 0; B < pb; ++B) {
+      Real g2 = 0;
+      for (int k = 0; k < 3; ++k) {
+        const Real e = positive_part(bb.patch_lo[k][B] - ba.patch_hi[k][A]) +
+                       positive_part(ba.patch_lo[k][A] - bb.patch_hi[k][B]);
+        g2 += e * e;
+      }
+      clearance[std::size_t(A) * pb + B] = std::sqrt(g2);
+    }
+}
+
+// Whether the lists kept in `w` were made for these sheets and still hold every cell
+// within R of every point (PairContacts): no point moved more than 0.45·skin, or, for
+// every patch A of a and B of b, the most a
+// point of one can have come nearer to a cell of the other (A's and B's spreads of
+// displacement plus the difference of their middles) stays within 0.9 of the slack the
+// lists had: the skin, or the patches' gap then less R if that is more.
+template <class Real>
+bool lists_hold(PairContacts<Real>& w, const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sheet<Real>& b,
+                const SheetBoxes<Real>& bb, const ContactParams<Real>& prm, ContactScratch<Real>& sc) {
   if (w.kept_a != &a || w.kept_b != &b || w.kept_topology_a != a.topology.get() ||
       w.kept_topology_b != b.topology.get() || w.made_at_a.x.size() != a.size() || w.made_at_b.x.size() != b.size())
     return false;
+  // No point moved more than 0.45·skin: no gap shrank by more than 0.9·skin (cheap, and
+  // enough for a pair at rest); otherwise the patches' relative motion decides.
   const Real limit2 = (Real(0.45) * w.skin) * (Real(0.45) * w.skin);
-  const bool hold = within(a, w.made_at_a, limit2) && (&a == &b || within(b, w.made_at_b, limit2));
+  if (within(a, w.made_at_a, limit2) && (&a == &b || within(b, w.made_at_b, limit2))) {
+    ++w.kept_for;
+    return true;
+  }
+  patch_motion(a, ba, w.made_at_a, sc.mid_a, sc.radius_a);
+  if (&a != &b) patch_motion(b, bb, w.made_at_b, sc.mid_b, sc.radius_b);
+  const auto& mid_b = &a != &b ? sc.mid_b : sc.mid_a;
+  const auto& radius_b = &a != &b ? sc.radius_b : sc.radius_a;
+  const std::uint32_t pa = ba.patch_rows * ba.patch_cols, pb = bb.patch_rows * bb.patch_cols;
+  if (w.clearance.size() != std::size_t(pa) * pb) return false;
+  bool hold = true;
+  for (std::uint32_t A = 0; A < pa && hold; ++A) {
+    const Real* clear = w.clearance.data() + std::size_t(A) * pb;
+    unsigned ok = 1;
+    for (std::uint32_t B = 0; B < pb; ++B) {
+      const Real dx = sc.mid_a[0][A] - mid_b[0][B], dy = sc.mid_a[1][A] - mid_b[1][B],
+                 dz = sc.mid_a[2][A] - mid_b[2][B];
+      const Real drift = sc.radius_a[A] + radius_b[B] + std::sqrt(dx * dx + dy * dy + dz * dz);
+      const Real slack = std::max(w.skin, clear[B] - prm.range);
+      ok &= unsigned(drift <= Real(0.9) * slack);  // false for NaN
+    }
+    hold = ok != 0;
+  }
   w.kept_for += hold;
   return hold;
 }
@@ -568,7 +554,9 @@ void remember(Vec3Array<Real>& to, const Sheet<Real>& s) {
 }
 
 template <class Real>
-void keep_lists_for(PairContacts<Real>& w, const Sheet<Real>& a, const Sheet<Real>& b, Real skin) {
+void keep_lists_for(PairContacts<Real>& w, const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sheet<Real>& b,
+                    const SheetBoxes<Real>& bb, Real skin) {
+  patch_clearance(ba, bb, w.clearance);
   w.skin = skin;
   w.kept_for = 0;
   w.kept_a = &a;
@@ -577,30 +565,144 @@ void keep_lists_for(PairContacts<Real>& w, const Sheet<Real>& a, const Sheet<Rea
   w.kept_topology_b = b.topology.get();
   remember(w.made_at_a, a);
   remember(w.made_at_b, b);
-  ++w.grid_builds;
+  ++w.searches;
 }
 
 }  // namespace
 
 template <class Real>
-void pair_contacts(const Sheet<Real>& a, const Aabb& box_a, const Sheet<Real>& b, const Aabb& box_b,
-                   const ContactParams<Real>& prm, PairContacts<Real>& work, ContactGrid<Real>& grid) {
-  work.on_a.clear();
-  work.on_b.clear();
-  const Aabb region = intersection(box_a.inflated(prm.range), box_b.inflated(prm.range));
-  if (!overlaps(region, region)) return;
+void build_boxes(const Sheet<Real>& s, SheetBoxes<Real>& out) {
+  constexpr std::uint32_t P = SheetBoxes<Real>::kPatch, kPad = P;
+  const auto& t = *s.topology;
+  const std::uint32_t m = t.m, n = t.n, cols = t.cols();
+  out.m = m;
+  out.n = n;
+  out.patch_rows = std::max<std::uint32_t>(1, (m + P - 1) / P);
+  out.patch_cols = std::max<std::uint32_t>(1, (n + P - 1) / P);
+  const std::size_t patches = std::size_t(out.patch_rows) * out.patch_cols;
+  const auto& X = s.position;
+  const Real* axis[3] = {X.x.data(), X.y.data(), X.z.data()};
+  for (int k = 0; k < 3; ++k) {
+    out.cell_lo[k].resize(s.size() + kPad);  // a strip's 8 boxes are read whole
+    out.cell_hi[k].resize(s.size() + kPad);
+    out.patch_lo[k].assign(patches, std::numeric_limits<Real>::infinity());
+    out.patch_hi[k].assign(patches, -std::numeric_limits<Real>::infinity());
+    out.strip_lo[k].resize(std::size_t(m) * out.patch_cols);
+    out.strip_hi[k].resize(std::size_t(m) * out.patch_cols);
+  }
+  // Cell boxes, a row of cells at a time from two rows of points (vectorised).
+  for (std::uint32_t i = 0; i < m; ++i)
+    for (int k = 0; k < 3; ++k) {
+      const Real* a = axis[k] + std::size_t(i) * cols;
+      const Real* b = a + cols;
+      Real* __restrict lo = out.cell_lo[k].data() + std::size_t(i) * cols;
+      Real* __restrict hi = out.cell_hi[k].data() + std::size_t(i) * cols;
+      for (std::uint32_t j = 0; j < n; ++j) {
+        lo[j] = std::min(std::min(a[j], a[j + 1]), std::min(b[j], b[j + 1]));
+        hi[j] = std::max(std::max(a[j], a[j + 1]), std::max(b[j], b[j + 1]));
+      }
+    }
+  // Strip boxes from their cells' boxes.
+  for (std::uint32_t i = 0; i < m; ++i)
+    for (std::uint32_t pj = 0; pj < out.patch_cols; ++pj)
+      for (int k = 0; k < 3; ++k) {
+        const std::size_t c0 = std::size_t(i) * cols + pj * P, c1 = std::size_t(i) * cols + std::min(pj * P + P, n);
+        Real lo = out.cell_lo[k][c0], hi = out.cell_hi[k][c0];
+        for (std::size_t c = c0 + 1; c < c1; ++c) {
+          lo = std::min(lo, out.cell_lo[k][c]);
+          hi = std::max(hi, out.cell_hi[k][c]);
+        }
+        out.strip_lo[k][std::size_t(i) * out.patch_cols + pj] = lo;
+        out.strip_hi[k][std::size_t(i) * out.patch_cols + pj] = hi;
+      }
+  // Patch boxes over their points: rows [8pi, 8pi + 8] (to the last row in the last patch
+  // row), the same for columns. With cells, the union of the patch's strips (whose cells
+  // have exactly those corners); a line of points, from the points.
+  for (std::uint32_t pi = 0; pi < out.patch_rows; ++pi) {
+    const std::uint32_t i0 = pi * P, i1 = std::min(i0 + P, m);
+    for (std::uint32_t pj = 0; pj < out.patch_cols; ++pj) {
+      const std::uint32_t j0 = pj * P, j1 = std::min(j0 + P, n);
+      Aabb box = empty_box();
+      if (m > 0 && n > 0) {
+        for (int k = 0; k < 3; ++k) {
+          Real lo = std::numeric_limits<Real>::infinity(), hi = -lo;
+          for (std::uint32_t i = i0; i < i1; ++i) {
+            lo = std::min(lo, out.strip_lo[k][std::size_t(i) * out.patch_cols + pj]);
+            hi = std::max(hi, out.strip_hi[k][std::size_t(i) * out.patch_cols + pj]);
+          }
+          box.lo[k] = lo;
+          box.hi[k] = hi;
+        }
+      } else {
+        for (std::uint32_t i = i0; i <= i1; ++i) {
+          const std::size_t p0 = std::size_t(i) * cols + j0;
+          include_points(box, axis[0] + p0, axis[1] + p0, axis[2] + p0, j1 - j0 + 1);
+        }
+      }
+      const std::size_t patch = std::size_t(pi) * out.patch_cols + pj;
+      for (int k = 0; k < 3; ++k) {
+        out.patch_lo[k][patch] = static_cast<Real>(box.lo[k]);
+        out.patch_hi[k][patch] = static_cast<Real>(box.hi[k]);
+      }
+      if (pi == 0 && pj == 0) out.box = box;
+      else include_box(out.box, box);
+    }
+  }
+}
+
+namespace {
+
+// Substeps a pair searches without lists after lists at the narrowest skin did not outlive
+// their substep: making them costs more than it saves while the sheets move that fast.
+constexpr std::uint32_t kListRest = 16;
+
+// Both directions of a pair (one for a sheet with itself, `ring` ≥ 0): through the kept
+// lists while they hold, else a search that makes new ones, or, while the pair rests from
+// lists that did not outlive a substep at the narrowest skin, a search that makes none.
+template <class Real>
+void contacts_of_pair(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sheet<Real>& b,
+                      const SheetBoxes<Real>& bb, int ring, const ContactParams<Real>& prm, PairContacts<Real>& w,
+                      ContactScratch<Real>& sc) {
+  const bool self = &a == &b;
+  w.on_a.clear();
+  w.on_b.clear();
+  ContactForces<Real>& on_b = self ? w.on_a : w.on_b;
   ContactParams<Real> pair = prm;
   pair.friction = static_cast<Real>(std::max(a.friction, b.friction));
-  if (lists_hold(work, a, b)) {
-    points_against_candidates(a, b, work.a_near_b, pair, work.on_a, work.on_b, grid);
-    points_against_candidates(b, a, work.b_near_a, pair, work.on_b, work.on_a, grid);
+  if (w.guessed_a != a.topology.get() || w.guessed_b != b.topology.get() || w.last_a.size() != a.size() ||
+      w.last_b.size() != b.size()) {  // guesses only for the grids they were made on
+    w.last_a.assign(a.size(), kNoCell);
+    w.last_b.assign(b.size(), kNoCell);
+    w.guessed_a = a.topology.get();
+    w.guessed_b = b.topology.get();
+  }
+  if (w.resting == 0 && lists_hold(w, a, ba, b, bb, prm, sc)) {
+    points_against_lists(a, ba, b, bb, w.a_near_b, pair, w.on_a, on_b, sc, w.last_a.data());
+    if (!self) points_against_lists(b, bb, a, ba, w.b_near_a, pair, on_b, w.on_a, sc, w.last_b.data());
     return;
   }
-  const Real skin = next_skin(work, prm), reach = prm.range + skin;
-  const Aabb wide = intersection(box_a.inflated(reach), box_b.inflated(reach));
-  candidates_in_grid(a, b, wide, reach, -1, pair, work.a_near_b, work.on_a, work.on_b, grid);
-  candidates_in_grid(b, a, wide, reach, -1, pair, work.b_near_a, work.on_b, work.on_a, grid);
-  keep_lists_for(work, a, b, skin);
+  if (w.resting == 0 && w.kept_a && w.kept_for == 0 && w.skin <= prm.range / 16) w.resting = kListRest;
+  if (w.resting > 0) {
+    --w.resting;
+    w.kept_a = w.kept_b = nullptr;
+    w.skin = 0;  // lists start again at the first skin
+    points_against_cells(a, ba, b, bb, ring, pair, w.on_a, on_b, sc, w.last_a.data());
+    if (!self) points_against_cells(b, bb, a, ba, ring, pair, on_b, w.on_a, sc, w.last_b.data());
+    return;
+  }
+  const Real skin = next_skin(w, prm);
+  points_against_cells(a, ba, b, bb, ring, pair, w.on_a, on_b, sc, w.last_a.data(), &w.a_near_b, skin);
+  if (!self) points_against_cells(b, bb, a, ba, ring, pair, on_b, w.on_a, sc, w.last_b.data(), &w.b_near_a, skin);
+  keep_lists_for(w, a, ba, b, bb, skin);
+}
+
+}  // namespace
+
+template <class Real>
+void pair_contacts(const Sheet<Real>& a, const SheetBoxes<Real>& boxes_a, const Sheet<Real>& b,
+                   const SheetBoxes<Real>& boxes_b, const ContactParams<Real>& prm, PairContacts<Real>& work,
+                   ContactScratch<Real>& scratch) {
+  contacts_of_pair(a, boxes_a, b, boxes_b, -1, prm, work, scratch);
 }
 
 template <class Real>
@@ -612,20 +714,9 @@ std::uint32_t self_contact_ring(const Sheet<Real>& s, const ContactParams<Real>&
 }
 
 template <class Real>
-void self_contacts(const Sheet<Real>& s, const Aabb& box, const ContactParams<Real>& prm, PairContacts<Real>& work,
-                   ContactGrid<Real>& grid) {
-  work.on_a.clear();
-  work.on_b.clear();
-  ContactParams<Real> own = prm;
-  own.friction = static_cast<Real>(s.friction);
-  if (lists_hold(work, s, s)) {
-    points_against_candidates(s, s, work.a_near_b, own, work.on_a, work.on_a, grid);
-    return;
-  }
-  const Real skin = next_skin(work, prm), reach = prm.range + skin;
-  candidates_in_grid(s, s, box.inflated(reach), reach, int(self_contact_ring(s, prm)), own, work.a_near_b, work.on_a,
-                     work.on_a, grid);
-  keep_lists_for(work, s, s, skin);
+void self_contacts(const Sheet<Real>& s, const SheetBoxes<Real>& boxes, const ContactParams<Real>& prm,
+                   PairContacts<Real>& work, ContactScratch<Real>& scratch) {
+  contacts_of_pair(s, boxes, s, boxes, int(self_contact_ring(s, prm)), prm, work, scratch);
 }
 
 template <class Real>
@@ -646,11 +737,12 @@ void gather_contacts(std::span<const ContactForces<Real>* const> sources, Vec3Ar
 
 #define DRAPE_CONTACTS(Real)                                                                                   \
   template struct ContactParams<Real>;                                                                         \
-  template void pair_contacts<Real>(const Sheet<Real>&, const Aabb&, const Sheet<Real>&, const Aabb&,        \
-                                    const ContactParams<Real>&, PairContacts<Real>&, ContactGrid<Real>&);      \
-  template void self_contacts<Real>(const Sheet<Real>&, const Aabb&, const ContactParams<Real>&,              \
-                                    PairContacts<Real>&, ContactGrid<Real>&);                                  \
-  template struct ContactGrid<Real>;                                                                           \
+  template void build_boxes<Real>(const Sheet<Real>&, SheetBoxes<Real>&);                                     \
+  template void pair_contacts<Real>(const Sheet<Real>&, const SheetBoxes<Real>&, const Sheet<Real>&,          \
+                                    const SheetBoxes<Real>&, const ContactParams<Real>&, PairContacts<Real>&, \
+                                    ContactScratch<Real>&);                                                    \
+  template void self_contacts<Real>(const Sheet<Real>&, const SheetBoxes<Real>&, const ContactParams<Real>&,  \
+                                    PairContacts<Real>&, ContactScratch<Real>&);                               \
   template std::uint32_t self_contact_ring<Real>(const Sheet<Real>&, const ContactParams<Real>&);            \
   template void gather_contacts<Real>(std::span<const ContactForces<Real>* const>, Vec3Array<Real>&,           \
                                       std::size_t, std::size_t);

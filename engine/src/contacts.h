@@ -19,18 +19,25 @@
 // for the pair's effective mass 1/(1/m_p + Σ w_k²/m_k). It joins the repulsion before the
 // reaction is shared, so it is equal and opposite too.
 //
-// Candidates come from a uniform grid over the pair's overlap region, never all points
-// against all cells. Each cell of the other sheet whose box, grown by R, meets the region is
-// binned once, by its box's low corner (a cell within R of x has that corner within
-// [x − R − w, x + R], w the widest binned box). The query side goes in runs of up to 8
-// consecutive points of a row: a run gathers the cells within R of its box, per axis, into
-// contiguous arrays with one grid lookup, and each of its points measures the gap to every
-// gathered box in one vectorised pass, keeping those under R. Of these, the cell whose box
-// is nearest (the lowest cell of equally near ones) is tested first, then the others in
-// ascending cell order while their boxes are still nearer than the best triangle: a cell
-// whose box is no nearer cannot win. The winner is the nearest triangle whatever the grid;
-// the order only decides between triangles whose distances agree to rounding (a point
-// over a shared vertex), and then the force on the point is the same.
+// Candidates come from boxes each sheet makes once per substep and shares with all of its
+// pairs (SheetBoxes), never all points against all cells, and never a structure per pair.
+// The grid's topology gives the hierarchy, so nothing is sorted or binned: a box per cell,
+// per strip (a row of 8 cells) and per patch (8×8 cells). A patch's box holds its cells
+// and also its points (rows and columns 8p … 8p + 8), so the same box serves as the query
+// side's block of points. Points of sheet q against the cells of sheet s go block by
+// block: a block whose box, grown by R, misses s's box is skipped; otherwise the patches
+// of s within R of it (one branch-free pass over s's patch boxes), and of those the strips
+// within R of it, are gathered contiguous, or the block is skipped when there is none.
+// Each point of the block then measures its gap to every gathered strip box in one
+// vectorised pass and, for the strips within R, to their 8 cells' boxes (a fixed count:
+// one or two vector operations), keeping the cells within R. First the point's nearest
+// cell of the last substep is tested (kept per pair and direction: usually still the
+// nearest, it makes the bound tight at once), or without one the cell whose box is
+// nearest; then the others in the order met while their boxes are still nearer than the
+// best triangle (a cell whose box is no nearer cannot hold a nearer one). The winner is the
+// nearest triangle whatever is tried first; the order only decides between triangles whose
+// distances agree to rounding (of exactly equal ones the lowest cell, then the cell's
+// first triangle), and then the force on the point is the same.
 #pragma once
 
 #include <cstdint>
@@ -77,49 +84,82 @@ struct ContactForces {
   std::size_t size() const { return point.size(); }
 };
 
-// Uniform-grid scratch of the narrow phase. Its contents never reach the result's
-// order, so one grid per thread serves every pair that thread computes.
+// The boxes of one sheet's cells and patches (above), made once per substep for a sheet
+// that is in some pair and read, never written, by all of its pairs.
 template <class Real>
-struct ContactGrid {
-  struct Cell {  // a sheet cell near the region, while binning
-    Real lo[3], hi[3];     // its box, not grown
-    std::uint32_t corner;  // point (i, j), the cell's first corner: ascending with the cell
-    std::uint32_t bin;     // the grid cell holding its box's low corner
-  };
+struct SheetBoxes {
+  static constexpr std::uint32_t kPatch = 8;  // cells along a patch's side
+  std::uint32_t m = 0, n = 0;                 // the sheet's cells
+  Aabb box;                                   // every point
+  // Cell (i, j), i < m, j < n, at its first corner i·(n + 1) + j (structure of arrays),
+  // padded so that the 8 boxes from any cell on can be read.
+  std::vector<Real> cell_lo[3], cell_hi[3];
+  // Patch (pi, pj) at pi·patch_cols + pj: cells [8pi, 8pi + 8) × [8pj, 8pj + 8) (cut at the
+  // sheet's edge); its box holds points [8pi, 8pi + 8] × [8pj, 8pj + 8], and the last patch
+  // row and column reach the sheet's last point row and column. A sheet without cells (a
+  // line or a single point) has one patch row or column of points and no cells.
+  std::uint32_t patch_rows = 0, patch_cols = 0;
+  std::vector<Real> patch_lo[3], patch_hi[3];
+  // Strip (i, pj), the cells of row i in patch column pj, at i·patch_cols + pj.
+  std::vector<Real> strip_lo[3], strip_hi[3];
+  // Point rows (or columns) of patch row (column) p: [first, end).
+  std::uint32_t first(std::uint32_t p) const { return p * kPatch; }
+  std::uint32_t end_point(std::uint32_t p, std::uint32_t count, std::uint32_t cells) const {
+    return p + 1 == count ? cells + 1 : (p + 1) * kPatch;
+  }
+};
+
+// Makes `out` the boxes of `s` now (reusing out's storage).
+template <class Real>
+void build_boxes(const Sheet<Real>& s, SheetBoxes<Real>& out);
+
+// Scratch of the narrow phase. Its contents never reach the result's order, so one per
+// thread serves every pair that thread computes.
+template <class Real>
+struct ContactScratch {
   struct Near {  // a cell whose box is within R of the query point
     std::uint32_t corner;
     Real gap2;  // squared distance from the point to the cell's box
   };
-  std::vector<Cell> cells;                 // near the region, in the sheet's cell order
-  std::vector<std::uint32_t> start;        // per grid cell, into the arrays below (CSR)
-  std::vector<Real> lo[3], hi[3];          // their boxes grouped by grid cell, each group
-  std::vector<std::uint32_t> corner;       // in ascending cell order (structure of arrays)
-  std::vector<Real> run_lo[3], run_hi[3];  // the cells near one run of query points,
-  std::vector<std::uint32_t> run_corner;   // gathered contiguous
-  std::vector<Real> gap2;                  // one query point: squared gaps to those boxes
-  std::vector<std::uint32_t> pick;         // one query point: which of them are within R,
-  std::vector<Near> near;                  // and those cells
-  std::vector<Real> cell_lo[3], cell_hi[3];  // every cell's box now, by its first corner
+  std::vector<std::uint32_t> patches;          // of the other sheet, within R of one block
+  std::vector<Real> run_lo[3], run_hi[3];      // the cells within R of one run of points,
+  std::vector<std::uint32_t> run_corner;       // gathered contiguous, with their grid row
+  std::vector<std::uint32_t> run_row, run_col;  // and column (self-contact's ring)
+  std::vector<Real> gap2;                      // one query point: squared gaps to those boxes
+  std::vector<std::uint32_t> pick;             // one query point: which of them are within R,
+  std::vector<Near> near;                      // and those cells
+  std::vector<Real> mid_a[3], mid_b[3];        // per patch of each sheet of a pair: the middle
+  std::vector<Real> radius_a, radius_b;        // and spread of its points' displacements
 };
 
 // Candidate cells of one direction of a pair: for point p of the query sheet, the cells
-// (by first corner, ascending) cell[start[p]] … cell[start[p + 1] − 1] of the other sheet.
+// (by first corner) cell[begin[p]] … cell[begin[p] + count[p] − 1] of the other sheet, in
+// the order the search met them.
 struct Candidates {
-  std::vector<std::uint32_t> start, cell;
+  std::vector<std::uint32_t> begin, count, cell;
 };
 
 // The contact work of one overlapping pair of sheets (a < b), or of one sheet with itself
 // (a == b, only on_a used). Written by one task, read by the gather: no sharing.
 //
 // Candidates are kept from one substep to the next: each point's list holds the cells
-// whose boxes were within R + skin of it when the list was made (from the grid). While no
-// point of either sheet has moved more than 0.45·skin since, every cell now within R of a
-// point is on its list (a box's gap to a point changes by at most the two displacements),
-// so reading the list finds exactly the cells the grid would: the forces are the same bit
-// for bit, and the grid is rebuilt only when a point has moved that far, or the pair's
-// sheets are not the ones the lists were made for; that substep takes its forces in the
-// same pass. The skin follows the pair's motion: halved (down to R/16) when lists did not
-// outlive their substep or served more than 32, doubled (up to R/2) when fewer than 4.
+// whose boxes were within R + skin of it when the list was made (by the search above, run
+// with R + skin), in the order the search met them. A point can come nearer to a cell by
+// at most how far the two moved RELATIVE to each other, so the lists hold while, for
+// every patch A of one sheet and B of the other (the same patch boxes: a patch's points
+// are its block), A's spread of displacements since then (the largest distance of a
+// point's displacement from the middle of them all) plus B's plus the distance between
+// the two middles stays within 0.9 of the slack the lists had: the skin, or the two
+// patches' gap then less R if that is more (patches far apart may drift far). A stack that
+// sags and swings together keeps its lists; a point off its list is then still beyond R,
+// so reading the lists finds exactly the cells the search would, in its order: the forces
+// are the same bit for bit. Otherwise, or when the pair's sheets are not the ones the
+// lists were made for, the search runs again and takes that substep's forces in the same
+// pass. The skin follows the pair: R/4 at first, halved (down to R/16) when the last lists
+// did not outlive their substep or served more than 32, doubled (up to R/2) when fewer
+// than 4. Lists at R/16 that did not outlive their substep make the pair search without
+// lists for the next 16 substeps (making them costs more than it saves while the sheets
+// move that fast), then start again at R/4.
 template <class Real>
 struct PairContacts {
   std::uint32_t a = 0, b = 0;  // positions in the world's sheet order
@@ -129,25 +169,32 @@ struct PairContacts {
   const Topology<Real>* kept_topology_a = nullptr;
   const Topology<Real>* kept_topology_b = nullptr;
   Vec3Array<Real> made_at_a, made_at_b;  // their positions then
+  std::vector<Real> clearance;           // then: the gap of patch A of a to patch B of b
   Candidates a_near_b, b_near_a;         // points of a against cells of b, and back
   Real skin = 0;                         // of the kept lists (0: none made yet)
   std::uint32_t kept_for = 0;            // substeps the kept lists have served
-  std::uint64_t grid_builds = 0;         // how often the lists were made (for tests)
+  std::uint32_t resting = 0;             // substeps left to search without lists
+  // Per point of a (against b) and of b (against a): its nearest cell last substep (first
+  // corner; ~0 for none), tested first; and the grids those cells belong to.
+  std::vector<std::uint32_t> last_a, last_b;
+  const Topology<Real>* guessed_a = nullptr;
+  const Topology<Real>* guessed_b = nullptr;
+  std::uint64_t searches = 0;            // how often the lists were made (for tests)
 };
 
-// Points of `a` against the cells of `b` and points of `b` against the cells of `a`,
-// restricted to the overlap of the boxes grown by params.range. Clears and fills work.on_a/on_b;
-// keeps or remakes the candidate lists in `work` (above).
+// Points of `a` against the cells of `b` and points of `b` against the cells of `a`, each
+// sheet's boxes made by build_boxes from its positions now. Clears and fills work.on_a/on_b.
 template <class Real>
-void pair_contacts(const Sheet<Real>& a, const Aabb& box_a, const Sheet<Real>& b, const Aabb& box_b,
-                   const ContactParams<Real>& params, PairContacts<Real>& work, ContactGrid<Real>& grid);
+void pair_contacts(const Sheet<Real>& a, const SheetBoxes<Real>& boxes_a, const Sheet<Real>& b,
+                   const SheetBoxes<Real>& boxes_b, const ContactParams<Real>& params, PairContacts<Real>& work,
+                   ContactScratch<Real>& scratch);
 
 // A sheet folding onto itself: points against the sheet's own cells, skipping the cells
 // within `self_contact_ring` rows/columns of the point (its grid neighbourhood, which
 // is always within contact range of it). Clears and fills work.on_a.
 template <class Real>
-void self_contacts(const Sheet<Real>& s, const Aabb& box, const ContactParams<Real>& params,
-                   PairContacts<Real>& work, ContactGrid<Real>& grid);
+void self_contacts(const Sheet<Real>& s, const SheetBoxes<Real>& boxes, const ContactParams<Real>& params,
+                   PairContacts<Real>& work, ContactScratch<Real>& scratch);
 
 // Rows/columns around a point whose cells self-contact ignores: enough that the cells a
 // point touches at rest spacing never count, 1 + ⌈R / smallest rest spacing⌉, at most 16.

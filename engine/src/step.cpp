@@ -58,6 +58,7 @@ void BasicWorld<Real>::Impl::run_stage(Stage stage, double h) {
     case Stage::RigidParts: return move_rigid_parts();
     case Stage::Bounds: return contact_bounds(h);
     case Stage::BroadPhase: return find_pairs();
+    case Stage::ContactBoxes: return contact_boxes();
     case Stage::NarrowPhase: return narrow_phase(h);
     case Stage::GatherPlan: return plan_gather();
     case Stage::Obstacles: return assign_obstacles(h);
@@ -104,6 +105,20 @@ void BasicWorld<Real>::Impl::find_pairs() {
   }
 }
 
+// The boxes of every sheet in some pair, made once here and read by all of its pairs
+// (contacts.h, SheetBoxes): a sheet in no pair makes none.
+template <class Real>
+void BasicWorld<Real>::Impl::contact_boxes() {
+  if (!contacting) return;
+  const std::size_t count = active.size();
+  in_pair.assign(count, 0);
+  for (const detail::BoxPair& pair : pairs) in_pair[pair.first] = in_pair[pair.second] = 1;
+  if (sheet_boxes.size() < count) sheet_boxes.resize(count);
+  parallel(count, [&](std::size_t k) {
+    if (in_pair[k]) detail::build_boxes(at(k), sheet_boxes[k]);
+  });
+}
+
 template <class Real>
 void BasicWorld<Real>::Impl::narrow_phase(double h) {
   if (!contacting) return;
@@ -113,11 +128,11 @@ void BasicWorld<Real>::Impl::narrow_phase(double h) {
     auto& w = pair_work[q];
     w.a = pairs[q].first;
     w.b = pairs[q].second;
-    auto& grid = grids.local();
+    auto& scratch = contact_scratch.local();
     if (w.a == w.b)
-      detail::self_contacts(at(w.a), bounds[w.a], params, w, grid);
+      detail::self_contacts(at(w.a), sheet_boxes[w.a], params, w, scratch);
     else
-      detail::pair_contacts(at(w.a), bounds[w.a], at(w.b), bounds[w.b], params, w, grid);
+      detail::pair_contacts(at(w.a), sheet_boxes[w.a], at(w.b), sheet_boxes[w.b], params, w, scratch);
   });
 }
 

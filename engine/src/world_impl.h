@@ -81,8 +81,10 @@ struct BasicWorld<Real>::Impl {
   std::vector<detail::Aabb> bounds, grown;
   detail::TrackingBroadPhase broad_phase;  // reset when `active` changes
   std::vector<detail::BoxPair> pairs;
+  std::vector<char> in_pair;                          // per sheet: in some pair this substep
+  std::vector<detail::SheetBoxes<Real>> sheet_boxes;  // per sheet in a pair, shared by its pairs
   std::vector<detail::PairContacts<Real>> pair_work;
-  tbb::enumerable_thread_specific<detail::ContactGrid<Real>> grids;  // narrow-phase scratch
+  tbb::enumerable_thread_specific<detail::ContactScratch<Real>> contact_scratch;  // narrow phase
   std::vector<std::uint32_t> source_start;                  // per sheet, into sources (CSR)
   std::vector<const detail::ContactForces<Real>*> sources;  // per sheet, in pair order
   std::vector<std::uint32_t> source_cursor;                 // while filling sources
@@ -151,14 +153,15 @@ struct BasicWorld<Real>::Impl {
     RigidParts,   // moving obstacles posed and constraint targets set for this substep's time
     Bounds,       // every sheet's box, and the box grown by half the contact range
     BroadPhase,   // pairs of sheets whose grown boxes meet, and self-colliding sheets with themselves
+    ContactBoxes, // each sheet in a pair: its cells' and patches' boxes, made once for all its pairs
     NarrowPhase,  // each pair's contact forces, into buffers only that pair owns (contacts.cpp)
     GatherPlan,   // each sheet's list of the buffers aimed at it, in pair order; has_contacts
     Obstacles,    // each sheet's list of obstacles within reach (assign_obstacles)
     Integrate,    // per sheet or row block: gather contacts, force terms (terms/terms.h), integrator
   };
-  static constexpr Stage substep_stages[] = {Stage::RigidParts, Stage::Bounds,    Stage::BroadPhase,
-                                             Stage::NarrowPhase, Stage::GatherPlan, Stage::Obstacles,
-                                             Stage::Integrate};
+  static constexpr Stage substep_stages[] = {Stage::RigidParts,  Stage::Bounds,     Stage::BroadPhase,
+                                             Stage::ContactBoxes, Stage::NarrowPhase, Stage::GatherPlan,
+                                             Stage::Obstacles,   Stage::Integrate};
 
   bool contacts_possible() const;
   void move_rigid_parts();
@@ -172,6 +175,7 @@ struct BasicWorld<Real>::Impl {
   detail::ContactParams<Real> contact_params(double h) const;
   void contact_bounds(double h);
   void find_pairs();
+  void contact_boxes();
   void narrow_phase(double h);
   void plan_gather();
   void plan_blocks();
