@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <utility>
 
 #include "diagnostics.h"
@@ -71,6 +72,10 @@ struct SolveResult {
 
 // Conjugate gradient on sc.system·dv = sc.rhs from the guess in sc.dv, preconditioned by
 // precondition(r, z), z ≈ A⁻¹r (symmetric positive definite). Stops at |r| ≤ tol·|b|.
+// In rounding a badly conditioned system (float, mass ratios of 1e6, dt²k/m of 1e10) can
+// lose CG's descent: the residual then grows or turns NaN. The solve stops there and
+// returns the iterate of smallest residual (the guess, if none was better), reported
+// unconverged, so a failed solve never writes NaN into the state.
 template <class Real, class Precondition>
 SolveResult preconditioned_cg(ImplicitScratch<Real>& sc, double tolerance, int max_iterations,
                               Precondition precondition) {
@@ -92,6 +97,9 @@ SolveResult preconditioned_cg(ImplicitScratch<Real>& sc, double tolerance, int m
   double residual = static_cast<double>(r.norm()) / b_norm;
   int it = 0;
   if (residual <= tolerance) return {0, residual};
+  double best = std::isfinite(residual) ? residual : std::numeric_limits<double>::infinity();
+  sc.best = x;
+  if (!std::isfinite(residual)) sc.best.setZero();
   precondition(r, z);
   d = z;
   Real rz = r.dot(z);
@@ -102,13 +110,24 @@ SolveResult preconditioned_cg(ImplicitScratch<Real>& sc, double tolerance, int m
     r -= alpha * ad;
     ++it;
     residual = static_cast<double>(r.norm()) / b_norm;
-    if (!(residual > tolerance)) break;  // converged, or NaN: stop either way
+    if (residual <= tolerance) break;
+    if (!(residual < best)) {
+      if (!(residual < 1e3 * best)) {  // diverging, or NaN: back to the best iterate
+        x = sc.best;
+        return {it, best};
+      }
+    } else {
+      best = residual;
+      sc.best = x;
+    }
     precondition(r, z);
     const Real rz_next = r.dot(z);
     d = z + (rz_next / rz) * d;
     rz = rz_next;
   }
-  return {it, residual};
+  if (residual <= tolerance || !(residual > best)) return {it, residual};
+  x = sc.best;
+  return {it, best};
 }
 
 // Block Jacobi: a point's own coupling of its three axes (a spring's u uᵀ) is solved

@@ -43,6 +43,7 @@ struct ImplicitScratch {
   std::vector<Real> free;         // per point: 1, or 0 for a pinned point (its rows and columns are dropped)
   Vector rhs, dv;                 // dv: the solution (its copy in Sheet::integrator_scratch is the next guess)
   Vector residual, direction, preconditioned, product;  // the solve's work vectors
+  Vector best;  // the iterate of smallest residual so far: what a solve that diverged returns
   std::vector<Real> block_inverse;  // per point: the inverse of its 3×3 diagonal block, row-major
 
   // Auto's rule reads the sheet's stiffest mode, ω_max = 2/sheet_stable_step (Gershgorin).
