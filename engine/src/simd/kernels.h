@@ -130,8 +130,8 @@ struct PointUpdate {
 void update_points(const PointUpdate<double>& u);
 void update_points(const PointUpdate<float>& u);
 
-// The instruction set the kernels run with now, e.g. "AVX3" (Highway's name for AVX-512),
-// "AVX3_DL", "AVX2", "SSE4", "SCALAR" (portable, one lane).
+// The instruction set the kernels run with now: "AVX3" (Highway's name for AVX-512),
+// "AVX2", "SSE4" or "SCALAR" (portable, one lane) on x86.
 const char* target_name();
 
 // Every instruction set compiled into this build that the CPU supports, as Highway target
