@@ -506,6 +506,12 @@ TEST(Obstacles, FarObstacleLeavesTheSheetBitIdentical) {
 // height where eq (9)'s force carries its weight's normal part m·g·cos θ. With tan θ < μ it
 // stays put; with tan θ > μ it slides with a = g·(sin θ − μ·cos θ). μ is the larger of the
 // sheet's and the obstacle's coefficients, whichever of them holds it.
+// The height above a plane at which eq (9)'s cut-off, shifted force carries a normal load
+// `load` (N) per point: (c/ξ)·(exp(−f/ξ) − e^−16) = load, solved for f.
+double resting_height(const ObstacleDef& plane, double load) {
+  return -plane.xi * std::log(load * plane.xi / plane.c + std::exp(-16.0));
+}
+
 struct Incline {
   double along = 0, speed = 0;  // mean displacement and velocity down the slope
 };
@@ -520,8 +526,7 @@ Incline slide_down(double theta, double mu_sheet, double mu_obstacle, double sec
   plane.c = 0.01;
   plane.xi = 0.01;
   plane.friction = mu_obstacle;
-  // (c/ξ)·(exp(−f/ξ) − e^−16) = m·g·cos θ
-  const double rest = -plane.xi * std::log(point_mass * g * std::cos(theta) * plane.xi / plane.c + std::exp(-16.0));
+  const double rest = resting_height(plane, point_mass * g * std::cos(theta));
   drape::WorldDef wd;
   wd.dt = 1e-3;
   drape::World world(wd);
@@ -584,7 +589,7 @@ double carried_along(const std::function<double(double)>& platform, double mu, d
   plane.motion = drape::Motion{};
   plane.motion->kind = drape::Motion::Kind::Callback;
   plane.motion->callback = [platform](double t) { return drape::Pose{{}, {platform(t), 0, 0}}; };
-  const double rest = -plane.xi * std::log(point_mass * g * plane.xi / plane.c + std::exp(-16.0));
+  const double rest = resting_height(plane, point_mass * g);
   drape::WorldDef wd;
   wd.dt = 1e-3;
   drape::World world(wd);
@@ -644,7 +649,7 @@ TEST(Obstacles, FrictionTurnsASheetWithATurningPlatform) {
   s.m = s.n = 4;
   s.width = s.height = 0.1;
   s.mass = 25 * point_mass;
-  s.center = {r, 0, -plane.xi * std::log(point_mass * g * plane.xi / plane.c + std::exp(-16.0))};
+  s.center = {r, 0, resting_height(plane, point_mass * g)};
   const auto id = world.add_sheet(s);
   world.add_obstacle(plane);
   world.step(500);
