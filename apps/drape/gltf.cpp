@@ -73,11 +73,15 @@ std::vector<std::uint32_t> grid_triangles(std::uint32_t rows, std::uint32_t cols
   return t;
 }
 
+std::uint32_t checked_samples(GltfOptions options) {
+  if (options.samples_per_cell < 1 || options.samples_per_cell > 64)
+    throw std::invalid_argument("glTF: samples per cell must be 1..64 (got " + std::to_string(options.samples_per_cell) + ")");
+  return std::uint32_t(options.samples_per_cell);
+}
 }  // namespace
 
 GltfRun::GltfRun(const Scene& scene, GltfOptions options) : scene_(scene), options_(options) {
-  if (options.samples_per_cell < 1 || options.samples_per_cell > 64)
-    throw std::invalid_argument("glTF: samples per cell must be 1..64 (got " + std::to_string(options.samples_per_cell) + ")");
+  checked_samples(options);
   for (std::size_t k = 0; k < scene.sheets.size(); ++k) {
     const SheetDef& s = scene.sheets[k];
     const std::uint32_t rows = s.m * std::uint32_t(options.samples_per_cell) + 1;
@@ -89,10 +93,10 @@ GltfRun::GltfRun(const Scene& scene, GltfOptions options) : scene_(scene), optio
   }
 }
 
-std::uint64_t GltfRun::frame_bytes(std::uint64_t frames) const {
+std::uint64_t GltfRun::frame_bytes(const Scene& scene, GltfOptions options, std::uint64_t frames) {
   std::uint64_t vertices = 0;
-  const std::uint64_t k = std::uint64_t(options_.samples_per_cell);
-  for (const SheetLayout& s : sheets_) vertices += (s.m * k + 1) * (s.n * k + 1);
+  const std::uint64_t k = checked_samples(options);
+  for (const SheetDef& s : scene.sheets) vertices += (s.m * k + 1) * (s.n * k + 1);
   return frames * vertices * 2 * 3 * sizeof(float);
 }
 

@@ -45,9 +45,11 @@ class GltfRun {
   template <class Real>
   void add_frame(std::span<const SheetView<Real>> sheets, double time);
   int frames() const { return int(times_.size()); }
-  // The binary data `frames` frames will take (positions and normals; indices, obstacles and
-  // the animation not counted): a run can be refused before it steps.
-  std::uint64_t frame_bytes(std::uint64_t frames) const;
+  // The binary data `frames` frames of `scene` will take (positions and normals; indices,
+  // obstacles and the animation not counted): a run can be refused before anything is built
+  // (a refused run's triangle indices alone could take gigabytes). Throws std::invalid_argument
+  // as the constructor does.
+  static std::uint64_t frame_bytes(const Scene& scene, GltfOptions options, std::uint64_t frames);
   static constexpr std::uint64_t max_bytes = 0xFFFFFFFFull;  // a .glb's length is 32-bit
 
   // Finishes the file (obstacles, camera, animation) and writes the .glb bytes of the frames

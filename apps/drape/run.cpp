@@ -77,13 +77,15 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
   }
   std::optional<GltfRun> gltf;
   if (glb) {
-    gltf.emplace(scene, GltfOptions{opt.surface, opt.surface_samples});
-    if (const std::uint64_t bytes = gltf->frame_bytes(std::uint64_t(frames) + 1); bytes > GltfRun::max_bytes) {
+    const GltfOptions options{opt.surface, opt.surface_samples};
+    if (const std::uint64_t bytes = GltfRun::frame_bytes(scene, options, std::uint64_t(frames) + 1);
+        bytes > GltfRun::max_bytes) {
       log << "drape: " << scene.file << ": " << frames + 1 << " frames make a glb of at least " << (bytes >> 20)
           << " MiB, above glTF's 4 GiB; write fewer frames (--frames) or fewer --surface-samples. Nothing was "
           << "written\n";
       return exit_usage;
     }
+    gltf.emplace(scene, options);
   }
 
   std::vector<SheetId> ids;
