@@ -25,7 +25,9 @@ ctest --test-dir "$build" --output-on-failure -j"$jobs"
 stamp "release build and tests passed"
 
 if [[ "${DRAPE_SKIP_SANITIZE:-0}" != 1 ]]; then
-  # -O1 keeps sanitized tests quick while the stack traces stay readable. The benchmarks are
+  # -O1 keeps sanitized tests quick while the stack traces stay readable; the tests, programs
+  # and benchmarks themselves are compiled at -O0 there (CMakeLists.txt, drape_keep_optimization),
+  # which halves their compile time and leaves the run time as it was. The benchmarks are
   # built (not run) so that their optional sources are proved gated too.
   # The kernels are compiled here for AVX2 and the scalar target only
   # (HWY_DISABLED_TARGETS = AVX3 | SSE4 on top of engine/src/simd/targets.h's AVX3_DL | SSSE3,
