@@ -121,34 +121,39 @@ bool SupernodalFactor::factor() {
 
 void SupernodalFactor::solve(double* x) const {
   const std::size_t supernodes = first_.size() - 1;
-  double* gathered = gathered_.data();
+  // supernode s: its panel, x at its columns, its rows below them
+  struct Part {
+    const ConstPanel panel;
+    Eigen::Map<Eigen::VectorXd> own;
+    const int* rows;
+    int count;
+  };
+  auto part = [&](std::size_t s) {
+    const int width = first_[s + 1] - first_[s];
+    const Eigen::Index ld = Eigen::Index(leading_[s]);
+    return Part{ConstPanel(value_.data() + value_start_[s], ld, 3 * width, Eigen::OuterStride<>(ld)),
+                Eigen::Map<Eigen::VectorXd>(x + 3 * first_[s], 3 * width), rows_.data() + row_start_[s] + width,
+                row_start_[s + 1] - row_start_[s] - width};
+  };
+  Eigen::Map<Eigen::VectorXd> gathered(gathered_.data(), Eigen::Index(gathered_.size()));
   for (std::size_t s = 0; s < supernodes; ++s) {  // L y = b
-    const int c0 = first_[s], width = first_[s + 1] - c0;
-    const int* rows = rows_.data() + row_start_[s];
-    const int count = row_start_[s + 1] - row_start_[s];
-    const Eigen::Index ld = Eigen::Index(leading_[s]), w3 = 3 * width;
-    const ConstPanel panel(value_.data() + value_start_[s], ld, w3, Eigen::OuterStride<>(ld));
-    Eigen::Map<Eigen::VectorXd> own(x + 3 * c0, w3);
-    panel.topLeftCorner(w3, w3).triangularView<Eigen::Lower>().solveInPlace(own);
-    if (count == width) continue;
-    Eigen::Map<Eigen::VectorXd> below(gathered, ld - w3);
-    below.noalias() = panel.bottomRows(ld - w3) * own;
-    for (int i = width; i < count; ++i)
-      for (int r = 0; r < 3; ++r) x[3 * rows[i] + r] -= gathered[3 * (i - width) + r];
+    Part p = part(s);
+    const Eigen::Index w3 = p.own.size();
+    p.panel.topLeftCorner(w3, w3).triangularView<Eigen::Lower>().solveInPlace(p.own);
+    if (p.count == 0) continue;
+    gathered.head(3 * p.count).noalias() = p.panel.bottomRows(3 * p.count) * p.own;
+    for (int i = 0; i < p.count; ++i)
+      for (int r = 0; r < 3; ++r) x[3 * p.rows[i] + r] -= gathered[3 * i + r];
   }
   for (std::size_t s = supernodes; s-- > 0;) {  // Lᵀ x = y
-    const int c0 = first_[s], width = first_[s + 1] - c0;
-    const int* rows = rows_.data() + row_start_[s];
-    const int count = row_start_[s + 1] - row_start_[s];
-    const Eigen::Index ld = Eigen::Index(leading_[s]), w3 = 3 * width;
-    const ConstPanel panel(value_.data() + value_start_[s], ld, w3, Eigen::OuterStride<>(ld));
-    Eigen::Map<Eigen::VectorXd> own(x + 3 * c0, w3);
-    if (count > width) {
-      for (int i = width; i < count; ++i)
-        for (int r = 0; r < 3; ++r) gathered[3 * (i - width) + r] = x[3 * rows[i] + r];
-      own.noalias() -= panel.bottomRows(ld - w3).transpose() * Eigen::Map<const Eigen::VectorXd>(gathered, ld - w3);
+    Part p = part(s);
+    const Eigen::Index w3 = p.own.size();
+    if (p.count > 0) {
+      for (int i = 0; i < p.count; ++i)
+        for (int r = 0; r < 3; ++r) gathered[3 * i + r] = x[3 * p.rows[i] + r];
+      p.own.noalias() -= p.panel.bottomRows(3 * p.count).transpose() * gathered.head(3 * p.count);
     }
-    panel.topLeftCorner(w3, w3).triangularView<Eigen::Lower>().transpose().solveInPlace(own);
+    p.panel.topLeftCorner(w3, w3).triangularView<Eigen::Lower>().transpose().solveInPlace(p.own);
   }
 }
 
