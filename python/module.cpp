@@ -519,6 +519,7 @@ PYBIND11_MODULE(drape, m) {
       .field("cg_max_iterations", &WorldDef::cg_max_iterations, "implicit Euler's CG stop")
       .field("cg_preconditioner", &WorldDef::cg_preconditioner, "Preconditioner (or its name)")
       .field("local_global_iterations", &WorldDef::local_global_iterations, "LocalGlobal's iterations per step")
+      .field("vertex_block_iterations", &WorldDef::vertex_block_iterations, "VertexBlockDescent's iterations per step")
       .field("adaptive", &WorldDef::adaptive, "explicit integrators take their largest stable substep")
       .field("adaptive_safety", &WorldDef::adaptive_safety, "in (0, 1]")
       .field("guard", &WorldDef::guard, "stability guard after every step()/advance()")

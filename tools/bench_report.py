@@ -44,6 +44,11 @@ PAPER_INTEGRATOR = "semi_implicit_euler"
 SINGLE = " (step(1))"  # marks the Fig 13 series stepped one substep per call
 
 
+# Issue 16's figure for implicit Euler with block Jacobi at its cap (64×64, k = 1e5 N/m, dt = 1/60 s),
+# quoted from the issue for reference; the verdict uses the block-Jacobi run of the same report.
+ISSUE16_BLOCK_JACOBI_MS = 26.6
+
+
 def fail(message):
     print(f"bench_report: {message}", file=sys.stderr)
     sys.exit(1)
@@ -1087,12 +1092,18 @@ class Report:
             return
         self.out("### Implicit Euler's preconditioners", "",
                  "The same sheet (64×64, 1 kg, corners pinned) falling from flat, implicit Euler at dt = 1/60 s, "
-                 "30 steps (`BM_ImplicitEulerStep`): block Jacobi at the default cap of 200 CG iterations (the path "
-                 "before issue 16, still `cg_preconditioner: block_jacobi`) against the sparse Cholesky factor of "
-                 "each step's matrix (`cholesky`, what `auto` picks here). Unconverged: solves that stopped at the "
+                 "30 steps (`BM_ImplicitEulerStep`): block Jacobi at the default cap of 200 CG iterations against "
+                 "the sparse Cholesky factor of each step's matrix (`cholesky`, what `auto` picks here; a supernodal "
+                 "factor with dense kernels on local/global's AMD structure). Unconverged: solves that stopped at the "
                  "cap over the 30 steps.", "",
+                 "Issue 16's \"today\" is the block-Jacobi path at its cap: the issue measured it at "
+                 f"{ISSUE16_BLOCK_JACOBI_MS} ms per step at k = 1e5 N/m on the day it was filed; the verdict below "
+                 "divides the block-Jacobi time *measured in this run* (`cg_preconditioner: block_jacobi`, kept "
+                 "selectable) by the Cholesky time of the same run, so both saw the same machine and load. The last "
+                 "column divides the issue's figure instead, for reference only.", "",
                  "| k (N/m) | block Jacobi: ms per step | CG iterations | unconverged | Cholesky: ms per step | "
-                 "CG iterations | unconverged | block Jacobi ÷ Cholesky |", "|---|---|---|---|---|---|---|---|")
+                 "CG iterations | unconverged | block Jacobi ÷ Cholesky | issue's 26.6 ms ÷ Cholesky |",
+                 "|---|---|---|---|---|---|---|---|---|")
         worst = None
         for k in sorted({k for _, k in runs}):
             bj, ch = runs.get(("block_jacobi", k)), runs.get(("cholesky", k))
@@ -1103,13 +1114,16 @@ class Report:
                 return (f"{1e3 * r.step_seconds:.3g}{cv_text(r)} | {c.get('cg_iterations', float('nan')):.1f} | "
                         f"{int(c.get('unconverged_solves', 0))}")
             ratio = bj.step_seconds / ch.step_seconds if bj and ch else None
+            issue = ISSUE16_BLOCK_JACOBI_MS / (1e3 * ch.step_seconds) if ch else None
             if ratio is not None and k >= 10000 and (worst is None or ratio < worst[1]):
                 worst = (k, ratio)
-            self.out(f"| {k:.0e} | {cells(bj)} | {cells(ch)} | {f'{ratio:.2f}' if ratio else '–'} |")
+            self.out(f"| {k:.0e} | {cells(bj)} | {cells(ch)} | {f'{ratio:.2f}' if ratio else '–'} | "
+                     f"{f'{issue:.2f}' if issue else '–'} |")
         self.out("")
         if worst:
-            self.target("implicit Euler per step, 64×64 at k ≥ 1e4, Cholesky against block Jacobi (every solve "
-                        "converged)", f"{worst[1]:.2f}× (k = {worst[0]:.0e}, the smallest)", "≥ 10×", worst[1] >= 10,
+            self.target("implicit Euler per step, 64×64 at k ≥ 1e4: block Jacobi at its cap (issue 16's \"today\", "
+                        "measured in this run) ÷ Cholesky, every Cholesky solve converged",
+                        f"{worst[1]:.2f}× (k = {worst[0]:.0e}, the smallest)", "≥ 10×", worst[1] >= 10,
                         "cg_preconditioner: cholesky")
 
     def others(self):

@@ -154,7 +154,8 @@ SolveResult block_jacobi_cg(ImplicitScratch<Real>& sc, double tolerance, int max
   });
 }
 
-// The Cholesky blocks' sources in `system` for local/global's symbolic structure `ms`.
+// The Cholesky blocks' sources in `system` for local/global's symbolic structure `ms`, and
+// the supernodes of that structure.
 template <class Real>
 void map_blocks(ImplicitScratch<Real>& sc, const LocalGlobalScratch& ms) {
   const std::size_t count = ms.permutation.size();
@@ -171,129 +172,41 @@ void map_blocks(ImplicitScratch<Real>& sc, const LocalGlobalScratch& ms) {
       const bool present = std::binary_search(begin, end, 3 * pj);
       for (int r = 0; r < 3; ++r) src[std::size_t(r)] = present ? offset_of(sc.system, 3 * pi + r, 3 * pj) : -1;
     }
-  sc.block_value.resize(9 * blocks);
-  sc.block_work.resize(9 * count);
+  sc.factor.analyse(ms.column_start.data(), ms.row_index.data(), count);
   sc.solve_work.resize(3 * count);
   sc.structure = &ms;
   sc.structure_factorisations = ms.factorisations;
 }
 
-// Left-looking block Cholesky of `system` (lower 3×3 blocks, in double) on the pattern of
-// `ms`: column j gathers its column of the matrix, subtracts L_ik·L_jkᵀ of every earlier
-// column k with a block in row j (kept in linked lists by their next row, Ng and Peyton's
-// scheme), then factors its diagonal block and scales the rest. False when a diagonal
-// block is not positive definite.
+// The step's matrix (its lower blocks, in double) into the supernodes' panels, then L.
+// False when it is not positive definite.
 template <class Real>
 bool block_factor(ImplicitScratch<Real>& sc, const LocalGlobalScratch& ms) {
   const std::size_t count = ms.permutation.size();
-  const int* start = ms.column_start.data();
-  const int* row = ms.row_index.data();
   const Real* a = sc.system.valuePtr();
-  double* value = sc.block_value.data();
-  double* work = sc.block_work.data();
-  sc.head.assign(count, -1);
-  sc.next.assign(count, -1);
-  sc.first.assign(count, 0);
+  sc.factor.clear();
+  double* value = sc.factor.values();
   for (std::size_t j = 0; j < count; ++j) {
-    for (int k = start[j]; k < start[j + 1]; ++k) {
-      double* w = work + 9 * std::size_t(row[k]);
+    const std::size_t ld = sc.factor.leading(j);
+    for (int k = ms.column_start[j]; k < ms.column_start[j + 1]; ++k) {
       const auto& src = sc.source[std::size_t(k)];
+      if (src[0] < 0) continue;  // fill: not in the matrix
+      double* block = value + sc.factor.entry_offset(std::size_t(k));
       for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) w[3 * r + c] = src[std::size_t(r)] < 0 ? 0.0 : double(a[src[std::size_t(r)] + c]);
-    }
-    for (int k = sc.head[j]; k != -1;) {
-      const int after = sc.next[std::size_t(k)];
-      const int at = sc.first[std::size_t(k)];
-      const double* ljk = value + 9 * std::size_t(at);
-      for (int q = at; q < start[k + 1]; ++q) {
-        const double* lik = value + 9 * std::size_t(q);
-        double* w = work + 9 * std::size_t(row[q]);
-        for (int r = 0; r < 3; ++r)
-          for (int c = 0; c < 3; ++c)
-            w[3 * r + c] -= lik[3 * r] * ljk[3 * c] + lik[3 * r + 1] * ljk[3 * c + 1] + lik[3 * r + 2] * ljk[3 * c + 2];
-      }
-      if (at + 1 < start[k + 1]) {  // column k's next row waits for that column
-        sc.first[std::size_t(k)] = at + 1;
-        const int target = row[at + 1];
-        sc.next[std::size_t(k)] = sc.head[std::size_t(target)];
-        sc.head[std::size_t(target)] = k;
-      }
-      k = after;
-    }
-    // the diagonal block: S = L_jj L_jjᵀ, from its lower triangle
-    const double* d = work + 9 * j;
-    double* l = value + 9 * std::size_t(start[j]);
-    const double l00s = d[0];
-    if (!(l00s > 0)) return false;
-    const double l00 = std::sqrt(l00s), l10 = d[3] / l00, l20 = d[6] / l00;
-    const double l11s = d[4] - l10 * l10;
-    if (!(l11s > 0)) return false;
-    const double l11 = std::sqrt(l11s), l21 = (d[7] - l20 * l10) / l11;
-    const double l22s = d[8] - l20 * l20 - l21 * l21;
-    if (!(l22s > 0)) return false;
-    const double l22 = std::sqrt(l22s);
-    const double diagonal[9] = {l00, 0, 0, l10, l11, 0, l20, l21, l22};
-    std::copy(diagonal, diagonal + 9, l);
-    // L_ij = W_ij L_jj⁻ᵀ: each row x of the block solves L_jj xᵀ = wᵀ
-    for (int k = start[j] + 1; k < start[j + 1]; ++k) {
-      const double* w = work + 9 * std::size_t(row[k]);
-      double* out = value + 9 * std::size_t(k);
-      for (int r = 0; r < 3; ++r) {
-        const double x0 = w[3 * r] / l00;
-        const double x1 = (w[3 * r + 1] - l10 * x0) / l11;
-        const double x2 = (w[3 * r + 2] - l20 * x0 - l21 * x1) / l22;
-        out[3 * r] = x0;
-        out[3 * r + 1] = x1;
-        out[3 * r + 2] = x2;
-      }
-    }
-    if (start[j] + 1 < start[j + 1]) {
-      sc.first[j] = start[j] + 1;
-      const int target = row[start[j] + 1];
-      sc.next[j] = sc.head[std::size_t(target)];
-      sc.head[std::size_t(target)] = int(j);
+        for (int c = 0; c < 3; ++c) block[std::size_t(r) + std::size_t(c) * ld] = double(a[src[std::size_t(r)] + c]);
     }
   }
-  return true;
+  return sc.factor.factor();
 }
 
-// z = (L Lᵀ)⁻¹ r through the blocks, permuted.
+// z = (L Lᵀ)⁻¹ r through the factor, permuted.
 template <class Real>
 void block_solve(ImplicitScratch<Real>& sc, const LocalGlobalScratch& ms, const Real* in, Real* out) {
   const std::size_t count = ms.permutation.size();
-  const int* start = ms.column_start.data();
-  const int* row = ms.row_index.data();
-  const double* value = sc.block_value.data();
   double* y = sc.solve_work.data();
   for (std::size_t p = 0; p < count; ++p)
     for (int r = 0; r < 3; ++r) y[3 * std::size_t(ms.permutation[p]) + std::size_t(r)] = double(in[3 * p + std::size_t(r)]);
-  for (std::size_t j = 0; j < count; ++j) {  // L y = b
-    const double* l = value + 9 * std::size_t(start[j]);
-    double* yj = y + 3 * j;
-    yj[0] = yj[0] / l[0];
-    yj[1] = (yj[1] - l[3] * yj[0]) / l[4];
-    yj[2] = (yj[2] - l[6] * yj[0] - l[7] * yj[1]) / l[8];
-    for (int k = start[j] + 1; k < start[j + 1]; ++k) {
-      const double* lij = value + 9 * std::size_t(k);
-      double* yi = y + 3 * std::size_t(row[k]);
-      for (int r = 0; r < 3; ++r) yi[r] -= lij[3 * r] * yj[0] + lij[3 * r + 1] * yj[1] + lij[3 * r + 2] * yj[2];
-    }
-  }
-  for (std::size_t j = count; j-- > 0;) {  // Lᵀ x = y
-    double s[3] = {y[3 * j], y[3 * j + 1], y[3 * j + 2]};
-    for (int k = start[j] + 1; k < start[j + 1]; ++k) {
-      const double* lij = value + 9 * std::size_t(k);
-      const double* xi = y + 3 * std::size_t(row[k]);
-      for (int c = 0; c < 3; ++c) s[c] -= lij[c] * xi[0] + lij[3 + c] * xi[1] + lij[6 + c] * xi[2];
-    }
-    const double* l = value + 9 * std::size_t(start[j]);
-    const double x2 = s[2] / l[8];
-    const double x1 = (s[1] - l[7] * x2) / l[4];
-    const double x0 = (s[0] - l[3] * x1 - l[6] * x2) / l[0];
-    y[3 * j] = x0;
-    y[3 * j + 1] = x1;
-    y[3 * j + 2] = x2;
-  }
+  sc.factor.solve(y);
   for (std::size_t p = 0; p < count; ++p)
     for (int r = 0; r < 3; ++r) out[3 * p + std::size_t(r)] = Real(y[3 * std::size_t(ms.permutation[p]) + std::size_t(r)]);
 }

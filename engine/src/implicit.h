@@ -8,7 +8,8 @@
 //   block Jacobi: the inverses of its 3×3 diagonal blocks (one per point);
 //   Cholesky: a sparse Cholesky factor of the matrix itself, refactored every step, in 3×3
 //     blocks on the symbolic structure (pattern of L, fill-reducing permutation) of
-//     local/global's factored matrix, whose point graph is the same (local_global.h).
+//     local/global's factored matrix, whose point graph is the same (local_global.h), by
+//     supernodes with dense kernels (supernodal.h).
 // The factored mass–spring matrix of local/global (M̃ + dt²·L, the same for x, y and z) was
 // tried as the preconditioner first and measured worse than block Jacobi: it counts every
 // spring as stiff in all three directions, while the system is stiff only along each
@@ -25,6 +26,7 @@
 #include <vector>
 
 #include "integrate.h"
+#include "supernodal.h"
 
 namespace drape::detail {
 
@@ -48,16 +50,16 @@ struct ImplicitScratch {
 
   // Auto's rule reads the sheet's stiffest mode, ω_max = 2/sheet_stable_step (Gershgorin).
   double omega_max = 0;
-  // The Cholesky preconditioner: L in 3×3 blocks (row-major, 9 values per block) on the
-  // pattern of local/global's point factor, `source`: per block of L, the offsets in
+  // The Cholesky preconditioner: L on the pattern of local/global's point factor, by
+  // supernodes (`factor`); `source`: per 3×3 block of that pattern, the offsets in
   // `system` of its three rows (−1: fill, not in the matrix). Built for one factor of
   // local/global (`structure`, `structure_factorisations`) and one pattern of `system`.
   const void* structure = nullptr;
   std::uint64_t structure_factorisations = 0;
   std::vector<std::array<int, 3>> source;
   std::vector<int> point_of;                 // factor row → point
-  std::vector<double> block_value, block_work, solve_work;
-  std::vector<int> head, next, first;        // the left-looking factorisation's lists
+  SupernodalFactor factor;
+  SupernodalFactor::Aligned solve_work;
 };
 
 template <class Real>

@@ -247,6 +247,17 @@ def test_local_global_drops_a_free_sheet_as_backward_euler_does():
     assert stats.converged and stats.unconverged_solves == 0 and stats.iterations >= 1
 
 
+def test_vertex_block_descent_iterations_are_a_knob():
+    # The budget set in Python is the one the step spends: solver_stats counts it per step.
+    assert "vertex_block_iterations" in drape.Integrator.VertexBlockDescent.knobs
+    for budget in (1, 3):
+        world = drape.World(dt=1 / 60, integrator="vertex_block_descent", vertex_block_iterations=budget, threads=1)
+        assert world.definition.vertex_block_iterations == budget
+        sheet = world.add_sheet(m=5, n=5, stiffness=1e3, pins=drape.corner_points(5, 5))
+        assert world.step(2).ok
+        assert world.solver_stats(sheet).iterations == budget
+
+
 def test_implicit_euler_preconditioner_is_a_knob_and_cholesky_converges_on_a_stiff_sheet():
     assert drape.Preconditioner("cholesky") == drape.Preconditioner.Cholesky
     with pytest.raises(ValueError, match="unknown preconditioner"):
