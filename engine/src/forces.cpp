@@ -422,7 +422,8 @@ void wave_rows(Sheet<Real>& s, Springs horizontal_springs, Springs vertical_spri
     update(cols, x, v, ConstVec3Ptr<Real>(f), s.inv_mass.data() + p);
     for (std::size_t& k = w.next_pin[level]; k < pins.point.size() && pins.point[k] < end; ++k)
       hold_pin(pins, k, x, v, pins.point[k] - p);
-    if (swept && i >= row_begin && i < row_end) include_points(*swept, x.x, x.y, x.z, cols);
+    if (swept && i >= row_begin && i < row_end && cols > 0)
+      include_extent(*swept, kernels::points_extent_of<Real>(x.x, x.y, x.z, cols));
   };
   // Step q of one substep's sweep, as in sweep_rows: row lo + q arrives (while there is
   // one), and row lo + q − R is final.
