@@ -73,7 +73,7 @@ namespace HWY_NAMESPACE {
 namespace kernels = simd::HWY_NAMESPACE;
 
 // Where a kernel finds k and ℓ of spring e: per-spring arrays, or one constant for the
-// whole run (Topology::uniform). The choice is made once per row, between two kernels, so
+// whole run (Topology::uniform). The choice is made once per row (arrive), so
 // the sweeps around them compile once for both (a template parameter would double this
 // file's code and compile time for a branch per row).
 template <class Real>
@@ -81,36 +81,32 @@ struct SpringSource {
   const Real* rest = nullptr;  // null: every spring has rest_same and k_same
   const Real* k = nullptr;
   Real rest_same = 0, k_same = 0;
+  bool per_spring() const { return rest != nullptr; }
+  template <bool PerSpring>
   SpringSource offset(std::size_t e) const {
     SpringSource s = *this;
-    if (rest) {
+    if constexpr (PerSpring) {
       s.rest += e;
       s.k += e;
     }
     return s;
   }
+  template <bool PerSpring>
   simd::SpringRun<Real>& into(simd::SpringRun<Real>& run) const {
-    return rest ? run.per_spring(rest, k) : run.same(rest_same, k_same);
+    if constexpr (PerSpring) return run.per_spring(rest, k);
+    return run.same(rest_same, k_same);
   }
 };
 
-template <bool Store, bool Add, bool Sub, class Real>
-HWY_INLINE void springs_of(const simd::SpringRun<Real>& run) {
-  if (run.rest)
-    kernels::springs_loop<true, Store, Add, Sub>(run);
-  else
-    kernels::springs_loop<false, Store, Add, Sub>(run);
-}
-
 // Horizontal springs of one row: forces go to a scratch row first, so the scatter into
 // both endpoints becomes a dependency-free second loop the compiler can vectorise.
-template <class Real, class Springs>
+template <bool PerSpring, class Real, class Springs>
 HWY_INLINE void row_springs(std::uint32_t n, const Real* __restrict x, const Real* __restrict y, const Real* __restrict z,
                         Springs springs, Real* __restrict sx, Real* __restrict sy, Real* __restrict sz,
                         Real* __restrict fx, Real* __restrict fy, Real* __restrict fz) {
   // spring j joins points j and j + 1
   auto run = simd::SpringRun<Real>::between(n, x, y, z, x + 1, y + 1, z + 1);
-  springs_of<true, false, false>(springs.into(run).store(sx, sy, sz));
+  kernels::springs_loop<PerSpring, true, false, false>(springs.template into<PerSpring>(run).store(sx, sy, sz));
   // point j gets +s[j] from the spring on its right and −s[j−1] from the one on its left
   if (n == 0) {
     fx[0] = fy[0] = fz[0] = Real(0);
@@ -133,15 +129,15 @@ HWY_INLINE void row_springs(std::uint32_t n, const Real* __restrict x, const Rea
 // the same point, and the kernel adds to both rows directly. A block of rows that does not
 // own row a (or b) still evaluates the spring, with the same arithmetic, and adds only to
 // its own row: forces of a row are then bit-identical however the sheet is split.
-template <bool ToA, bool ToB, class Real, class Springs>
+template <bool PerSpring, bool ToA, bool ToB, class Real, class Springs>
 HWY_INLINE void column_springs(std::uint32_t cols, const Real* xa, const Real* ya, const Real* za, const Real* xb,
                            const Real* yb, const Real* zb, Springs springs, Real* fxa, Real* fya, Real* fza, Real* fxb,
                            Real* fyb, Real* fzb) {
   auto run = simd::SpringRun<Real>::between(cols, xa, ya, za, xb, yb, zb);
-  springs.into(run);
+  springs.template into<PerSpring>(run);
   if constexpr (ToA) run.add(fxa, fya, fza);
   if constexpr (ToB) run.sub(fxb, fyb, fzb);
-  springs_of<false, ToA, ToB>(run);
+  kernels::springs_loop<PerSpring, false, ToA, ToB>(run);
 }
 
 // The rows terms 2–4 of terms/terms.h read when row q arrives, q − 2 to q (those the window
@@ -184,23 +180,24 @@ HWY_NOINLINE void terms_arrive(const RowTerms<Real>& terms, const RowWindow<Real
 // order of terms/terms.h: row q's own grid springs (which write, not add, its forces, so f
 // needs no clearing pass), the grid springs between rows q−1 and q, then the other terms.
 // A call per row (the vector kernels inline into it); inlined into every sweep it only
-// multiplies the code.
-template <class Real, class Springs, class Terms, class Window>
-HWY_NOINLINE void arrive(const Topology<Real>& t, Springs horizontal_springs, Springs vertical_springs, const Terms& terms,
-                   const Window& w, std::uint32_t q) {
+// multiplies the code. The spring source is picked once per row, for both directions.
+template <bool PerSpring, class Real, class Springs, class Terms, class Window>
+HWY_INLINE void arrive_with(const Topology<Real>& t, Springs horizontal_springs, Springs vertical_springs,
+                            const Terms& terms, const Window& w, std::uint32_t q) {
   const std::uint32_t n = t.n, cols = t.cols();
   if (w.owns(q)) {
     const ConstVec3Ptr<Real> x = w.x(q);
     const Vec3Ptr<Real> f = w.f(q);
-    row_springs(n, x.x, x.y, x.z, horizontal_springs.offset(std::size_t(q) * n), w.scratch.x, w.scratch.y,
-                w.scratch.z, f.x, f.y, f.z);
+    row_springs<PerSpring>(n, x.x, x.y, x.z, horizontal_springs.template offset<PerSpring>(std::size_t(q) * n),
+                           w.scratch.x, w.scratch.y, w.scratch.z, f.x, f.y, f.z);
   }
   if (q > w.read_lo) {
     const ConstVec3Ptr<Real> xa = w.x(q - 1), xb = w.x(q);
     const Vec3Ptr<Real> fa = w.f(q - 1), fb = w.f(q);
     auto vertical = [&]<bool ToA, bool ToB>() __attribute__((always_inline)) {
-      column_springs<ToA, ToB>(cols, xa.x, xa.y, xa.z, xb.x, xb.y, xb.z,
-                               vertical_springs.offset(std::size_t(q - 1) * cols), fa.x, fa.y, fa.z, fb.x, fb.y, fb.z);
+      column_springs<PerSpring, ToA, ToB>(cols, xa.x, xa.y, xa.z, xb.x, xb.y, xb.z,
+                                          vertical_springs.template offset<PerSpring>(std::size_t(q - 1) * cols), fa.x,
+                                          fa.y, fa.z, fb.x, fb.y, fb.z);
     };
     const bool to_a = w.owns(q - 1), to_b = w.owns(q);
     if (to_a && to_b)
@@ -211,6 +208,15 @@ HWY_NOINLINE void arrive(const Topology<Real>& t, Springs horizontal_springs, Sp
       vertical.template operator()<true, false>();
   }
   if constexpr (!std::is_same_v<Terms, NoRowTerms>) terms_arrive(terms, last_rows(w, q), q);
+}
+
+template <class Real, class Springs, class Terms, class Window>
+HWY_NOINLINE void arrive(const Topology<Real>& t, Springs horizontal_springs, Springs vertical_springs, const Terms& terms,
+                         const Window& w, std::uint32_t q) {
+  if (horizontal_springs.per_spring())
+    arrive_with<true>(t, horizontal_springs, vertical_springs, terms, w, q);
+  else
+    arrive_with<false>(t, horizontal_springs, vertical_springs, terms, w, q);
 }
 
 // Rows of one sheet's arrays (a whole sheet, or a block of it that reads all rows).
