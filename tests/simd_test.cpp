@@ -18,6 +18,7 @@
 #include <type_traits>
 #include <vector>
 
+#include "bounds.h"
 #include "simd/kernels.h"
 
 namespace drape {
@@ -114,6 +115,125 @@ void expect_springs_match_the_equation() {
 
 TEST(Simd, SpringKernelOfEveryTargetGivesEquationSixInDouble) { expect_springs_match_the_equation<double>(); }
 TEST(Simd, SpringKernelOfEveryTargetGivesEquationSixInFloat) { expect_springs_match_the_equation<float>(); }
+
+// The bounds pass (bounds.h, include_points) on every target, against the smallest and
+// largest value found by a plain search: equal, as min and max round nothing. Lengths from
+// 1 to 40 cover runs shorter than a vector, whole vectors and every remainder; a NaN first
+// coordinate gives a NaN box, a NaN later one is skipped.
+template <class Real>
+void expect_bounds_are_the_smallest_and_largest() {
+  std::mt19937 rng(151);
+  std::uniform_real_distribution<double> u(-5.0, 5.0);
+  const Real nan = std::numeric_limits<Real>::quiet_NaN();
+  for_each_target([&](std::int64_t) {
+    for (std::size_t count = 1; count <= 40; ++count)
+      for (int nan_at : {-1, 0, int(count) - 1, int(count) / 2}) {
+        std::vector<Real> a[3];
+        for (int c = 0; c < 3; ++c)
+          for (std::size_t i = 0; i < count; ++i) a[c].push_back(Real(u(rng)));
+        if (nan_at >= 0) a[1][std::size_t(nan_at)] = nan;
+        detail::Aabb box = detail::empty_box();
+        detail::include_points(box, a[0].data(), a[1].data(), a[2].data(), count);
+        for (int c = 0; c < 3; ++c) {
+          SCOPED_TRACE(testing::Message() << "count " << count << ", axis " << c << ", NaN at " << nan_at);
+          if (c == 1 && nan_at == 0) {
+            EXPECT_TRUE(std::isnan(box.lo[c]) && std::isnan(box.hi[c]));
+            continue;
+          }
+          double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+          for (Real v : a[c])
+            if (!std::isnan(v)) {
+              lo = std::min(lo, double(v));
+              hi = std::max(hi, double(v));
+            }
+          EXPECT_EQ(box.lo[c], lo);
+          EXPECT_EQ(box.hi[c], hi);
+        }
+      }
+  });
+}
+
+TEST(Simd, BoundsOfEveryTargetAreTheSmallestAndLargestCoordinate) { expect_bounds_are_the_smallest_and_largest<double>(); }
+TEST(Simd, BoundsOfEveryTargetAreTheSmallestAndLargestCoordinateInFloat) {
+  expect_bounds_are_the_smallest_and_largest<float>();
+}
+
+// Cell boxes from two rows of points: each holds its four corners and is no larger.
+template <class Real>
+void expect_cell_boxes_hold_their_corners() {
+  std::mt19937 rng(152);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for_each_target([&](std::int64_t) {
+    for (std::size_t cells : {std::size_t(1), std::size_t(3), std::size_t(8), std::size_t(21)}) {
+      std::vector<Real> a(cells + 1), b(cells + 1), lo(cells, Real(9)), hi(cells, Real(9));
+      for (std::size_t j = 0; j <= cells; ++j) {
+        a[j] = Real(u(rng));
+        b[j] = j % 5 == 2 ? a[j] : Real(u(rng));  // some ties
+      }
+      detail::simd::cell_boxes(detail::simd::CellRow<Real>{cells, a.data(), b.data(), lo.data(), hi.data()});
+      for (std::size_t j = 0; j < cells; ++j) {
+        const Real corners[4] = {a[j], a[j + 1], b[j], b[j + 1]};
+        EXPECT_EQ(lo[j], *std::min_element(corners, corners + 4)) << "cell " << j << " of " << cells;
+        EXPECT_EQ(hi[j], *std::max_element(corners, corners + 4)) << "cell " << j << " of " << cells;
+      }
+    }
+  });
+}
+
+TEST(Simd, CellBoxesOfEveryTargetHoldTheirFourCorners) { expect_cell_boxes_hold_their_corners<double>(); }
+TEST(Simd, CellBoxesOfEveryTargetHoldTheirFourCornersInFloat) { expect_cell_boxes_hold_their_corners<float>(); }
+
+// The contact gap test against the distance to the box's nearest point (the point clamped
+// into it): the same bits, as the gap along an axis is that difference exactly and the
+// squares are summed in the same order. Points inside, beside, and beyond a corner.
+template <class Real>
+void expect_box_gaps_are_distances_to_the_nearest_point() {
+  std::mt19937 rng(153);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const std::size_t count = 19;
+  std::vector<Real> lo[3], hi[3];
+  for (int c = 0; c < 3; ++c)
+    for (std::size_t t = 0; t < count; ++t) {
+      const Real e0 = Real(u(rng)), e1 = Real(u(rng));
+      lo[c].push_back(std::min(e0, e1));
+      hi[c].push_back(t % 7 == 0 ? std::min(e0, e1) : std::max(e0, e1));  // some flat boxes
+    }
+  for_each_target([&](std::int64_t) {
+    for (int trial = 0; trial < 8; ++trial) {
+      const Real p[3] = {Real(1.5 * u(rng)), Real(1.5 * u(rng)), Real(1.5 * u(rng))};
+      std::vector<Real> gap2(count, Real(-1));
+      detail::simd::BoxGaps<Real> q;
+      q.px = p[0];
+      q.py = p[1];
+      q.pz = p[2];
+      q.count = count;
+      q.lo_x = lo[0].data();
+      q.lo_y = lo[1].data();
+      q.lo_z = lo[2].data();
+      q.hi_x = hi[0].data();
+      q.hi_y = hi[1].data();
+      q.hi_z = hi[2].data();
+      q.gap2 = gap2.data();
+      detail::simd::box_gaps(q);
+      for (std::size_t t = 0; t < count; ++t) {
+        volatile Real square[3];  // rounded one by one: this file may contract a*b + c into an FMA
+        for (int c = 0; c < 3; ++c) {
+          const Real e = p[c] - std::clamp(p[c], lo[c][t], hi[c][t]);
+          square[c] = e * e;
+        }
+        const Real expected = square[0] + square[1] + square[2];
+        EXPECT_EQ(gap2[t], expected) << "box " << t;
+      }
+    }
+  });
+}
+
+TEST(Simd, BoxGapsOfEveryTargetAreSquaredDistancesToTheBoxes) {
+  expect_box_gaps_are_distances_to_the_nearest_point<double>();
+}
+TEST(Simd, BoxGapsOfEveryTargetAreSquaredDistancesToTheBoxesInFloat) {
+  expect_box_gaps_are_distances_to_the_nearest_point<float>();
+}
 
 // One step by hand: forward Euler moves x with the old v, semi-implicit Euler with the new.
 TEST(Simd, PointUpdateOfEveryTargetIsTheEulerStepByHand) {

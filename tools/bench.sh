@@ -60,7 +60,7 @@ for set in AVX2 SSE4; do
   DRAPE_SIMD_TARGET=$set "$build-portable/bench/drape_bench" "--benchmark_min_time=$min_time" \
     "--benchmark_repetitions=$repetitions" --benchmark_enable_random_interleaving=true \
     --benchmark_report_aggregates_only=true \
-    "--benchmark_filter=^BM_(Sheets48_f|Fig13/semi_implicit_euler/f64/1024|CeilingSheets48$|ArithmeticBound)" \
+    "--benchmark_filter=^BM_(Sheets48_f|Fig13/semi_implicit_euler/f64/1024|Paper1000Points|CeilingSheets48$|ArithmeticBound)" \
     --benchmark_out="$out.tmp" --benchmark_out_format=json >/dev/null
   mv "$out.tmp" "$out"
   forced_json+=("$out")

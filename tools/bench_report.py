@@ -39,6 +39,7 @@ TARGET_OVER_BULLET = 30.0         # the stacked sheets, drape ÷ Bullet per simu
 TARGET_SCENES_SPEEDUP = 10.0      # each shipped many-sheet scene against docs/scenes-baseline.json
 TARGET_PORTABLE_FRACTION = 0.90  # issue 15: a DRAPE_NATIVE=OFF build within 10 % of the native one
 TARGET_F32_OVER_F64 = 1.8  # issue 15: 48 sheets in float32 at least 1.8× float64, on AVX2
+TARGET_AVX2_SPEEDUP = 3.0  # issue 15: on AVX2, the 1024-point step and 48 sheets ≥ 3× docs/simd-baseline.json
 
 PAPER_INTEGRATOR = "semi_implicit_euler"
 SINGLE = " (step(1))"  # marks the Fig 13 series stepped one substep per call
@@ -167,8 +168,9 @@ def verdict(met):
 
 class Report:
     def __init__(self, context, runs, build_dir, img_dir, md_dir, sweep_ranks=None, portable=None, forced=(),
-                 scenes_baseline=None, scenes_dir="scenes"):
+                 scenes_baseline=None, scenes_dir="scenes", simd_baseline=None):
         self.context, self.runs = context, runs
+        self.simd_baseline = simd_baseline  # tools/simd_baseline.py's JSON, or None
         self.scenes_baseline = scenes_baseline  # tools/scenes_baseline.py's JSON, or None
         self.scenes_dir = scenes_dir
         self.portable = portable  # (context, runs) of a DRAPE_NATIVE=OFF build's run, or None
@@ -669,6 +671,40 @@ class Report:
                             f"≥ {TARGET_F32_OVER_F64:.1f}×", ratio >= TARGET_F32_OVER_F64,
                             "" if ratio >= TARGET_F32_OVER_F64 else f"{TARGET_F32_OVER_F64 - ratio:.2f}× short")
 
+    def avx2_against_baseline(self):
+        """Issue 15: the portable build held to AVX2 against "today" (tools/simd_baseline.py's JSON)."""
+        avx2 = next((r for ctx, r in self.forced if ctx.get("simd_target") == "AVX2"), None)
+        record = self.simd_baseline
+        if avx2 is None:
+            return
+        if not record:
+            self.out("No AVX2 baseline (docs/simd-baseline.json, written by `tools/simd_baseline.py`) was found: "
+                     "issue 15's 3× on AVX2 is not judged.", "")
+            return
+        base = runs_of(record.get("results", {}))
+        rows = [("1024-point sheet, one substep per call", "BM_Paper1000Points/32"),
+                ("48 sheets of 64×64, float64, 1 thread", "BM_Sheets48_f64/threads:1/real_time"),
+                ("48 sheets of 64×64, float32, 1 thread", "BM_Sheets48_f32/threads:1/real_time")]
+        load = ", ".join(f"{x:.2f}" for x in record.get("load_avg_before", []))
+        self.out("## AVX2 against the engine before the vector kernels", "",
+                 f"Issue 15's \"today\": the engine of {record['commit'][:7]} (before the Highway kernels) built with "
+                 f"`-march={record.get('march', '?')}` (what `-march=native` gives on a CPU with AVX2 and no AVX-512) "
+                 f"by `tools/simd_baseline.py` on {record.get('date', '?')} on {record['machine'].get('cpu', '?')} "
+                 f"([simd-baseline.json](simd-baseline.json), load average {load} when it started), against this "
+                 f"run's portable build held to AVX2 (`DRAPE_SIMD_TARGET=AVX2`). M point-steps/s.", "",
+                 "| benchmark | baseline | AVX2 now | × |", "|---|---|---|---|")
+        for what, name in rows:
+            b, r = base.get(name), avx2.get(name)
+            ratio = r.rate / b.rate if b and r and b.rate and r.rate else None
+            self.out(f"| {what} | {mrate(b.rate) if b and b.rate else '–'} | "
+                     f"{f'{mrate(r.rate)}{cv_text(r)}' if r and r.rate else '–'} | {f'{ratio:.2f}×' if ratio else '–'} |")
+            if "float32" not in what:
+                self.target(f"{what} on AVX2 ÷ before the vector kernels", f"{ratio:.2f}×" if ratio else "–",
+                            f"≥ {TARGET_AVX2_SPEEDUP:.0f}×", ratio >= TARGET_AVX2_SPEEDUP if ratio else None,
+                            "" if not ratio or ratio >= TARGET_AVX2_SPEEDUP
+                            else f"{TARGET_AVX2_SPEEDUP / ratio:.2f}× short")
+        self.out("")
+
     def precision(self):
         rows = []
         for name, run in sorted(self.runs.items()):
@@ -1148,6 +1184,7 @@ class Report:
         self.ceiling()
         self.portable_build()
         self.forced_targets()
+        self.avx2_against_baseline()
         self.threads()
         self.ranks()
         self.precision()
@@ -1213,6 +1250,8 @@ def main():
                     help="drape_bench JSONs of the portable build run with DRAPE_SIMD_TARGET set (one per set)")
     ap.add_argument("--scenes-baseline", default="docs/scenes-baseline.json",
                     help="tools/scenes_baseline.py's JSON, the shipped scenes' rates to divide by (ratios left out if absent)")
+    ap.add_argument("--simd-baseline", default="docs/simd-baseline.json",
+                    help="tools/simd_baseline.py's JSON, issue 15's rates before the vector kernels (left out if absent)")
     ap.add_argument("--sweep-ranks", default="docs/sweep_ranks.json",
                     help="tools/bench_ranks.py's JSON (the section is left out when the file is missing)")
     args = ap.parse_args()
@@ -1223,7 +1262,8 @@ def main():
     scenes_baseline = optional_json(args.scenes_baseline)
     report = Report(context, runs, args.build_dir, args.img, os.path.dirname(os.path.abspath(args.out)), sweep_ranks,
                     portable, forced, scenes_baseline,
-                    os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "scenes"))
+                    os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "scenes"),
+                    optional_json(args.simd_baseline))
     text = report.render(args.command)
     tmp = args.out + ".tmp"
     with open(tmp, "w") as f:

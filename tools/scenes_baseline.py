@@ -26,6 +26,7 @@ import sys
 import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from baseline import Recorder  # noqa: E402
 from bench_report import compiler_and_flags  # noqa: E402
 from machine import cpu_model  # noqa: E402
 
@@ -36,22 +37,8 @@ CMAKE_OPTIONS = ["-DCMAKE_BUILD_TYPE=Release", "-DDRAPE_NATIVE=ON", "-DDRAPE_WER
 BENCH_SOURCE = "bench/bench_scenes.cpp"
 
 
-def fail(message):
-    print(f"scenes_baseline: {message}", file=sys.stderr)
-    sys.exit(1)
-
-
-def git(repo, *args):
-    result = subprocess.run(["git", "-C", repo, *args], capture_output=True, text=True)
-    if result.returncode != 0:
-        fail(f"git {' '.join(args)}: {result.stderr.strip()}")
-    return result.stdout.strip()
-
-
-def run(command, **kwargs):
-    print("scenes_baseline: " + " ".join(command), file=sys.stderr)
-    if subprocess.run(command, **kwargs).returncode != 0:
-        fail(f"failed: {' '.join(command)}")
+recorder = Recorder("scenes_baseline")
+fail, git, run = recorder.fail, recorder.git, recorder.run
 
 
 def main():
@@ -126,13 +113,7 @@ def main():
         "note": "a one-off measurement on a shared 2-core machine; the load averages say how busy it was",
         "results": results,
     }
-    os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
-    tmp = args.out + ".tmp"
-    with open(tmp, "w") as f:
-        json.dump(record, f, indent=1)
-        f.write("\n")
-    os.replace(tmp, args.out)
-    print(f"scenes_baseline: wrote {args.out}")
+    recorder.write(record, args.out)
 
 
 if __name__ == "__main__":

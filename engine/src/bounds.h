@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "sheet_data.h"
+#include "simd/kernels.h"
 
 namespace drape::detail {
 
@@ -25,27 +26,26 @@ struct Aabb {
   }
 };
 
-// Grows `box` to contain points [0, count) of the three coordinate arrays. The host stage
-// and contact-free frames read every point of every sheet each substep: the min/max
-// reduction is an `omp simd` loop, so it runs as packed min/max (-fopenmp-simd). Comparisons
-// with NaN are false, so a NaN coordinate is skipped unless it is the first; a NaN first
-// point, or a NaN box, gives a NaN box, which overlaps nothing.
+// Grows `box` to contain the extent of some points (simd/kernels.h): a NaN bound, of
+// either, stays NaN, and a NaN box overlaps nothing.
 template <class Real>
-void include_points(Aabb& box, const Real* x, const Real* y, const Real* z, std::size_t count) {
-  if (count == 0) return;
-  const Real* axes[3] = {x, y, z};
+void include_extent(Aabb& box, const simd::Extent<Real>& e) {
   for (int k = 0; k < 3; ++k) {
-    const Real* a = axes[k];
-    Real low = a[0], high = a[0];
-#pragma omp simd reduction(min : low) reduction(max : high)
-    for (std::size_t i = 1; i < count; ++i) {
-      low = a[i] < low ? a[i] : low;
-      high = a[i] > high ? a[i] : high;
-    }
-    const double lo = low, hi = high;
+    const double lo = e.lo[k], hi = e.hi[k];
     box.lo[k] = std::isnan(lo) || std::isnan(box.lo[k]) ? lo + box.lo[k] : std::min(box.lo[k], lo);
     box.hi[k] = std::isnan(hi) || std::isnan(box.hi[k]) ? hi + box.hi[k] : std::max(box.hi[k], hi);
   }
+}
+
+// Grows `box` to contain points [0, count) of the three coordinate arrays: the host stage
+// and contact-free frames read every point of every sheet each substep, so the min/max
+// runs as an explicit vector kernel on the widest instruction set the CPU has (one dispatch
+// per call). A NaN coordinate is skipped unless it is the first; a NaN first point gives a
+// NaN box.
+template <class Real>
+void include_points(Aabb& box, const Real* x, const Real* y, const Real* z, std::size_t count) {
+  if (count == 0) return;
+  include_extent(box, simd::points_extent(x, y, z, count));
 }
 
 // Grows `box` to contain `other` (a NaN bound stays NaN).

@@ -19,6 +19,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <type_traits>
 #include <utility>
 
 #include "obstacles.h"
@@ -72,33 +73,40 @@ namespace HWY_NAMESPACE {
 namespace kernels = simd::HWY_NAMESPACE;
 
 // Where a kernel finds k and ℓ of spring e: per-spring arrays, or one constant for the
-// whole run (Topology::uniform), chosen once per sheet so the loops carry no branch.
+// whole run (Topology::uniform). The choice is made once per row (arrive), so
+// the sweeps around them compile once for both (a template parameter would double this
+// file's code and compile time for a branch per row).
 template <class Real>
-struct PerSpring {
-  static constexpr bool per_spring = true;
-  const Real* rest;
-  const Real* k;
-  PerSpring offset(std::size_t e) const { return {rest + e, k + e}; }
-  simd::SpringRun<Real>& into(simd::SpringRun<Real>& run) const { return run.per_spring(rest, k); }
-};
-
-template <class Real>
-struct SameSpring {
-  static constexpr bool per_spring = false;
-  Real rest, k;
-  SameSpring offset(std::size_t) const { return *this; }
-  simd::SpringRun<Real>& into(simd::SpringRun<Real>& run) const { return run.same(rest, k); }
+struct SpringSource {
+  const Real* rest = nullptr;  // null: every spring has rest_same and k_same
+  const Real* k = nullptr;
+  Real rest_same = 0, k_same = 0;
+  bool per_spring() const { return rest != nullptr; }
+  template <bool PerSpring>
+  SpringSource offset(std::size_t e) const {
+    SpringSource s = *this;
+    if constexpr (PerSpring) {
+      s.rest += e;
+      s.k += e;
+    }
+    return s;
+  }
+  template <bool PerSpring>
+  simd::SpringRun<Real>& into(simd::SpringRun<Real>& run) const {
+    if constexpr (PerSpring) return run.per_spring(rest, k);
+    return run.same(rest_same, k_same);
+  }
 };
 
 // Horizontal springs of one row: forces go to a scratch row first, so the scatter into
 // both endpoints becomes a dependency-free second loop the compiler can vectorise.
-template <class Real, class Springs>
-inline void row_springs(std::uint32_t n, const Real* __restrict x, const Real* __restrict y, const Real* __restrict z,
+template <bool PerSpring, class Real, class Springs>
+HWY_INLINE void row_springs(std::uint32_t n, const Real* __restrict x, const Real* __restrict y, const Real* __restrict z,
                         Springs springs, Real* __restrict sx, Real* __restrict sy, Real* __restrict sz,
                         Real* __restrict fx, Real* __restrict fy, Real* __restrict fz) {
   // spring j joins points j and j + 1
   auto run = simd::SpringRun<Real>::between(n, x, y, z, x + 1, y + 1, z + 1);
-  kernels::springs_loop<Springs::per_spring, true, false, false>(springs.into(run).store(sx, sy, sz));
+  kernels::springs_loop<PerSpring, true, false, false>(springs.template into<PerSpring>(run).store(sx, sy, sz));
   // point j gets +s[j] from the spring on its right and −s[j−1] from the one on its left
   if (n == 0) {
     fx[0] = fy[0] = fz[0] = Real(0);
@@ -121,39 +129,75 @@ inline void row_springs(std::uint32_t n, const Real* __restrict x, const Real* _
 // the same point, and the kernel adds to both rows directly. A block of rows that does not
 // own row a (or b) still evaluates the spring, with the same arithmetic, and adds only to
 // its own row: forces of a row are then bit-identical however the sheet is split.
-template <bool ToA, bool ToB, class Real, class Springs>
-inline void column_springs(std::uint32_t cols, const Real* xa, const Real* ya, const Real* za, const Real* xb,
+template <bool PerSpring, bool ToA, bool ToB, class Real, class Springs>
+HWY_INLINE void column_springs(std::uint32_t cols, const Real* xa, const Real* ya, const Real* za, const Real* xb,
                            const Real* yb, const Real* zb, Springs springs, Real* fxa, Real* fya, Real* fza, Real* fxb,
                            Real* fyb, Real* fzb) {
   auto run = simd::SpringRun<Real>::between(cols, xa, ya, za, xb, yb, zb);
-  springs.into(run);
+  springs.template into<PerSpring>(run);
   if constexpr (ToA) run.add(fxa, fya, fza);
   if constexpr (ToB) run.sub(fxb, fyb, fzb);
-  kernels::springs_loop<Springs::per_spring, false, ToA, ToB>(run);
+  kernels::springs_loop<PerSpring, false, ToA, ToB>(run);
+}
+
+// The rows terms 2–4 of terms/terms.h read when row q arrives, q − 2 to q (those the window
+// can read), as plain pointers.
+template <class Real>
+struct LastRows {
+  ConstVec3Ptr<Real> xs[3] = {}, vs[3] = {};
+  Vec3Ptr<Real> fs[3] = {};
+  std::uint32_t first = 0;  // the row in slot 0, q − 2 (modulo 2³², so q − 1 and q stay in 1, 2)
+  ConstVec3Ptr<Real> x(std::uint32_t i) const { return xs[i - first]; }
+  ConstVec3Ptr<Real> v(std::uint32_t i) const { return vs[i - first]; }
+  Vec3Ptr<Real> f(std::uint32_t i) const { return fs[i - first]; }
+};
+
+template <class Real, class Access>
+RowWindow<Real, LastRows<Real>> last_rows(const RowWindow<Real, Access>& w, std::uint32_t q) {
+  LastRows<Real> rows;
+  rows.first = q - 2;
+  for (std::uint32_t slot = 0; slot < 3; ++slot) {
+    const std::uint32_t i = q - 2 + slot;
+    if (i > q || i < w.read_lo) continue;  // above row 0, or above what the window holds
+    rows.xs[slot] = w.x(i);
+    rows.vs[slot] = w.v(i);
+    rows.fs[slot] = w.f(i);
+  }
+  return {rows, w.read_lo, w.own_lo, w.own_hi, w.scratch};
+}
+
+// Terms 2–4 on the rows they read, compiled for this target (their row kernels are forced
+// inline, DRAPE_ROW_INLINE) and once per precision: not inlined into every kind of sweep,
+// window and spring parameters, which made this file's compile three times as long for
+// the same code. One call per row.
+template <class Real>
+HWY_NOINLINE void terms_arrive(const RowTerms<Real>& terms, const RowWindow<Real, LastRows<Real>>& w,
+                               std::uint32_t q) {
+  terms.arrive(w, q);
 }
 
 // Row q arrives in a sweep: every row stencil whose last row is q adds its forces, in the
 // order of terms/terms.h: row q's own grid springs (which write, not add, its forces, so f
 // needs no clearing pass), the grid springs between rows q−1 and q, then the other terms.
-// Flattened: the terms' templates (terms/) are defined outside this file's per-target code,
-// so a call left to them would run the build's baseline instruction set; inlined here they
-// compile, and vectorise, for this target.
-template <class Real, class Springs, class Terms, class Window>
-HWY_FLATTEN inline void arrive(const Topology<Real>& t, Springs horizontal_springs, Springs vertical_springs, const Terms& terms,
-                   const Window& w, std::uint32_t q) {
+// A call per row (the vector kernels inline into it); inlined into every sweep it only
+// multiplies the code. The spring source is picked once per row, for both directions.
+template <bool PerSpring, class Real, class Springs, class Terms, class Window>
+HWY_INLINE void arrive_with(const Topology<Real>& t, Springs horizontal_springs, Springs vertical_springs,
+                            const Terms& terms, const Window& w, std::uint32_t q) {
   const std::uint32_t n = t.n, cols = t.cols();
   if (w.owns(q)) {
     const ConstVec3Ptr<Real> x = w.x(q);
     const Vec3Ptr<Real> f = w.f(q);
-    row_springs(n, x.x, x.y, x.z, horizontal_springs.offset(std::size_t(q) * n), w.scratch.x, w.scratch.y,
-                w.scratch.z, f.x, f.y, f.z);
+    row_springs<PerSpring>(n, x.x, x.y, x.z, horizontal_springs.template offset<PerSpring>(std::size_t(q) * n),
+                           w.scratch.x, w.scratch.y, w.scratch.z, f.x, f.y, f.z);
   }
   if (q > w.read_lo) {
     const ConstVec3Ptr<Real> xa = w.x(q - 1), xb = w.x(q);
     const Vec3Ptr<Real> fa = w.f(q - 1), fb = w.f(q);
-    auto vertical = [&]<bool ToA, bool ToB>() {
-      column_springs<ToA, ToB>(cols, xa.x, xa.y, xa.z, xb.x, xb.y, xb.z,
-                               vertical_springs.offset(std::size_t(q - 1) * cols), fa.x, fa.y, fa.z, fb.x, fb.y, fb.z);
+    auto vertical = [&]<bool ToA, bool ToB>() __attribute__((always_inline)) {
+      column_springs<PerSpring, ToA, ToB>(cols, xa.x, xa.y, xa.z, xb.x, xb.y, xb.z,
+                                          vertical_springs.template offset<PerSpring>(std::size_t(q - 1) * cols), fa.x,
+                                          fa.y, fa.z, fb.x, fb.y, fb.z);
     };
     const bool to_a = w.owns(q - 1), to_b = w.owns(q);
     if (to_a && to_b)
@@ -163,7 +207,16 @@ HWY_FLATTEN inline void arrive(const Topology<Real>& t, Springs horizontal_sprin
     else if (to_a)
       vertical.template operator()<true, false>();
   }
-  terms.arrive(w, q);
+  if constexpr (!std::is_same_v<Terms, NoRowTerms>) terms_arrive(terms, last_rows(w, q), q);
+}
+
+template <class Real, class Springs, class Terms, class Window>
+HWY_NOINLINE void arrive(const Topology<Real>& t, Springs horizontal_springs, Springs vertical_springs, const Terms& terms,
+                         const Window& w, std::uint32_t q) {
+  if (horizontal_springs.per_spring())
+    arrive_with<true>(t, horizontal_springs, vertical_springs, terms, w, q);
+  else
+    arrive_with<false>(t, horizontal_springs, vertical_springs, terms, w, q);
 }
 
 // Rows of one sheet's arrays (a whole sheet, or a block of it that reads all rows).
@@ -204,18 +257,19 @@ void sweep_rows(const Topology<Real>& t, Springs horizontal_springs, Springs ver
   for (std::uint32_t i = last + 1 >= begin + reach ? last + 1 - reach : begin; i < end; ++i) done(i);
 }
 
-// Calls body(horizontal springs, vertical springs) with the spring parameters picked once
-// per call: constants when the topology is uniform, per-spring arrays otherwise.
+// Calls body(horizontal springs, vertical springs) with the spring parameters of the
+// sheet: constants when the topology is uniform, per-spring arrays otherwise.
 template <class Real, class Body>
 void with_springs(const Topology<Real>& t, Body body) {
   if (t.uniform) {
     const auto& u = *t.uniform;
-    body(SameSpring<Real>{u.rest_h, u.stiffness}, SameSpring<Real>{u.rest_v, u.stiffness});
+    body(SpringSource<Real>{nullptr, nullptr, u.rest_h, u.stiffness},
+         SpringSource<Real>{nullptr, nullptr, u.rest_v, u.stiffness});
   } else {
     const Real* rest = t.rest_length.data();
     const Real* k = t.stiffness.data();
     const std::size_t vertical = t.horizontal_count();
-    body(PerSpring<Real>{rest, k}, PerSpring<Real>{rest + vertical, k + vertical});
+    body(SpringSource<Real>{rest, k}, SpringSource<Real>{rest + vertical, k + vertical});
   }
 }
 
@@ -265,7 +319,7 @@ struct NoUpdate {
 template <bool SemiImplicit, class Real>
 struct EulerUpdate {
   simd::EulerStep<Real> step;
-  void operator()(std::size_t count, Vec3Ptr<Real> x, Vec3Ptr<Real> v, ConstVec3Ptr<Real> f,
+  HWY_INLINE void operator()(std::size_t count, Vec3Ptr<Real> x, Vec3Ptr<Real> v, ConstVec3Ptr<Real> f,
                   const Real* inv_mass) const {
     const auto u = simd::PointUpdate<Real>::of(count, x.x, x.y, x.z, v.x, v.y, v.z, f.x, f.y, f.z, inv_mass).step(step);
     kernels::update_loop<SemiImplicit>(u);
@@ -422,7 +476,8 @@ void wave_rows(Sheet<Real>& s, Springs horizontal_springs, Springs vertical_spri
     update(cols, x, v, ConstVec3Ptr<Real>(f), s.inv_mass.data() + p);
     for (std::size_t& k = w.next_pin[level]; k < pins.point.size() && pins.point[k] < end; ++k)
       hold_pin(pins, k, x, v, pins.point[k] - p);
-    if (swept && i >= row_begin && i < row_end) include_points(*swept, x.x, x.y, x.z, cols);
+    if (swept && i >= row_begin && i < row_end && cols > 0)
+      include_extent(*swept, kernels::points_extent_of<Real>(x.x, x.y, x.z, cols));
   };
   // Step q of one substep's sweep, as in sweep_rows: row lo + q arrives (while there is
   // one), and row lo + q − R is final.

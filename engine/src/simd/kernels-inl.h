@@ -94,7 +94,11 @@ HWY_INLINE void springs_at(Lanes l, const SpringRun<Real>& r, std::size_t e) {
 
 template <bool PerSpring, bool Store, bool Add, bool Sub, class Real>
 HWY_INLINE void springs_loop(const SpringRun<Real>& r) {
-  over_lanes<Real>(r.count, [&](auto lanes, std::size_t e) { springs_at<PerSpring, Store, Add, Sub>(lanes, r, e); });
+  // forced inline, like the kernels: GCC's inliner otherwise leaves a call per vector in a
+  // sweep that has grown large
+  over_lanes<Real>(r.count, [&](auto lanes, std::size_t e) __attribute__((always_inline)) {
+    springs_at<PerSpring, Store, Add, Sub>(lanes, r, e);
+  });
 }
 
 // The outputs and the parameters' source picked once per run, not per spring.
@@ -139,7 +143,8 @@ HWY_INLINE void update_at(Lanes l, const PointUpdate<Real>& u, std::size_t i) {
 
 template <bool SemiImplicit, class Real>
 HWY_INLINE void update_loop(const PointUpdate<Real>& u) {
-  over_lanes<Real>(u.count, [&](auto lanes, std::size_t i) { update_at<SemiImplicit>(lanes, u, i); });
+  over_lanes<Real>(u.count,
+                   [&](auto lanes, std::size_t i) __attribute__((always_inline)) { update_at<SemiImplicit>(lanes, u, i); });
 }
 
 template <class Real>
@@ -148,6 +153,79 @@ HWY_INLINE void update_run(const PointUpdate<Real>& u) {
     update_loop<true>(u);
   else
     update_loop<false>(u);
+}
+
+// The extent of a[0, count) (kernels.h): every lane starts from a[0], so the lanes are all
+// NaN (a[0] is) or none is; the last vector overlaps the one before it where count is not
+// a multiple of the width, which min and max do not mind.
+template <class Real>
+HWY_INLINE void extent_of(const Real* a, std::size_t count, Real& lo, Real& hi) {
+  const hn::ScalableTag<Real> d;
+  const std::size_t lanes = hn::Lanes(d);
+  Real low = a[0], high = a[0];
+  if (count < lanes) {
+    for (std::size_t i = 1; i < count; ++i) {
+      low = a[i] < low ? a[i] : low;
+      high = a[i] > high ? a[i] : high;
+    }
+    lo = low;
+    hi = high;
+    return;
+  }
+  auto vlo = hn::Set(d, low), vhi = vlo;
+  auto take = [&](std::size_t i) __attribute__((always_inline)) {
+    const auto v = hn::LoadU(d, a + i);
+    vlo = hn::IfThenElse(hn::Lt(v, vlo), v, vlo);
+    vhi = hn::IfThenElse(hn::Gt(v, vhi), v, vhi);
+  };
+  std::size_t i = 0;
+  for (; i + lanes <= count; i += lanes) take(i);
+  if (i < count) take(count - lanes);
+  lo = hn::GetLane(hn::MinOfLanes(d, vlo));
+  hi = hn::GetLane(hn::MaxOfLanes(d, vhi));
+}
+
+template <class Real>
+HWY_INLINE Extent<Real> points_extent_of(const Real* x, const Real* y, const Real* z, std::size_t count) {
+  Extent<Real> e;
+  extent_of(x, count, e.lo[0], e.hi[0]);
+  extent_of(y, count, e.lo[1], e.hi[1]);
+  extent_of(z, count, e.lo[2], e.hi[2]);
+  return e;
+}
+
+// std::min(x, y) is x unless y < x; std::max(x, y) is x unless x < y.
+template <class V>
+HWY_INLINE V first_min(V x, V y) { return hn::IfThenElse(hn::Lt(y, x), y, x); }
+template <class V>
+HWY_INLINE V first_max(V x, V y) { return hn::IfThenElse(hn::Lt(x, y), y, x); }
+
+template <class Real>
+HWY_INLINE void cell_boxes_of(const CellRow<Real>& r) {
+  over_lanes<Real>(r.count, [&](auto l, std::size_t j) __attribute__((always_inline)) {
+    const auto a0 = l.load(r.a + j), a1 = l.load(r.a + j + 1), b0 = l.load(r.b + j), b1 = l.load(r.b + j + 1);
+    l.store(first_min(first_min(a0, a1), first_min(b0, b1)), r.lo + j);
+    l.store(first_max(first_max(a0, a1), first_max(b0, b1)), r.hi + j);
+  });
+}
+
+// max(a, 0) as (a + |a|)/2: exact, and the same bits as that scalar expression, NaN included.
+template <class V>
+HWY_INLINE V positive_part(V a) {
+  const hn::DFromV<V> d;
+  return hn::Mul(hn::Add(a, hn::Abs(a)), hn::Set(d, hn::TFromV<V>(0.5)));
+}
+
+template <class Real>
+HWY_INLINE void box_gaps_of(const BoxGaps<Real>& q) {
+  over_lanes<Real>(q.count, [&](auto l, std::size_t t) __attribute__((always_inline)) {
+    const auto d = l.d;
+    const auto px = hn::Set(d, q.px), py = hn::Set(d, q.py), pz = hn::Set(d, q.pz);
+    const auto ex = hn::Add(positive_part(hn::Sub(l.load(q.lo_x + t), px)), positive_part(hn::Sub(px, l.load(q.hi_x + t))));
+    const auto ey = hn::Add(positive_part(hn::Sub(l.load(q.lo_y + t), py)), positive_part(hn::Sub(py, l.load(q.hi_y + t))));
+    const auto ez = hn::Add(positive_part(hn::Sub(l.load(q.lo_z + t), pz)), positive_part(hn::Sub(pz, l.load(q.hi_z + t))));
+    l.store(hn::Add(hn::Add(hn::Mul(ex, ex), hn::Mul(ey, ey)), hn::Mul(ez, ez)), q.gap2 + t);
+  });
 }
 
 }  // namespace HWY_NAMESPACE

@@ -20,6 +20,16 @@ void SpringsF64(const SpringRun<double>& r) { springs_run(r); }
 void SpringsF32(const SpringRun<float>& r) { springs_run(r); }
 void UpdateF64(const PointUpdate<double>& u) { update_run(u); }
 void UpdateF32(const PointUpdate<float>& u) { update_run(u); }
+Extent<double> ExtentF64(const double* x, const double* y, const double* z, std::size_t count) {
+  return points_extent_of(x, y, z, count);
+}
+Extent<float> ExtentF32(const float* x, const float* y, const float* z, std::size_t count) {
+  return points_extent_of(x, y, z, count);
+}
+void CellBoxesF64(const CellRow<double>& r) { cell_boxes_of(r); }
+void CellBoxesF32(const CellRow<float>& r) { cell_boxes_of(r); }
+void BoxGapsF64(const BoxGaps<double>& q) { box_gaps_of(q); }
+void BoxGapsF32(const BoxGaps<float>& q) { box_gaps_of(q); }
 const char* Name() { return hwy::TargetName(HWY_TARGET); }
 
 }  // namespace HWY_NAMESPACE
@@ -33,12 +43,28 @@ HWY_EXPORT(SpringsF64);
 HWY_EXPORT(SpringsF32);
 HWY_EXPORT(UpdateF64);
 HWY_EXPORT(UpdateF32);
+HWY_EXPORT(ExtentF64);
+HWY_EXPORT(ExtentF32);
+HWY_EXPORT(CellBoxesF64);
+HWY_EXPORT(CellBoxesF32);
+HWY_EXPORT(BoxGapsF64);
+HWY_EXPORT(BoxGapsF32);
 HWY_EXPORT(Name);
 
 void springs(const SpringRun<double>& run) { HWY_DYNAMIC_DISPATCH(SpringsF64)(run); }
 void springs(const SpringRun<float>& run) { HWY_DYNAMIC_DISPATCH(SpringsF32)(run); }
 void update_points(const PointUpdate<double>& u) { HWY_DYNAMIC_DISPATCH(UpdateF64)(u); }
 void update_points(const PointUpdate<float>& u) { HWY_DYNAMIC_DISPATCH(UpdateF32)(u); }
+Extent<double> points_extent(const double* x, const double* y, const double* z, std::size_t count) {
+  return HWY_DYNAMIC_DISPATCH(ExtentF64)(x, y, z, count);
+}
+Extent<float> points_extent(const float* x, const float* y, const float* z, std::size_t count) {
+  return HWY_DYNAMIC_DISPATCH(ExtentF32)(x, y, z, count);
+}
+void cell_boxes(const CellRow<double>& row) { HWY_DYNAMIC_DISPATCH(CellBoxesF64)(row); }
+void cell_boxes(const CellRow<float>& row) { HWY_DYNAMIC_DISPATCH(CellBoxesF32)(row); }
+void box_gaps(const BoxGaps<double>& q) { HWY_DYNAMIC_DISPATCH(BoxGapsF64)(q); }
+void box_gaps(const BoxGaps<float>& q) { HWY_DYNAMIC_DISPATCH(BoxGapsF32)(q); }
 const char* target_name() { return HWY_DYNAMIC_DISPATCH(Name)(); }
 
 std::vector<std::int64_t> supported_targets() { return hwy::SupportedAndGeneratedTargets(); }

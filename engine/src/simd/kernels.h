@@ -130,6 +130,46 @@ struct PointUpdate {
 void update_points(const PointUpdate<double>& u);
 void update_points(const PointUpdate<float>& u);
 
+// The smallest and the largest of a[0, count), count ≥ 1, as the scalar loop
+//   lo = hi = a[0];  for i ≥ 1: lo = a[i] < lo ? a[i] : lo;  hi = a[i] > hi ? a[i] : hi;
+// gives them: a NaN after the first value is skipped, a NaN first value gives NaN. Exact on
+// every target (min and max round nothing); only which of −0 and +0 wins a tie may differ.
+// Bounding boxes (bounds.h) take x, y and z in one call.
+template <class Real>
+struct Extent {
+  Real lo[3] = {0, 0, 0};
+  Real hi[3] = {0, 0, 0};
+};
+Extent<double> points_extent(const double* x, const double* y, const double* z, std::size_t count);
+Extent<float> points_extent(const float* x, const float* y, const float* z, std::size_t count);
+
+// The boxes of a row of grid cells: cell j of `count` spans points j, j + 1 of rows a and b
+// (one coordinate), lo[j] = the smallest of the four as std::min gives it (the first on a
+// tie or a NaN), hi[j] the largest as std::max does.
+template <class Real>
+struct CellRow {
+  std::size_t count = 0;
+  const Real *a = nullptr, *b = nullptr;
+  Real *lo = nullptr, *hi = nullptr;
+};
+void cell_boxes(const CellRow<double>& row);
+void cell_boxes(const CellRow<float>& row);
+
+// The contact gap test: gap2[t] = squared distance from point p to box t, t < count, the
+// box [lo, hi] per axis (lo ≤ hi). Along an axis the gap is max(lo − p, 0) + max(p − hi, 0)
+// (one of the two is zero), each max taken as (a + |a|)/2, exact; then gx² + gy² + gz² in
+// that order, so every target gives the same bits as that scalar expression.
+template <class Real>
+struct BoxGaps {
+  Real px = 0, py = 0, pz = 0;
+  std::size_t count = 0;
+  const Real *lo_x = nullptr, *lo_y = nullptr, *lo_z = nullptr;
+  const Real *hi_x = nullptr, *hi_y = nullptr, *hi_z = nullptr;
+  Real* gap2 = nullptr;
+};
+void box_gaps(const BoxGaps<double>& q);
+void box_gaps(const BoxGaps<float>& q);
+
 // The instruction set the kernels run with now: "AVX3" (Highway's name for AVX-512),
 // "AVX2", "SSE4" or "SCALAR" (portable, one lane) on x86.
 const char* target_name();

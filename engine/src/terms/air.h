@@ -20,7 +20,7 @@ namespace drape::detail::air {
 // pointer is a restrict parameter (GCC ignores restrict on locals here and gives up on the
 // run-time alias checks of so many arrays), so the loop vectorises.
 template <class Real>
-inline void cells(std::uint32_t n, Real half_pressure, Real half_friction, Real wx, Real wy, Real wz,
+DRAPE_ROW_INLINE void cells(std::uint32_t n, Real half_pressure, Real half_friction, Real wx, Real wy, Real wz,
                   const Real* __restrict ax, const Real* __restrict ay, const Real* __restrict az,
                   const Real* __restrict bx, const Real* __restrict by, const Real* __restrict bz,
                   const Real* __restrict avx, const Real* __restrict avy, const Real* __restrict avz,
@@ -48,7 +48,7 @@ inline void cells(std::uint32_t n, Real half_pressure, Real half_friction, Real 
 }
 
 template <class Real>
-inline void cell_forces(std::uint32_t n, const Air<Real>& air, ConstVec3Ptr<Real> xa, ConstVec3Ptr<Real> xb,
+DRAPE_ROW_INLINE void cell_forces(std::uint32_t n, const Air<Real>& air, ConstVec3Ptr<Real> xa, ConstVec3Ptr<Real> xb,
                         ConstVec3Ptr<Real> va, ConstVec3Ptr<Real> vb, Vec3Ptr<Real> cell) {
   cells(n, Real(0.5) * air.pressure, Real(0.5) * air.friction, air.wind[0], air.wind[1], air.wind[2], xa.x, xa.y,
         xa.z, xb.x, xb.y, xb.z, va.x, va.y, va.z, vb.x, vb.y, vb.z, cell.x, cell.y, cell.z);
@@ -57,7 +57,7 @@ inline void cell_forces(std::uint32_t n, const Air<Real>& air, ConstVec3Ptr<Real
 // A quarter of the force of each cell next to point j of one component of a row (cells
 // j−1 and j).
 template <class Real>
-inline void add_to_line(std::uint32_t n, const Real* __restrict cell, Real* __restrict f) {
+DRAPE_ROW_INLINE void add_to_line(std::uint32_t n, const Real* __restrict cell, Real* __restrict f) {
   const Real quarter = Real(0.25);
   f[0] += quarter * cell[0];
   for (std::uint32_t j = 1; j < n; ++j) f[j] += quarter * (cell[j - 1] + cell[j]);
@@ -65,7 +65,7 @@ inline void add_to_line(std::uint32_t n, const Real* __restrict cell, Real* __re
 }
 
 template <class Real>
-inline void add_to_row(std::uint32_t n, ConstVec3Ptr<Real> cell, Vec3Ptr<Real> f) {
+DRAPE_ROW_INLINE void add_to_row(std::uint32_t n, ConstVec3Ptr<Real> cell, Vec3Ptr<Real> f) {
   add_to_line(n, cell.x, f.x);
   add_to_line(n, cell.y, f.y);
   add_to_line(n, cell.z, f.z);
@@ -73,7 +73,7 @@ inline void add_to_row(std::uint32_t n, ConstVec3Ptr<Real> cell, Vec3Ptr<Real> f
 
 // Row q has arrived: the cells between rows q−1 and q.
 template <class Real, class Window>
-inline void arrive(const Air<Real>& air, std::uint32_t n, const Window& w, std::uint32_t q) {
+DRAPE_ROW_INLINE void arrive(const Air<Real>& air, std::uint32_t n, const Window& w, std::uint32_t q) {
   if (q == 0 || n == 0 || q - 1 < w.read_lo) return;
   const bool to_a = w.owns(q - 1), to_b = w.owns(q);
   if (!to_a && !to_b) return;

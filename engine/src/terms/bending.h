@@ -25,7 +25,7 @@ namespace drape::detail::bending {
 // the scratch row (r_0 = r_n = 0), then f_j −= k (r_{j−1} − 2 r_j + r_{j+1}): each loop
 // writes one point per iteration through restrict pointers, so both vectorise.
 template <class Real>
-inline void along_line(std::uint32_t n, const Real* __restrict x, Real k, Real* __restrict r, Real* __restrict f) {
+DRAPE_ROW_INLINE void along_line(std::uint32_t n, const Real* __restrict x, Real k, Real* __restrict r, Real* __restrict f) {
   r[0] = r[n] = Real(0);
   for (std::uint32_t j = 1; j < n; ++j) r[j] = x[j - 1] - Real(2) * x[j] + x[j + 1];
   f[0] -= k * r[1];
@@ -34,7 +34,7 @@ inline void along_line(std::uint32_t n, const Real* __restrict x, Real k, Real* 
 }
 
 template <class Real>
-inline void along_row(std::uint32_t n, ConstVec3Ptr<Real> x, Real k, Vec3Ptr<Real> r, Vec3Ptr<Real> f) {
+DRAPE_ROW_INLINE void along_row(std::uint32_t n, ConstVec3Ptr<Real> x, Real k, Vec3Ptr<Real> r, Vec3Ptr<Real> f) {
   if (n < 2) return;
   along_line(n, x.x, k, r.x, f.x);
   along_line(n, x.y, k, r.y, f.y);
@@ -44,7 +44,7 @@ inline void along_row(std::uint32_t n, ConstVec3Ptr<Real> x, Real k, Vec3Ptr<Rea
 // One component of the column lines through rows a, b, c (consecutive): r = xa − 2xb + xc
 // per column, and −k r, +2k r, −k r on the rows this sweep owns.
 template <bool ToA, bool ToB, bool ToC, class Real>
-inline void across_line(std::uint32_t cols, const Real* __restrict a, const Real* __restrict b,
+DRAPE_ROW_INLINE void across_line(std::uint32_t cols, const Real* __restrict a, const Real* __restrict b,
                         const Real* __restrict c, Real k, Real* __restrict fa, Real* __restrict fb,
                         Real* __restrict fc) {
   for (std::uint32_t j = 0; j < cols; ++j) {
@@ -56,7 +56,7 @@ inline void across_line(std::uint32_t cols, const Real* __restrict a, const Real
 }
 
 template <bool ToA, bool ToB, bool ToC, class Real>
-inline void across_rows(std::uint32_t cols, ConstVec3Ptr<Real> a, ConstVec3Ptr<Real> b, ConstVec3Ptr<Real> c, Real k,
+DRAPE_ROW_INLINE void across_rows(std::uint32_t cols, ConstVec3Ptr<Real> a, ConstVec3Ptr<Real> b, ConstVec3Ptr<Real> c, Real k,
                         Vec3Ptr<Real> fa, Vec3Ptr<Real> fb, Vec3Ptr<Real> fc) {
   across_line<ToA, ToB, ToC>(cols, a.x, b.x, c.x, k, fa.x, fb.x, fc.x);
   across_line<ToA, ToB, ToC>(cols, a.y, b.y, c.y, k, fa.y, fb.y, fc.y);
@@ -65,7 +65,7 @@ inline void across_rows(std::uint32_t cols, ConstVec3Ptr<Real> a, ConstVec3Ptr<R
 
 // Row q has arrived: its own line's triples, then the column triples of rows q−2, q−1, q.
 template <class Real, class Window>
-inline void arrive(Real k, std::uint32_t n, const Window& w, std::uint32_t q) {
+DRAPE_ROW_INLINE void arrive(Real k, std::uint32_t n, const Window& w, std::uint32_t q) {
   if (w.owns(q)) along_row(n, w.x(q), k, w.scratch, w.f(q));
   if (q < 2 || q - 2 < w.read_lo) return;
   const bool ta = w.owns(q - 2), tb = w.owns(q - 1), tc = w.owns(q);

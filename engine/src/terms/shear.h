@@ -13,7 +13,7 @@ namespace drape::detail::shear {
 // (i, j+1)–(i+1, j). Each loop writes two distinct points per iteration and every pointer
 // is restrict, so both vectorise like the grid springs.
 template <bool ToA, bool ToB, class Real>
-inline void diagonals(std::uint32_t n, const Real* __restrict ax, const Real* __restrict ay, const Real* __restrict az,
+DRAPE_ROW_INLINE void diagonals(std::uint32_t n, const Real* __restrict ax, const Real* __restrict ay, const Real* __restrict az,
                       const Real* __restrict bx, const Real* __restrict by, const Real* __restrict bz, Real k,
                       Real rest, Real* __restrict fax, Real* __restrict fay, Real* __restrict faz,
                       Real* __restrict fbx, Real* __restrict fby, Real* __restrict fbz) {
@@ -48,14 +48,14 @@ inline void diagonals(std::uint32_t n, const Real* __restrict ax, const Real* __
 }
 
 template <bool ToA, bool ToB, class Real>
-inline void cell_row(std::uint32_t n, ConstVec3Ptr<Real> a, ConstVec3Ptr<Real> b, Real k, Real rest, Vec3Ptr<Real> fa,
+DRAPE_ROW_INLINE void cell_row(std::uint32_t n, ConstVec3Ptr<Real> a, ConstVec3Ptr<Real> b, Real k, Real rest, Vec3Ptr<Real> fa,
                      Vec3Ptr<Real> fb) {
   diagonals<ToA, ToB>(n, a.x, a.y, a.z, b.x, b.y, b.z, k, rest, fa.x, fa.y, fa.z, fb.x, fb.y, fb.z);
 }
 
 // Row q has arrived: the diagonals between rows q−1 and q.
 template <class Real, class Window>
-inline void arrive(const typename Topology<Real>::Shear& sh, std::uint32_t n, const Window& w, std::uint32_t q) {
+DRAPE_ROW_INLINE void arrive(const typename Topology<Real>::Shear& sh, std::uint32_t n, const Window& w, std::uint32_t q) {
   if (q == 0 || q - 1 < w.read_lo) return;
   const bool to_a = w.owns(q - 1), to_b = w.owns(q);
   const auto a = w.x(q - 1), b = w.x(q);

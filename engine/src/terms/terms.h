@@ -38,7 +38,7 @@ struct RowTerms {
   std::uint32_t reach() const { return bending ? 2 : 1; }
 
   template <class Window>
-  void arrive(const Window& w, std::uint32_t q) const {
+  DRAPE_ROW_INLINE void arrive(const Window& w, std::uint32_t q) const {
     if (shear) shear::arrive<Real>(*shear, n, w, q);
     if (bending) bending::arrive<Real>(*bending, n, w, q);
     if (air) air::arrive<Real>(*air, n, w, q);
