@@ -59,6 +59,10 @@ struct ContactParams {
   Real dt = 0;        // s, the substep (friction stops at most the slip of one)
   Real friction = 0;  // μ of the pair, max of the two sheets' (pair_contacts sets it)
   Real skin;          // m, the first skin of kept candidate lists (PairContacts): R/4
+  // Between searches: true, every point tests every cell of its kept candidate list (exact,
+  // the reference); false, every point of the kept contact set walks from its cell
+  // (KeptContacts: an approximation, the default).
+  bool exact = false;
 
   static ContactParams make(double thickness, double xi, double strength, double range_in_xi);
 };
@@ -139,6 +143,29 @@ struct Candidates {
   std::vector<std::uint32_t> begin, count, cell;
 };
 
+// The kept contact set of one direction of a pair (structure of arrays, entry e): point
+// point[e] of the query sheet and its cell cell[e] of the other sheet (by first corner),
+// the cell of its nearest triangle when last evaluated. A search puts every point within
+// R + skin of some cell in the set, in the order the search visits points, starting at the
+// cell of its nearest triangle (or, beyond R, the cell whose box is nearest). Between
+// searches each entry walks: the point is tested against its cell's two triangles, and
+// while the closest point lies on the cell's outer edge or corner the neighbouring cells
+// across it are tested too, moving to one that holds a nearer triangle. The walk ends at a
+// local minimum of the distance over the grid, which is the nearest triangle wherever the
+// other sheet is the graph of a function over the point's neighbourhood; where two parts
+// of the other sheet are both within R of the point (a crease, a fold of it), it may stay
+// on the farther one until the next search. A point not in the set costs nothing.
+struct KeptContacts {
+  std::vector<std::uint32_t> point, cell;
+  // Per patch of the query sheet (SheetBoxes): 1 if some point of its block is not in the
+  // set. Only open patches can bring a point into range unseen (PairContacts).
+  std::vector<std::uint8_t> open;
+  void clear() {
+    point.clear();
+    cell.clear();
+  }
+};
+
 // The contact work of one overlapping pair of sheets (a < b), or of one sheet with itself
 // (a == b, only on_a used). Written by one task, read by the gather: no sharing.
 //
@@ -170,7 +197,9 @@ struct PairContacts {
   const Topology<Real>* kept_topology_b = nullptr;
   Vec3Array<Real> made_at_a, made_at_b;  // their positions then
   std::vector<Real> clearance;           // then: the gap of patch A of a to patch B of b
-  Candidates a_near_b, b_near_a;         // points of a against cells of b, and back
+  Candidates a_near_b, b_near_a;         // points of a against cells of b, and back (exact)
+  KeptContacts a_on_b, b_on_a;           // the same as kept contact sets (not exact)
+  bool kept_exact = false;               // which of the two the search made
   Real skin = 0;                         // of the kept lists (0: none made yet)
   std::uint32_t kept_for = 0;            // substeps the kept lists have served
   std::uint32_t resting = 0;             // substeps left to search without lists

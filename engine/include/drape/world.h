@@ -63,6 +63,12 @@ struct WorldDef {
   double contact_xi = 0.002;         // ξ, m: how fast the repulsion decays with distance
   double contact_strength = 1e-3;    // c, J: the barrier at d = 0 is c·exp(h/ξ) ≈ 0.012 J
   double contact_range = 6.0;        // cut-off beyond h, in units of ξ
+  // Between two searches for contacts, each point near another sheet follows its nearest
+  // triangle by walking across that sheet's grid from the triangle it had (fast, and the
+  // nearest triangle wherever the other sheet is not folded within contact range of the
+  // point); true: every point tests every cell within reach instead, the exact nearest
+  // triangle at several times the cost (the reference the walk is tested against).
+  bool contact_exact = false;
 
   // A sheet of at least 2·block_points points is stepped as row blocks of about this many
   // points, so one large sheet keeps every core busy; the result is the same bit for bit.
