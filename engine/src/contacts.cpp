@@ -567,9 +567,13 @@ bool within(const Sheet<Real>& s, const Vec3Array<Real>& then, Real limit2) {
 // farther from the centre than. One pass over each patch's points (rows and columns
 // 8p … 8p + 8, as their boxes).
 template <class Real>
-void patch_motion(const Sheet<Real>& s, const SheetBoxes<Real>& bs, const Vec3Array<Real>& then,
-                  std::vector<Real> (&mid)[3], std::vector<Real>& radius) {
+void patch_motion(const Sheet<Real>& s, const Vec3Array<Real>& then, std::vector<Real> (&mid)[3],
+                  std::vector<Real>& radius) {
   constexpr std::uint32_t P = SheetBoxes<Real>::kPatch;
+  struct {
+    std::uint32_t m, n, patch_rows, patch_cols;
+  } const bs{s.topology->m, s.topology->n, SheetBoxes<Real>::patches_along(s.topology->m),
+             SheetBoxes<Real>::patches_along(s.topology->n)};
   const std::uint32_t cols = bs.n + 1, patches = bs.patch_rows * bs.patch_cols;
   for (int k = 0; k < 3; ++k) mid[k].resize(patches);
   radius.resize(patches);
@@ -616,8 +620,44 @@ void patch_clearance(const SheetBoxes<Real>& ba, const SheetBoxes<Real>& bb, std
     }
 }
 
-// Substeps a kept contact set serves at most: then the search runs again, and a walk that
-// stopped at a local minimum (KeptContacts) finds the nearest triangle again.
+// The test of every patch pair below in O(patches), enough when the sheets moved nearly
+// together: through the middle m of all patch middles, |mid_A − mid_B| ≤ |mid_A − m| +
+// |mid_B − m|, so a pair's drift is at most e_A + e_B with e = spread + |mid − m|, and its
+// slack is at least the skin. Holds if the largest e over patches that need the test plus
+// the largest over all patches of the other sheet is within `limit` (both ways round);
+// open_a/open_b null: every patch needs it. False for a NaN.
+template <class Real>
+bool patches_within_skin(ContactScratch<Real>& sc, std::uint32_t pa, std::uint32_t pb, bool self,
+                         const std::uint8_t* open_a, const std::uint8_t* open_b, Real limit) {
+  const auto& mid_b = self ? sc.mid_a : sc.mid_b;
+  const auto& radius_b = self ? sc.radius_a : sc.radius_b;
+  Real lo[3], hi[3];
+  for (int k = 0; k < 3; ++k) {
+    const auto [a0, a1] = std::minmax_element(sc.mid_a[k].begin(), sc.mid_a[k].begin() + pa);
+    const auto [b0, b1] = std::minmax_element(mid_b[k].begin(), mid_b[k].begin() + pb);
+    lo[k] = std::min(*a0, *b0);
+    hi[k] = std::max(*a1, *b1);
+  }
+  const Real m[3] = {Real(0.5) * (lo[0] + hi[0]), Real(0.5) * (lo[1] + hi[1]), Real(0.5) * (lo[2] + hi[2])};
+  // Largest e over all patches and over those needing the test, for each sheet.
+  auto largest = [&](const std::vector<Real>(&mid)[3], const std::vector<Real>& radius, std::uint32_t count,
+                     const std::uint8_t* open, Real& all, Real& needing) {
+    all = needing = 0;
+    for (std::uint32_t P = 0; P < count; ++P) {
+      const Real dx = mid[0][P] - m[0], dy = mid[1][P] - m[1], dz = mid[2][P] - m[2];
+      const Real e = radius[P] + std::sqrt(dx * dx + dy * dy + dz * dz);
+      if (!(e <= all)) all = e;  // a NaN sticks
+      if ((!open || open[P]) && !(e <= needing)) needing = e;
+    }
+  };
+  Real all_a, need_a, all_b, need_b;
+  largest(sc.mid_a, sc.radius_a, pa, open_a, all_a, need_a);
+  largest(mid_b, radius_b, pb, open_b, all_b, need_b);
+  return need_a + all_b <= limit && all_a + need_b <= limit;
+}
+
+// Substeps a kept contact set with entries serves at most: then the search runs again, and
+// a walk that stopped at a local minimum (KeptContacts) finds the nearest triangle again.
 constexpr std::uint32_t kKeptLife = 64;
 
 // Whether the lists kept in `w` were made for these sheets and still hold every cell
@@ -627,13 +667,13 @@ constexpr std::uint32_t kKeptLife = 64;
 // displacement plus the difference of their middles) stays within 0.9 of the slack the
 // lists had: the skin, or the patches' gap then less R if that is more.
 template <class Real>
-bool lists_hold(PairContacts<Real>& w, const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sheet<Real>& b,
-                const SheetBoxes<Real>& bb, const ContactParams<Real>& prm, ContactScratch<Real>& sc) {
+bool lists_hold(PairContacts<Real>& w, const Sheet<Real>& a, const Sheet<Real>& b, const ContactParams<Real>& prm,
+                ContactScratch<Real>& sc) {
   if (w.kept_exact != prm.exact || w.kept_a != &a || w.kept_b != &b || w.kept_topology_a != a.topology.get() ||
       w.kept_topology_b != b.topology.get() || w.made_at_a.x.size() != a.size() || w.made_at_b.x.size() != b.size())
     return false;
   if (!prm.exact) {
-    if (w.kept_for >= kKeptLife) return false;
+    if (w.kept_for >= kKeptLife && !(w.a_on_b.point.empty() && w.b_on_a.point.empty())) return false;
     // Every point of both sheets in the set: nothing can come into range unseen.
     const auto closed = [](const KeptContacts& k) {
       return std::none_of(k.open.begin(), k.open.end(), [](std::uint8_t o) { return o != 0; });
@@ -650,11 +690,12 @@ bool lists_hold(PairContacts<Real>& w, const Sheet<Real>& a, const SheetBoxes<Re
     ++w.kept_for;
     return true;
   }
-  patch_motion(a, ba, w.made_at_a, sc.mid_a, sc.radius_a);
-  if (&a != &b) patch_motion(b, bb, w.made_at_b, sc.mid_b, sc.radius_b);
+  patch_motion(a, w.made_at_a, sc.mid_a, sc.radius_a);
+  if (&a != &b) patch_motion(b, w.made_at_b, sc.mid_b, sc.radius_b);
   const auto& mid_b = &a != &b ? sc.mid_b : sc.mid_a;
   const auto& radius_b = &a != &b ? sc.radius_b : sc.radius_a;
-  const std::uint32_t pa = ba.patch_rows * ba.patch_cols, pb = bb.patch_rows * bb.patch_cols;
+  const std::uint32_t pa = SheetBoxes<Real>::patches_along(a.topology->m) * SheetBoxes<Real>::patches_along(a.topology->n);
+  const std::uint32_t pb = SheetBoxes<Real>::patches_along(b.topology->m) * SheetBoxes<Real>::patches_along(b.topology->n);
   if (w.clearance.size() != std::size_t(pa) * pb) return false;
   // A kept contact set needs this only where a patch has points outside it: points of A
   // against cells of B if A is open, points of B against cells of A if B is.
@@ -662,6 +703,10 @@ bool lists_hold(PairContacts<Real>& w, const Sheet<Real>& a, const SheetBoxes<Re
   if (sets && (w.a_on_b.open.size() != pa || (&a != &b && w.b_on_a.open.size() != pb))) return false;
   const std::uint8_t* open_a = sets ? w.a_on_b.open.data() : nullptr;
   const std::uint8_t* open_b = sets ? (&a != &b ? w.b_on_a.open.data() : open_a) : nullptr;
+  if (patches_within_skin(sc, pa, pb, &a == &b, open_a, open_b, Real(0.9) * w.skin)) {
+    ++w.kept_for;
+    return true;
+  }
   bool hold = true;
   for (std::uint32_t A = 0; A < pa && hold; ++A) {
     const Real* clear = w.clearance.data() + std::size_t(A) * pb;
@@ -823,7 +868,9 @@ void contacts_of_pair(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sh
     w.guessed_a = a.topology.get();
     w.guessed_b = b.topology.get();
   }
-  if (w.resting == 0 && lists_hold(w, a, ba, b, bb, prm, sc)) {
+  const bool hold = w.decided >= 0 ? w.decided != 0 : w.resting == 0 && lists_hold(w, a, b, prm, sc);
+  w.decided = -1;
+  if (hold) {
     if (prm.exact) {
       points_against_lists(a, ba, b, bb, w.a_near_b, pair, w.on_a, on_b, sc, w.last_a.data());
       if (!self) points_against_lists(b, bb, a, ba, w.b_near_a, pair, on_b, w.on_a, sc, w.last_b.data());
@@ -854,6 +901,14 @@ void contacts_of_pair(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sh
 }
 
 }  // namespace
+
+template <class Real>
+bool pair_needs_boxes(const Sheet<Real>& a, const Sheet<Real>& b, const ContactParams<Real>& prm,
+                      PairContacts<Real>& work, ContactScratch<Real>& scratch) {
+  const bool hold = work.resting == 0 && lists_hold(work, a, b, prm, scratch);
+  work.decided = hold;
+  return !hold || prm.exact;
+}
 
 template <class Real>
 void pair_contacts(const Sheet<Real>& a, const SheetBoxes<Real>& boxes_a, const Sheet<Real>& b,
@@ -895,6 +950,8 @@ void gather_contacts(std::span<const ContactForces<Real>* const> sources, Vec3Ar
 #define DRAPE_CONTACTS(Real)                                                                                   \
   template struct ContactParams<Real>;                                                                         \
   template void build_boxes<Real>(const Sheet<Real>&, SheetBoxes<Real>&);                                     \
+  template bool pair_needs_boxes<Real>(const Sheet<Real>&, const Sheet<Real>&, const ContactParams<Real>&,     \
+                                       PairContacts<Real>&, ContactScratch<Real>&);                            \
   template void pair_contacts<Real>(const Sheet<Real>&, const SheetBoxes<Real>&, const Sheet<Real>&,          \
                                     const SheetBoxes<Real>&, const ContactParams<Real>&, PairContacts<Real>&, \
                                     ContactScratch<Real>&);                                                    \

@@ -93,6 +93,8 @@ struct ContactForces {
 template <class Real>
 struct SheetBoxes {
   static constexpr std::uint32_t kPatch = 8;  // cells along a patch's side
+  // Patch rows (columns) of a sheet of `cells` cell rows (columns).
+  static std::uint32_t patches_along(std::uint32_t cells) { return cells == 0 ? 1 : (cells + kPatch - 1) / kPatch; }
   std::uint32_t m = 0, n = 0;                 // the sheet's cells
   Aabb box;                                   // every point
   // Cell (i, j), i < m, j < n, at its first corner i·(n + 1) + j (structure of arrays),
@@ -209,7 +211,17 @@ struct PairContacts {
   const Topology<Real>* guessed_a = nullptr;
   const Topology<Real>* guessed_b = nullptr;
   std::uint64_t searches = 0;            // how often the lists were made (for tests)
+  signed char decided = -1;              // pair_needs_boxes's decision: 1 keep, 0 search, −1 none
 };
+
+// The first half of a pair's substep, before any boxes are made: whether its kept lists or
+// set serve this substep (then counted as served), else it will search. Returns whether
+// the pair needs both sheets' boxes: to search, or to read exact lists; a kept contact set
+// that holds needs none. pair_contacts / self_contacts then follow the decision; called
+// without it, they decide themselves.
+template <class Real>
+bool pair_needs_boxes(const Sheet<Real>& a, const Sheet<Real>& b, const ContactParams<Real>& params,
+                      PairContacts<Real>& work, ContactScratch<Real>& scratch);
 
 // Points of `a` against the cells of `b` and points of `b` against the cells of `a`, each
 // sheet's boxes made by build_boxes from its positions now. Clears and fills work.on_a/on_b.

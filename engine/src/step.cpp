@@ -59,7 +59,7 @@ void BasicWorld<Real>::Impl::run_stage(Stage stage, double h) {
     case Stage::RigidParts: return move_rigid_parts();
     case Stage::Bounds: return contact_bounds(h);
     case Stage::BroadPhase: return find_pairs();
-    case Stage::ContactBoxes: return contact_boxes();
+    case Stage::ContactBoxes: return contact_boxes(h);
     case Stage::NarrowPhase: return narrow_phase(h);
     case Stage::GatherPlan: return plan_gather();
     case Stage::Obstacles: return assign_obstacles(h);
@@ -107,20 +107,6 @@ void BasicWorld<Real>::Impl::find_pairs() {
   }
 }
 
-// The boxes of every sheet in some pair, made once here and read by all of its pairs
-// (contacts.h, SheetBoxes): a sheet in no pair makes none.
-template <class Real>
-void BasicWorld<Real>::Impl::contact_boxes() {
-  if (!contacting) return;
-  const std::size_t count = active.size();
-  in_pair.assign(count, 0);
-  for (const detail::BoxPair& pair : pairs) in_pair[pair.first] = in_pair[pair.second] = 1;
-  if (sheet_boxes.size() < count) sheet_boxes.resize(count);
-  parallel(count, [&](std::size_t k) {
-    if (in_pair[k]) detail::build_boxes(at(k), sheet_boxes[k]);
-  });
-}
-
 // Slot q of pair_work serves pairs[q]. A pair keeps its work (its kept contact set,
 // contacts.h) while pairs appear and vanish around it: when the list changed, each pair
 // takes the work last made for the same two sheets, wherever it sat, and work of pairs
@@ -164,11 +150,33 @@ void keep_pair_work(const std::vector<detail::BoxPair>& pairs, std::vector<detai
 }
 }  // namespace
 
+// Each pair first decides whether its kept contacts serve this substep (contacts.h,
+// pair_needs_boxes); then the boxes of every sheet in a pair that needs them are made
+// once here and read by all of its pairs (SheetBoxes). A sheet whose pairs all keep
+// their contact sets, or in no pair, makes none.
+template <class Real>
+void BasicWorld<Real>::Impl::contact_boxes(double h) {
+  if (!contacting) return;
+  const auto params = contact_params(h);
+  const std::size_t count = active.size();
+  keep_pair_work(pairs, pair_work);
+  parallel(pairs.size(), [&](std::size_t q) {
+    auto& w = pair_work[q];
+    detail::pair_needs_boxes(at(w.a), at(w.b), params, w, contact_scratch.local());
+  });
+  in_pair.assign(count, 0);
+  for (std::size_t q = 0; q < pairs.size(); ++q)
+    if (pair_work[q].decided == 0 || params.exact) in_pair[pairs[q].first] = in_pair[pairs[q].second] = 1;
+  if (sheet_boxes.size() < count) sheet_boxes.resize(count);
+  parallel(count, [&](std::size_t k) {
+    if (in_pair[k]) detail::build_boxes(at(k), sheet_boxes[k]);
+  });
+}
+
 template <class Real>
 void BasicWorld<Real>::Impl::narrow_phase(double h) {
   if (!contacting) return;
   const auto params = contact_params(h);
-  keep_pair_work(pairs, pair_work);
   parallel(pairs.size(), [&](std::size_t q) {
     auto& w = pair_work[q];
     auto& scratch = contact_scratch.local();
