@@ -43,6 +43,17 @@ void BM_World48SheetsInContact(benchmark::State& state) {
 }
 BENCHMARK(BM_World48SheetsInContact)->Arg(1)->Arg(2)->UseRealTime();
 
+// The same with WorldDef::contact_exact: every point tests every cell within reach each
+// substep, the reference the default walk is held to (docs/architecture.md). One thread.
+void BM_World48SheetsInContactExact(benchmark::State& state) {
+  drape::World world = stack_world(1, 0.01, true);
+  world.step(10);
+  for (auto _ : state) world.step(1);
+  state.counters["pairs"] = double(world.contact_pair_count());
+  report(state, 48.0 * 64 * 64);
+}
+BENCHMARK(BM_World48SheetsInContactExact)->UseRealTime();
+
 // The same two scenes stepped a frame of substeps per call, as a program steps them: the
 // sheets apart run contact-free frames (each checked afterwards on its swept boxes); the
 // sheets in contact are in range at every frame's start, so no frame is tried.
@@ -88,10 +99,12 @@ BENCHMARK(BM_World48SheetsSettling)
 // with self_collision off (the halves then pass through each other unnoticed). Arg:
 // self-collision (0/1). One thread, dt = 0.2 ms: points of 61 mg on 100 N/m springs need
 // dt < 0.78 ms, and the contact's stiffness at d = 0 (about 3,000 N/m) dt < 0.29 ms.
+// Arg 2: self-collision with WorldDef::contact_exact (the reference the walk is held to).
 void BM_SelfCollisionFold(benchmark::State& state) {
   drape::WorldDef wd = drape::bench::world_def();
   wd.dt = 2e-4;
   wd.threads = 1;
+  wd.contact_exact = state.range(0) == 2;
   drape::World world(wd);
   drape::SheetDef sd;
   sd.m = sd.n = 127;
@@ -116,7 +129,7 @@ void BM_SelfCollisionFold(benchmark::State& state) {
   if (!world.all_finite()) state.SkipWithError("the fold blew up; its figures would be meaningless");
   report(state, 128.0 * 128);
 }
-BENCHMARK(BM_SelfCollisionFold)->Arg(0)->Arg(1)->UseRealTime();
+BENCHMARK(BM_SelfCollisionFold)->Arg(0)->Arg(1)->Arg(2)->UseRealTime();
 
 // Args: threads, block_points. One 256×256 sheet among eight 32×32 ones: without
 // splitting (block_points huge) one core does the large sheet alone.

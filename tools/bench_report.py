@@ -882,9 +882,22 @@ class Report:
             self.target("Self-collision, 128×128 sheet folded onto itself, with ÷ without", f"{ratio:.1f}×",
                         f"≤ {TARGET_SELF_CONTACT_RATIO:.0f}×", ratio <= TARGET_SELF_CONTACT_RATIO,
                         "" if ratio <= TARGET_SELF_CONTACT_RATIO else f"{ratio / TARGET_SELF_CONTACT_RATIO:.1f}× over")
+            exact = self.runs.get("BM_SelfCollisionFold/2/real_time")
+            exact_text = ""
+            if exact:
+                self.used.add(exact.name)
+                exact_text = (f" With the exact search every substep (`contact_exact`) {us(exact.step_seconds)} µs, "
+                              f"{exact.step_seconds / fold[1].step_seconds:.2f}× the default walk.")
             self.out(f"- Self-collision on one 128×128 sheet folded onto itself (its right half 12 mm over its left, "
                      f"one thread, wall time): {us(fold[1].step_seconds)} µs per substep with it, "
-                     f"{us(fold[0].step_seconds)} µs without, {ratio:.1f}×.")
+                     f"{us(fold[0].step_seconds)} µs without, {ratio:.1f}×.{exact_text}")
+        walk, exact = self.get("BM_World48SheetsInContact/1/real_time"), self.get("BM_World48SheetsInContactExact/real_time")
+        if walk and exact:
+            self.used.add(exact.name)
+            self.out(f"- The 48 sheets in contact (layers 10 mm apart, the substeps after the first 10, one thread, "
+                     f"wall time): {us(walk.step_seconds)} µs per substep with kept contact sets that walk between "
+                     f"searches (the default), {us(exact.step_seconds)} µs with the exact search every substep "
+                     f"(`contact_exact`), {exact.step_seconds / walk.step_seconds:.2f}×.")
         self.used.update(r.name for r in settle.values())
         self.out("")
 

@@ -233,23 +233,35 @@ void repel_nearest(const Sheet<Real>& q, std::uint32_t p, V3<Real> x, const Shee
 // exclusion; otherwise q is s and the cells within `ring` rows/columns of the point are
 // left out.
 //
+// The entries [e0, e1) of `kept`, walked (defined below).
+template <class Real>
+void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptContacts& kept, std::size_t e0,
+                    std::size_t e1, const ContactParams<Real>& prm, ContactForces<Real>& on_q,
+                    ContactForces<Real>& on_s, std::uint32_t* last);
+
 // With `lists`, it also makes each point's candidate list (PairContacts): the cells whose
-// boxes are within R + skin of it, in the order this search meets them.
+// boxes are within R + skin of it, in the order this search meets them. With `kept`, it
+// makes the kept contact set instead; with `before` too (the set so far, for these sheets),
+// a block all of whose points are in `before` is not searched: its entries walk and move
+// to `kept` as they are (a partial search, KeptContacts).
 template <class Real>
 void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, const Sheet<Real>& s,
                           const SheetBoxes<Real>& bs, int ring, const ContactParams<Real>& prm,
                           ContactForces<Real>& on_q, ContactForces<Real>& on_s, ContactScratch<Real>& sc,
                           std::uint32_t* last, Candidates* lists = nullptr, Real skin = 0,
-                          KeptContacts* kept = nullptr) {
+                          KeptContacts* kept = nullptr, KeptContacts* before = nullptr) {
   if (lists) {
     lists->begin.assign(q.size(), 0);
     lists->count.assign(q.size(), 0);
     lists->cell.clear();
   }
+  const std::size_t blocks = std::size_t(bq.patch_rows) * bq.patch_cols;
   if (kept) {
     kept->clear();
-    kept->open.assign(std::size_t(bq.patch_rows) * bq.patch_cols, 1);
+    kept->open.assign(blocks, 1);
+    kept->block_begin.assign(blocks + 1, 0);
   }
+  if (before && (before->open.size() != blocks || before->block_begin.size() != blocks + 1)) before = nullptr;
   if (bs.m == 0 || bs.n == 0) return;  // a line of points has no cells
   constexpr std::uint32_t P = SheetBoxes<Real>::kPatch;
   const Real R2 = prm.range * prm.range;
@@ -290,6 +302,15 @@ void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
   for (std::uint32_t bi = 0; bi < bq.patch_rows; ++bi)
     for (std::uint32_t bj = 0; bj < bq.patch_cols; ++bj) {
       const std::uint32_t block = bi * bq.patch_cols + bj;
+      if (kept) kept->block_begin[block] = std::uint32_t(kept->point.size());
+      if (before && !before->open[block]) {  // every point in the set: walk, do not search
+        const std::uint32_t e0 = before->block_begin[block], e1 = before->block_begin[block + 1];
+        points_walking(q, s, ring, *before, e0, e1, prm, on_q, on_s, last);
+        kept->point.insert(kept->point.end(), before->point.begin() + e0, before->point.begin() + e1);
+        kept->cell.insert(kept->cell.end(), before->cell.begin() + e0, before->cell.begin() + e1);
+        kept->open[block] = 0;
+        continue;
+      }
       Aabb bb;
       for (int k = 0; k < 3; ++k) {
         bb.lo[k] = bq.patch_lo[k][block];
@@ -399,6 +420,7 @@ void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
       // The block visited rows [i0, i1) × columns [j0, j1): open unless all are in the set.
       if (kept) kept->open[block] = kept->point.size() - entries_before < std::size_t(i1 - i0) * (j1 - j0);
     }
+  if (kept) kept->block_begin[blocks] = std::uint32_t(kept->point.size());
 }
 
 // Points of q against their candidate lists of cells of s (PairContacts), in the order
@@ -471,22 +493,21 @@ bool vertex_is_nearest(const Sheet<Real>& s, V3<Real> x, std::int64_t vi, std::i
   return outside != 0;
 }
 
-// The entries of `kept` (points of q against cells of s), in order: each walks from its
-// cell to a local minimum of the distance (KeptContacts), which becomes its cell, and
-// repels if within R. Self-contact (`ring` ≥ 0): cells within `ring` rows/columns of the
-// point are never entered.
+// The entries [e0, e1) of `kept` (points of q against cells of s), in order: each walks
+// from its cell to a local minimum of the distance (KeptContacts), which becomes its cell,
+// and repels if within R. Self-contact (`ring` ≥ 0): cells within `ring` rows/columns of
+// the point are never entered.
 template <class Real>
-void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptContacts& kept,
-                    const ContactParams<Real>& prm, ContactForces<Real>& on_q, ContactForces<Real>& on_s,
-                    std::uint32_t* last) {
+void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptContacts& kept, std::size_t e0,
+                    std::size_t e1, const ContactParams<Real>& prm, ContactForces<Real>& on_q,
+                    ContactForces<Real>& on_s, std::uint32_t* last) {
   const std::uint32_t cols = s.topology->cols(), m = s.topology->m, n = s.topology->n;
   const std::uint32_t qcols = q.topology->cols();
   const Real R2 = prm.range * prm.range;
   // At most this many moves per substep: a point's nearest triangle rarely moves by more
   // than a cell in one, and the bound keeps a walk on a crumpled sheet short.
   constexpr int kMaxMoves = 8;
-  const std::size_t entries = kept.point.size();
-  for (std::size_t e = 0; e < entries; ++e) {
+  for (std::size_t e = e0; e < e1; ++e) {
     const std::uint32_t p = kept.point[e];
     const V3<Real> x = at(q, p);
     const std::int64_t pi = p / qcols, pj = p % qcols;
@@ -656,8 +677,16 @@ bool patches_within_skin(ContactScratch<Real>& sc, std::uint32_t pa, std::uint32
   return need_a + all_b <= limit && all_a + need_b <= limit;
 }
 
-// Substeps a kept contact set with entries serves at most: then the search runs again, and
-// a walk that stopped at a local minimum (KeptContacts) finds the nearest triangle again.
+// Whether the lists or set kept in `w` were made for these sheets, in this mode.
+template <class Real>
+bool made_for(const PairContacts<Real>& w, const Sheet<Real>& a, const Sheet<Real>& b, bool exact) {
+  return w.kept_exact == exact && w.kept_a == &a && w.kept_b == &b && w.kept_topology_a == a.topology.get() &&
+         w.kept_topology_b == b.topology.get() && w.made_at_a.x.size() == a.size() && w.made_at_b.x.size() == b.size();
+}
+
+// Substeps a kept contact set with entries serves at most since every block was searched:
+// then the search runs again over all, and a walk that stopped at a local minimum
+// (KeptContacts) finds the nearest triangle again.
 constexpr std::uint32_t kKeptLife = 64;
 
 // Whether the lists kept in `w` were made for these sheets and still hold every cell
@@ -669,11 +698,9 @@ constexpr std::uint32_t kKeptLife = 64;
 template <class Real>
 bool lists_hold(PairContacts<Real>& w, const Sheet<Real>& a, const Sheet<Real>& b, const ContactParams<Real>& prm,
                 ContactScratch<Real>& sc) {
-  if (w.kept_exact != prm.exact || w.kept_a != &a || w.kept_b != &b || w.kept_topology_a != a.topology.get() ||
-      w.kept_topology_b != b.topology.get() || w.made_at_a.x.size() != a.size() || w.made_at_b.x.size() != b.size())
-    return false;
+  if (!made_for(w, a, b, prm.exact)) return false;
   if (!prm.exact) {
-    if (w.kept_for >= kKeptLife && !(w.a_on_b.point.empty() && w.b_on_a.point.empty())) return false;
+    if (w.since_full >= kKeptLife && !(w.a_on_b.point.empty() && w.b_on_a.point.empty())) return false;
     // Every point of both sheets in the set: nothing can come into range unseen.
     const auto closed = [](const KeptContacts& k) {
       return std::none_of(k.open.begin(), k.open.end(), [](std::uint8_t o) { return o != 0; });
@@ -871,16 +898,17 @@ void contacts_of_pair(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sh
   const bool hold = w.decided >= 0 ? w.decided != 0 : w.resting == 0 && lists_hold(w, a, b, prm, sc);
   w.decided = -1;
   if (hold) {
+    ++w.since_full;
     if (prm.exact) {
       points_against_lists(a, ba, b, bb, w.a_near_b, pair, w.on_a, on_b, sc, w.last_a.data());
       if (!self) points_against_lists(b, bb, a, ba, w.b_near_a, pair, on_b, w.on_a, sc, w.last_b.data());
     } else {
-      points_walking(a, b, ring, w.a_on_b, pair, w.on_a, on_b, w.last_a.data());
-      if (!self) points_walking(b, a, ring, w.b_on_a, pair, on_b, w.on_a, w.last_b.data());
+      points_walking(a, b, ring, w.a_on_b, 0, w.a_on_b.point.size(), pair, w.on_a, on_b, w.last_a.data());
+      if (!self) points_walking(b, a, ring, w.b_on_a, 0, w.b_on_a.point.size(), pair, on_b, w.on_a, w.last_b.data());
     }
     return;
   }
-  if (w.resting == 0 && w.kept_a && w.kept_for == 0 && w.skin <= prm.range / 16) w.resting = kListRest;
+  if (prm.exact && w.resting == 0 && w.kept_a && w.kept_for == 0 && w.skin <= prm.range / 16) w.resting = kListRest;
   if (w.resting > 0) {
     --w.resting;
     w.kept_a = w.kept_b = nullptr;
@@ -889,14 +917,24 @@ void contacts_of_pair(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sh
     if (!self) points_against_cells(b, bb, a, ba, ring, pair, on_b, w.on_a, sc, w.last_b.data());
     return;
   }
+  // A kept contact set made for these sheets, within its life, is searched again only in
+  // its blocks with points outside it (KeptContacts); otherwise every block is searched.
+  const bool partial = !prm.exact && made_for(w, a, b, false) && w.since_full < kKeptLife;
+  w.since_full = partial ? w.since_full + 1 : 0;
   const Real skin = next_skin(w, prm);
   Candidates* lists_a = prm.exact ? &w.a_near_b : nullptr;
   Candidates* lists_b = prm.exact ? &w.b_near_a : nullptr;
-  KeptContacts* kept_a = prm.exact ? nullptr : &w.a_on_b;
-  KeptContacts* kept_b = prm.exact ? nullptr : &w.b_on_a;
-  points_against_cells(a, ba, b, bb, ring, pair, w.on_a, on_b, sc, w.last_a.data(), lists_a, skin, kept_a);
+  KeptContacts* kept_a = prm.exact ? nullptr : &w.spare_a;
+  KeptContacts* kept_b = prm.exact ? nullptr : &w.spare_b;
+  points_against_cells(a, ba, b, bb, ring, pair, w.on_a, on_b, sc, w.last_a.data(), lists_a, skin, kept_a,
+                       partial ? &w.a_on_b : nullptr);
   if (!self)
-    points_against_cells(b, bb, a, ba, ring, pair, on_b, w.on_a, sc, w.last_b.data(), lists_b, skin, kept_b);
+    points_against_cells(b, bb, a, ba, ring, pair, on_b, w.on_a, sc, w.last_b.data(), lists_b, skin, kept_b,
+                         partial ? &w.b_on_a : nullptr);
+  if (!prm.exact) {
+    std::swap(w.a_on_b, w.spare_a);
+    std::swap(w.b_on_a, w.spare_b);
+  }
   keep_lists_for(w, a, ba, b, bb, skin, prm.exact);
 }
 

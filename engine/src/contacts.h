@@ -157,11 +157,19 @@ struct Candidates {
 // other sheet is the graph of a function over the point's neighbourhood; where two parts
 // of the other sheet are both within R of the point (a crease, a fold of it), it may stay
 // on the farther one until the next search. A point not in the set costs nothing.
+//
+// Only blocks (patches) with points outside the set need the relative-motion test of
+// PairContacts, and when it fails only they are searched again (a partial search; the other
+// blocks walk); every 64 substeps every block is searched. The contact gap test of a walk
+// is scalar: two triangles per entry (a local-minimum grid point needs none of its
+// neighbours'), read straight from the sheet's position arrays by point index.
 struct KeptContacts {
   std::vector<std::uint32_t> point, cell;
   // Per patch of the query sheet (SheetBoxes): 1 if some point of its block is not in the
   // set. Only open patches can bring a point into range unseen (PairContacts).
   std::vector<std::uint8_t> open;
+  // Entries of the query sheet's block (patch) k: [block_begin[k], block_begin[k + 1]).
+  std::vector<std::uint32_t> block_begin;
   void clear() {
     point.clear();
     cell.clear();
@@ -201,9 +209,11 @@ struct PairContacts {
   std::vector<Real> clearance;           // then: the gap of patch A of a to patch B of b
   Candidates a_near_b, b_near_a;         // points of a against cells of b, and back (exact)
   KeptContacts a_on_b, b_on_a;           // the same as kept contact sets (not exact)
+  KeptContacts spare_a, spare_b;         // the sets a search makes while it walks the old ones
   bool kept_exact = false;               // which of the two the search made
   Real skin = 0;                         // of the kept lists (0: none made yet)
   std::uint32_t kept_for = 0;            // substeps the kept lists have served
+  std::uint32_t since_full = 0;          // substeps since every block of a set was searched
   std::uint32_t resting = 0;             // substeps left to search without lists
   // Per point of a (against b) and of b (against a): its nearest cell last substep (first
   // corner; ~0 for none), tested first; and the grids those cells belong to.
