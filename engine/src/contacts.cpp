@@ -201,7 +201,6 @@ void repel_nearest(const Sheet<Real>& q, std::uint32_t p, V3<Real> x, const Shee
                    const typename ContactScratch<Real>::Near* near, std::uint32_t found, const ContactParams<Real>& prm,
                    ContactForces<Real>& on_q, ContactForces<Real>& on_s, std::uint32_t& last) {
   const std::uint32_t cols = s.topology->cols();
-  auto test = [&](std::uint32_t p00, Nearest<Real>& best) { test_cell(s, cols, x, p00, best); };
   const Real R2 = prm.range * prm.range;
   Nearest<Real> best{};
   best.dist2 = R2;
@@ -215,9 +214,9 @@ void repel_nearest(const Sheet<Real>& q, std::uint32_t p, V3<Real> x, const Shee
       if (near[e].gap2 < near[nearest].gap2) nearest = e;
     first = near[nearest].corner;
   }
-  test(first, best);
+  test_cell(s, cols, x, first, best);
   for (std::uint32_t e = 0; e < found; ++e)
-    if (near[e].corner != first && near[e].gap2 < best.dist2) test(near[e].corner, best);
+    if (near[e].corner != first && near[e].gap2 < best.dist2) test_cell(s, cols, x, near[e].corner, best);
   if (best.dist2 < R2) {
     last = best.tri[0];  // the cell's first corner: both triangles start there
     repel(q, p, x, s, best, prm, on_q, on_s);
@@ -515,12 +514,11 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
       if (ci < 0 || cj < 0 || ci >= std::int64_t(m) || cj >= std::int64_t(n)) return false;
       return ring < 0 || !(ci >= pi - ring && ci < pi + ring && cj >= pj - ring && cj < pj + ring);
     };
-    auto test = [&](std::uint32_t p00, Nearest<Real>& best) { test_cell(s, cols, x, p00, best); };
     Nearest<Real> best{};
     best.dist2 = std::numeric_limits<Real>::infinity();
     best.key = ~std::uint32_t(0);
     std::uint32_t cell = kept.cell[e];
-    test(cell, best);
+    test_cell(s, cols, x, cell, best);
     if (best.key == ~std::uint32_t(0)) {  // not a number: no triangle, no force
       last[p] = kNoCell;
       continue;
@@ -547,9 +545,10 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
           vertex_is_nearest(s, x, ci + (di > 0), cj + (dj > 0)))
         break;
       const std::uint32_t key = best.key;
-      if (di != 0 && allowed(ci + di, cj)) test(std::uint32_t((ci + di) * cols + cj), best);
-      if (dj != 0 && allowed(ci, cj + dj)) test(std::uint32_t(ci * cols + cj + dj), best);
-      if (di != 0 && dj != 0 && allowed(ci + di, cj + dj)) test(std::uint32_t((ci + di) * cols + cj + dj), best);
+      auto corner = [&](std::int64_t i, std::int64_t j) { return std::uint32_t(i * cols + j); };
+      if (di != 0 && allowed(ci + di, cj)) test_cell(s, cols, x, corner(ci + di, cj), best);
+      if (dj != 0 && allowed(ci, cj + dj)) test_cell(s, cols, x, corner(ci, cj + dj), best);
+      if (di != 0 && dj != 0 && allowed(ci + di, cj + dj)) test_cell(s, cols, x, corner(ci + di, cj + dj), best);
       if (best.key == key) break;  // no neighbour holds a nearer triangle
       cell = best.key / 2;
     }
@@ -721,8 +720,10 @@ bool lists_hold(PairContacts<Real>& w, const Sheet<Real>& a, const Sheet<Real>& 
   if (&a != &b) patch_motion(b, w.made_at_b, sc.mid_b, sc.radius_b);
   const auto& mid_b = &a != &b ? sc.mid_b : sc.mid_a;
   const auto& radius_b = &a != &b ? sc.radius_b : sc.radius_a;
-  const std::uint32_t pa = SheetBoxes<Real>::patches_along(a.topology->m) * SheetBoxes<Real>::patches_along(a.topology->n);
-  const std::uint32_t pb = SheetBoxes<Real>::patches_along(b.topology->m) * SheetBoxes<Real>::patches_along(b.topology->n);
+  const auto patches = [](const Sheet<Real>& s) {
+    return SheetBoxes<Real>::patches_along(s.topology->m) * SheetBoxes<Real>::patches_along(s.topology->n);
+  };
+  const std::uint32_t pa = patches(a), pb = patches(b);
   if (w.clearance.size() != std::size_t(pa) * pb) return false;
   // A kept contact set needs this only where a patch has points outside it: points of A
   // against cells of B if A is open, points of B against cells of A if B is.
