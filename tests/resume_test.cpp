@@ -149,12 +149,12 @@ TEST_F(Cli, DamagedForeignOrMissingCheckpointIsRefusedWithExitFiveAndNothingWrit
   std::string flipped = good;
   flipped[good.size() / 2] = char(flipped[good.size() / 2] ^ 0x10);
   std::string other_version = good;
-  other_version[8] = 3;  // u32 little-endian format version after the 8-byte magic
+  other_version[8] = 4;  // u32 little-endian format version after the 8-byte magic
   const std::pair<std::string, std::string> cases[] = {
       {good.substr(0, good.size() / 2), "checksum mismatch"},  // truncated: the checksum read is other bytes
       {good.substr(0, 20), "truncated"},
       {flipped, "checksum mismatch"},
-      {other_version, "format version 3"},
+      {other_version, "format version 4"},
       {"not a checkpoint at all, just text", "not a drape checkpoint"},
   };
   for (const auto& [bytes, message] : cases) {

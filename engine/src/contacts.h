@@ -259,4 +259,18 @@ template <class Real>
 void gather_contacts(std::span<const ContactForces<Real>* const> sources, Vec3Array<Real>& out, std::size_t begin,
                      std::size_t end);
 
+// The contact stage's memory between substeps, as words (a Real by its bits), for
+// checkpoints: every pair's kept lists and sets, the positions and clearances they were
+// made at, their skin and counters, and its guesses, in pair_work's order (gone pairs
+// too). A kept set's walk and the substeps that search depend on all of it, so a world
+// that takes it back continues bit for bit. `sheets` are the world's sheets in order.
+// read_contact_memory checks every count and index against them and throws
+// std::invalid_argument naming the problem, leaving `pair_work` as it was.
+template <class Real>
+std::vector<std::uint64_t> write_contact_memory(const std::vector<PairContacts<Real>>& pair_work,
+                                                std::span<const Sheet<Real>* const> sheets);
+template <class Real>
+void read_contact_memory(std::span<const std::uint64_t> memory, std::span<const Sheet<Real>* const> sheets,
+                         std::vector<PairContacts<Real>>& pair_work);
+
 }  // namespace drape::detail
