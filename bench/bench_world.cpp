@@ -5,6 +5,7 @@
 #include "bench_common.h"
 #include <drape/drape.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <random>
@@ -42,6 +43,17 @@ void BM_World48SheetsInContact(benchmark::State& state) {
   report(state, 48.0 * 64 * 64);
 }
 BENCHMARK(BM_World48SheetsInContact)->Arg(1)->Arg(2)->UseRealTime();
+
+// The same with WorldDef::contact_exact: every point tests every cell within reach each
+// substep, the reference the default walk is held to (docs/architecture.md). One thread.
+void BM_World48SheetsInContactExact(benchmark::State& state) {
+  drape::World world = stack_world(1, 0.01, true);
+  world.step(10);
+  for (auto _ : state) world.step(1);
+  state.counters["pairs"] = double(world.contact_pair_count());
+  report(state, 48.0 * 64 * 64);
+}
+BENCHMARK(BM_World48SheetsInContactExact)->UseRealTime();
 
 // The same two scenes stepped a frame of substeps per call, as a program steps them: the
 // sheets apart run contact-free frames (each checked afterwards on its swept boxes); the
@@ -88,35 +100,80 @@ BENCHMARK(BM_World48SheetsSettling)
 // with self_collision off (the halves then pass through each other unnoticed). Arg:
 // self-collision (0/1). One thread, dt = 0.2 ms: points of 61 mg on 100 N/m springs need
 // dt < 0.78 ms, and the contact's stiffness at d = 0 (about 3,000 N/m) dt < 0.29 ms.
-void BM_SelfCollisionFold(benchmark::State& state) {
+// Arg 2: self-collision with WorldDef::contact_exact (the reference the walk is held to).
+//
+// The contact pushes the halves apart: all but a few percent of the points are out of
+// range of their mirror point after about 20 substeps, so stepping one world on would
+// time a sheet that sprang apart (for how much of the time depends on min_time). Each
+// iteration therefore times the same span, substeps 2 … 16 of a fresh fold (made and
+// stepped 2 substeps untimed, the first search among them), one step(1) call each, and
+// checks that at least
+// 90 % of the upper half's points are still within contact range of their mirror point
+// below at the end (counter in_range: the smallest share over the iterations).
+constexpr int kFoldWarmUp = 2, kFoldSpan = 14;
+
+drape::World folded_sheet(int variant) {
   drape::WorldDef wd = drape::bench::world_def();
   wd.dt = 2e-4;
   wd.threads = 1;
+  wd.contact_exact = variant == 2;
   drape::World world(wd);
   drape::SheetDef sd;
   sd.m = sd.n = 127;
   sd.mass = 1.0;
   sd.stiffness = 100.0;
   sd.damping = 1e-3;
-  sd.self_collision = state.range(0) != 0;
+  sd.self_collision = variant != 0;
   const drape::SheetId id = world.add_sheet(sd);
-  {  // fold: column j > n/2 goes to 2·x_mid − x, 12 mm up
-    auto s = world.state(id);
-    const double mid = 0.5 * (s.x[64] + s.x[63]);
-    for (std::uint32_t i = 0; i <= sd.m; ++i)
-      for (std::uint32_t j = 64; j <= sd.n; ++j) {
-        const std::uint32_t p = drape::point_index(sd.n, i, j);
-        s.x[p] = 2 * mid - s.x[p];
-        s.z[p] += 0.012;
-      }
-  }
-  world.step(10);
-  for (auto _ : state) world.step(1);
-  state.counters["pairs"] = double(world.contact_pair_count());
-  if (!world.all_finite()) state.SkipWithError("the fold blew up; its figures would be meaningless");
-  report(state, 128.0 * 128);
+  auto s = world.state(id);  // fold: column j > n/2 goes to 2·x_mid − x, 12 mm up
+  const double mid = 0.5 * (s.x[64] + s.x[63]);
+  for (std::uint32_t i = 0; i <= sd.m; ++i)
+    for (std::uint32_t j = 64; j <= sd.n; ++j) {
+      const std::uint32_t p = drape::point_index(sd.n, i, j);
+      s.x[p] = 2 * mid - s.x[p];
+      s.z[p] += 0.012;
+    }
+  return world;
 }
-BENCHMARK(BM_SelfCollisionFold)->Arg(0)->Arg(1)->UseRealTime();
+
+// The share of the upper half's points within `range` of their mirror point below.
+double fold_in_range(const drape::World& world, double range) {
+  const auto s = world.view(world.sheets()[0]);
+  std::size_t near = 0, all = 0;
+  for (std::uint32_t i = 0; i <= s.m; ++i)
+    for (std::uint32_t j = 64; j <= s.n; ++j, ++all) {
+      const std::uint32_t p = drape::point_index(s.n, i, j), q = drape::point_index(s.n, i, s.n - j);
+      near += std::hypot(s.x[p] - s.x[q], s.y[p] - s.y[q], s.z[p] - s.z[q]) <= range;
+    }
+  return double(near) / double(all);
+}
+
+void BM_SelfCollisionFold(benchmark::State& state) {
+  const int variant = int(state.range(0));
+  const drape::WorldDef wd = drape::bench::world_def();
+  const double range = wd.contact_thickness + wd.contact_range * wd.contact_xi;
+  double in_range = 1;
+  std::size_t pairs = 0;
+  bool finite = true;
+  for (auto _ : state) {
+    state.PauseTiming();
+    drape::World world = folded_sheet(variant);
+    world.step(kFoldWarmUp);
+    state.ResumeTiming();
+    for (int k = 0; k < kFoldSpan; ++k) world.step(1);
+    state.PauseTiming();
+    in_range = std::min(in_range, fold_in_range(world, range));
+    pairs = world.contact_pair_count();
+    finite = finite && world.all_finite();
+    state.ResumeTiming();
+  }
+  state.counters["pairs"] = double(pairs);
+  state.counters["in_range"] = in_range;
+  if (!finite) state.SkipWithError("the fold blew up; its figures would be meaningless");
+  if (variant != 0 && in_range < 0.9) state.SkipWithError("the fold's halves left contact range within the span");
+  drape::bench::set_point_rate(state, 128.0 * 128, kFoldSpan);
+}
+BENCHMARK(BM_SelfCollisionFold)->Arg(0)->Arg(1)->Arg(2)->UseRealTime();
 
 // Args: threads, block_points. One 256×256 sheet among eight 32×32 ones: without
 // splitting (block_points huge) one core does the large sheet alone.

@@ -246,6 +246,15 @@ void bind_world(py::module_& m, const char* name, const char* doc) {
   w.def("set_integrator_memory",
         [](W& self, SheetId id, const Array& memory) { self.set_integrator_memory(id, flat(memory)); },
         py::arg("sheet"), py::arg("memory"));
+  w.def("contact_memory", [](const W& self) {
+    const std::vector<std::uint64_t> words = self.contact_memory();
+    return py::array_t<std::uint64_t>(py::ssize_t(words.size()), words.data());
+  });
+  w.def("set_contact_memory",
+        [](W& self, const py::array_t<std::uint64_t, py::array::c_style | py::array::forcecast>& memory) {
+          self.set_contact_memory(std::span<const std::uint64_t>(memory.data(), std::size_t(memory.size())));
+        },
+        py::arg("memory"));
 
   // The GIL is released while the world steps, so Python threads can step several worlds
   // at once (one thread per world at a time, as in C++).
@@ -528,6 +537,7 @@ PYBIND11_MODULE(drape, m) {
       .field("contact_xi", &WorldDef::contact_xi, "xi, m")
       .field("contact_strength", &WorldDef::contact_strength, "c, J; 0: no contacts")
       .field("contact_range", &WorldDef::contact_range, "cut-off beyond h, in units of xi")
+      .field("contact_exact", &WorldDef::contact_exact, "exact nearest triangle every substep (the reference)")
       .field("block_points", &WorldDef::block_points, "points per row block of a large sheet")
       .done();
 

@@ -123,14 +123,15 @@ TEST(Checkpoint, HeaderIsTheDocumentedLittleEndianLayout) {
   world.step(7);
   const auto bytes = drape::encode_checkpoint(drape::capture_checkpoint(world));
   EXPECT_EQ(std::string(bytes.begin(), bytes.begin() + 8), "DRAPECKP");
-  EXPECT_EQ(bytes[8], 2);   // format version, low byte first
+  EXPECT_EQ(bytes[8], 3);   // format version, low byte first
   EXPECT_EQ(bytes[9], 0);
   EXPECT_EQ(bytes[12], 4);  // float world: 4 bytes per value
   EXPECT_EQ(bytes[24], 7);  // step count, after the (zero) fingerprint
   // magic..sheet count, 19-byte integrator name, then per sheet 16 bytes + 6 arrays of floats
-  // + 24 bytes of solve counters (u64, u32, f64, u32), checksum
+  // + 24 bytes of solve counters (u64, u32, f64, u32), an empty contact memory (its u64
+  // count: no sheets touch), checksum
   const std::size_t expected =
-      8 + 4 + 4 + 8 + 8 + 8 + 24 + 4 + 19 + 4 + (16 + 6 * 4 * 7 * 6 + 24) + (16 + 6 * 4 * 3 * 4 + 24) + 8;
+      8 + 4 + 4 + 8 + 8 + 8 + 24 + 4 + 19 + 4 + (16 + 6 * 4 * 7 * 6 + 24) + (16 + 6 * 4 * 3 * 4 + 24) + 8 + 8;
   EXPECT_EQ(bytes.size(), expected);
 }
 
@@ -167,6 +168,115 @@ TEST(Checkpoint, ResumedRunEqualsUninterruptedRunBitForBit) {
   EXPECT_EQ(resumed.time(), uninterrupted.time());
 }
 
+// Sheets in contact carry kept contact sets from one substep to the next (each point
+// walks from the cell it had, contacts.h), so a resumed run equals an uninterrupted one
+// only if the checkpoint holds them: three pinned sheets dropped onto each other and a
+// sheet folded onto itself, checkpointed after 5 frames of 10 substeps (not a multiple of
+// the 64 substeps between full searches; the fold's halves are still in range), restored into fresh worlds and run on.
+drape::World contact_scene(bool fold) {
+  drape::World world(drape::WorldDef{.dt = fold ? 2e-4 : 1e-3, .threads = 1});
+  drape::SheetDef sd;
+  if (fold) {
+    sd.m = 21;
+    sd.n = 9;
+    sd.width = 0.15;
+    sd.height = 0.3;
+    sd.mass = 0.1;
+    sd.stiffness = 50;
+    sd.damping = 1e-3;
+    sd.self_collision = true;
+    const drape::SheetId id = world.add_sheet(sd);
+    auto s = world.state(id);
+    for (std::uint32_t i = 11; i <= sd.m; ++i)
+      for (std::uint32_t j = 0; j <= sd.n; ++j) {
+        const std::uint32_t p = drape::point_index(sd.n, i, j), mirror = drape::point_index(sd.n, sd.m - i, j);
+        s.y[p] = s.y[mirror];
+        s.z[p] = 0.012;
+      }
+    return world;
+  }
+  sd.m = sd.n = 12;
+  sd.width = sd.height = 0.3;
+  sd.stiffness = 50;
+  sd.damping = 0.05;
+  sd.pins = drape::corner_points(sd.m, sd.n);
+  for (int layer = 0; layer < 3; ++layer) {
+    sd.center = {0.01 * layer, 0.0, 0.008 * layer};
+    world.add_sheet(sd);
+  }
+  return world;
+}
+
+TEST(Checkpoint, ResumedRunWithSheetsInContactEqualsUninterruptedRunBitForBit) {
+  for (bool fold : {false, true}) {
+    drape::World uninterrupted = contact_scene(fold);
+    for (int frame = 0; frame < 5; ++frame) uninterrupted.step(10);
+    const auto bytes = drape::encode_checkpoint(drape::capture_checkpoint(uninterrupted));
+    ASSERT_FALSE(drape::decode_checkpoint(bytes, "c.ckpt").contact_memory.empty()) << "fold " << fold;
+    for (int frame = 5; frame < 30; ++frame) uninterrupted.step(10);
+
+    drape::World resumed = contact_scene(fold);
+    drape::apply_checkpoint(drape::decode_checkpoint(bytes, "c.ckpt"), resumed, "c.ckpt");
+    for (int frame = 5; frame < 30; ++frame) resumed.step(10);
+    EXPECT_EQ(state_bytes(resumed), state_bytes(uninterrupted)) << "fold " << fold;
+
+    // The memory is what makes them equal: resumed with it forgotten (a fresh search, as
+    // from a format 2 checkpoint), the same run ends elsewhere.
+    drape::World searched = contact_scene(fold);
+    drape::apply_checkpoint(drape::decode_checkpoint(bytes, "c.ckpt"), searched, "c.ckpt");
+    searched.set_contact_memory({});
+    for (int frame = 5; frame < 30; ++frame) searched.step(10);
+    EXPECT_NE(state_bytes(searched), state_bytes(uninterrupted)) << "fold " << fold;
+  }
+}
+
+// A format 2 checkpoint (before contact memory) still resumes: the same bytes without the
+// contact memory's count, its run searching afresh.
+TEST(Checkpoint, FormatTwoCheckpointStillResumes) {
+  drape::World world = contact_scene(false);
+  world.step(20);
+  auto c = drape::capture_checkpoint(world);
+  c.contact_memory.clear();
+  auto bytes = drape::encode_checkpoint(c);
+  bytes.erase(bytes.end() - 16, bytes.end() - 8);  // the contact memory's u64 count
+  bytes[8] = 2;
+  const std::uint64_t sum = drape::fnv1a64(std::span(bytes).first(bytes.size() - 8));
+  for (int i = 0; i < 8; ++i) bytes[bytes.size() - 8 + i] = static_cast<unsigned char>(sum >> (8 * i));
+  drape::World resumed = contact_scene(false);
+  drape::apply_checkpoint(drape::decode_checkpoint(bytes, "v2.ckpt"), resumed, "v2.ckpt");
+  EXPECT_EQ(resumed.step_count(), 20u);
+  drape::World searched = contact_scene(false);
+  drape::apply_checkpoint(c, searched, "c.ckpt");
+  resumed.step(30);
+  searched.step(30);
+  EXPECT_EQ(state_bytes(resumed), state_bytes(searched));
+}
+
+// Contact memory that does not fit the world (cut short, or naming a point a sheet lacks)
+// is refused with a message, and the world goes on as if it had never been offered.
+TEST(Checkpoint, ContactMemoryThatDoesNotFitIsRefusedAndLeavesTheWorldUntouched) {
+  drape::World world = contact_scene(false), twin = contact_scene(false);
+  world.step(35);
+  twin.step(35);
+  const std::vector<std::uint64_t> memory = world.contact_memory();
+  ASSERT_GT(memory.size(), 8u);
+  auto cut = memory;
+  cut.pop_back();
+  EXPECT_THROW(world.set_contact_memory(cut), std::invalid_argument);
+  auto foreign = memory;
+  foreign[2] = 5;  // written for five sheets
+  EXPECT_THROW(world.set_contact_memory(foreign), std::invalid_argument);
+  drape::World other = contact_scene(true);  // one sheet: the memory names sheets it lacks
+  EXPECT_THROW(other.set_contact_memory(memory), std::invalid_argument);
+  auto c = drape::capture_checkpoint(world);
+  c.contact_memory = cut;
+  const std::string what = refusal([&] { drape::apply_checkpoint(c, world, "cut.ckpt"); }, "cut.ckpt");
+  EXPECT_NE(what.find("contact memory"), std::string::npos) << what;
+  world.step(25);
+  twin.step(25);
+  EXPECT_EQ(state_bytes(world), state_bytes(twin));
+}
+
 TEST(Checkpoint, TruncatedAtEveryByteIsRefused) {
   const auto bytes = small_checkpoint();
   for (std::size_t size = 0; size < bytes.size(); ++size) {
@@ -197,11 +307,13 @@ TEST(Checkpoint, ExtraTrailingBytesAreRefused) {
 
 TEST(Checkpoint, OtherFormatVersionIsRefusedByName) {
   auto bytes = small_checkpoint();
-  bytes[8] = 3;  // version 3, with a checksum that is right for it
-  const std::uint64_t sum = drape::fnv1a64(std::span(bytes).first(bytes.size() - 8));
-  for (int i = 0; i < 8; ++i) bytes[bytes.size() - 8 + i] = static_cast<unsigned char>(sum >> (8 * i));
-  const std::string what = refusal([&] { drape::decode_checkpoint(bytes, "v3.ckpt"); }, "v3.ckpt");
-  EXPECT_NE(what.find("format version 3"), std::string::npos) << what;
+  for (unsigned char version : {1, 4}) {  // with a checksum that is right for it
+    bytes[8] = version;
+    const std::uint64_t sum = drape::fnv1a64(std::span(bytes).first(bytes.size() - 8));
+    for (int i = 0; i < 8; ++i) bytes[bytes.size() - 8 + i] = static_cast<unsigned char>(sum >> (8 * i));
+    const std::string what = refusal([&] { drape::decode_checkpoint(bytes, "old.ckpt"); }, "old.ckpt");
+    EXPECT_NE(what.find("format version " + std::to_string(version)), std::string::npos) << what;
+  }
 }
 
 // The implicit solves' counters (World::solver_stats) go through a checkpoint: a resumed

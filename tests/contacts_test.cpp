@@ -15,6 +15,8 @@
 #include "sheet_data.h"
 #include "surface_distance.h"
 
+#include <drape/drape.h>
+
 namespace drape::detail {
 namespace {
 
@@ -52,6 +54,12 @@ SheetBoxes<double> boxes(const Sheet<double>& s) {
 }
 
 const ContactParams<double> kParams = ContactParams<double>::make(0.005, 0.002, 1e-4, 6.0);
+// The same with exact candidate lists between searches (contacts.h, ContactParams::exact).
+const ContactParams<double> kExact = [] {
+  auto p = kParams;
+  p.exact = true;
+  return p;
+}();
 
 // Two small sheets a few millimetres apart, the upper one rumpled, so most points lie
 // within contact range of several triangles of the other sheet.
@@ -332,8 +340,8 @@ void jostle(Sheet<double>& s, std::mt19937& rng) {
 std::size_t kept_matches_fresh(const Sheet<double>& a, const Sheet<double>& b, PairContacts<double>& kept,
                                ContactScratch<double>& scratch, int step) {
   PairContacts<double> fresh;
-  pair_contacts(a, boxes(a), b, boxes(b), kParams, kept, scratch);
-  pair_contacts(a, boxes(a), b, boxes(b), kParams, fresh, scratch);
+  pair_contacts(a, boxes(a), b, boxes(b), kExact, kept, scratch);
+  pair_contacts(a, boxes(a), b, boxes(b), kExact, fresh, scratch);
   expect_same_forces(kept.on_a, fresh.on_a, step);
   expect_same_forces(kept.on_b, fresh.on_b, step);
   return kept.on_a.size();
@@ -365,8 +373,8 @@ TEST(Contacts, KeptCandidatesFindWhatAFreshSearchFindsBitForBit) {
   for (int step = 0; step < steps; ++step) {
     jostle(s, rng);
     PairContacts<double> fresh;
-    self_contacts(s, boxes(s), kParams, own, scratch);
-    self_contacts(s, boxes(s), kParams, fresh, scratch);
+    self_contacts(s, boxes(s), kExact, own, scratch);
+    self_contacts(s, boxes(s), kExact, fresh, scratch);
     expect_same_forces(own.on_a, fresh.on_a, step);
   }
   EXPECT_GT(own.searches, 2u);
@@ -622,6 +630,149 @@ TEST(Contacts, GatherAddsSourcesInOrderWithinTheRange) {
   gather_contacts<double>(sources, out, 0, 2);
   EXPECT_EQ(std::vector<double>(out.x.begin(), out.x.end()), (std::vector<double>{0.0, 1.25, 9.0, 9.0}));
   EXPECT_EQ(std::vector<double>(out.z.begin(), out.z.end()), (std::vector<double>{0.0, 2.0, 9.0, 9.0}));
+}
+
+
+// Kept contact sets (contacts.h, KeptContacts: the default between searches) against the
+// exact search, on the same positions at every step. Two rumpled sheets carried along a
+// common drift that turns slowly, with jitter, then one pressed towards the other; and a
+// folded sheet against itself, jostled (0.3 mm a step at random, so it crumples). At each
+// step the walked forces of the persistent PairContacts and those of a fresh exact search
+// are made dense per point; the summed difference |ΔF| stays within 1e-3 of the summed |F|
+// for the pair and 1e-2 for the crumpled fold (a walk that stops on the wrong cell gives a
+// force off by its whole size at that point).
+double force_gap(const ContactForces<double>& walked, const ContactForces<double>& exact, std::size_t points,
+                 double& scale) {
+  const auto w = dense(walked, points), e = dense(exact, points);
+  double gap = 0;
+  for (std::size_t p = 0; p < points; ++p) {
+    gap += std::hypot(w[p][0] - e[p][0], w[p][1] - e[p][1], w[p][2] - e[p][2]);
+    scale += std::hypot(e[p][0], e[p][1], e[p][2]);
+  }
+  return gap;
+}
+
+TEST(Contacts, WalkedContactSetsStayWithinTheirBoundOfTheExactSearch) {
+  auto [a, b] = close_sheets(6);
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> jitter(-1e-4, 1e-4);
+  auto carry = [&](Sheet<double>& s, double dx, double dz, double turn) {
+    for (std::size_t p = 0; p < s.size(); ++p) {
+      const double x = s.position.x[p], y = s.position.y[p];
+      s.position.x[p] = x * std::cos(turn) - y * std::sin(turn) + dx + jitter(rng);
+      s.position.y[p] = x * std::sin(turn) + y * std::cos(turn) + jitter(rng);
+      s.position.z[p] += dz + jitter(rng);
+    }
+  };
+  PairContacts<double> walked;
+  ContactScratch<double> scratch;
+  double gap = 0, scale = 0;
+  const int steps = 60;
+  for (int step = 0; step < steps; ++step) {
+    carry(a, 0.001, 0.0, 0.002);
+    carry(b, 0.001, step < 40 ? 0.0 : -1e-4, 0.002);
+    PairContacts<double> exact;
+    pair_contacts(a, boxes(a), b, boxes(b), kParams, walked, scratch);
+    pair_contacts(a, boxes(a), b, boxes(b), kExact, exact, scratch);
+    gap += force_gap(walked.on_a, exact.on_a, a.size(), scale);
+    gap += force_gap(walked.on_b, exact.on_b, b.size(), scale);
+  }
+  EXPECT_GT(scale, 0.0);
+  EXPECT_LT(walked.searches, std::uint64_t(steps) / 4);  // the walk served most steps
+  EXPECT_LE(gap, 1e-3 * scale) << "pair: summed |dF| " << gap << " of " << scale;
+
+  SheetDef d;
+  d.m = 20;
+  d.n = 10;
+  d.width = 0.2;
+  d.height = 0.4;
+  auto s = folded_sheet(d, 0.008);
+  PairContacts<double> own;
+  double fold_gap = 0, fold_scale = 0;
+  for (int step = 0; step < steps; ++step) {
+    jostle(s, rng);
+    PairContacts<double> exact;
+    self_contacts(s, boxes(s), kParams, own, scratch);
+    self_contacts(s, boxes(s), kExact, exact, scratch);
+    fold_gap += force_gap(own.on_a, exact.on_a, s.size(), fold_scale);
+  }
+  EXPECT_GT(fold_scale, 0.0);
+  EXPECT_LT(own.searches, std::uint64_t(steps) / 4);
+  EXPECT_LE(fold_gap, 1e-2 * fold_scale) << "fold: summed |dF| " << fold_gap << " of " << fold_scale;
+}
+
+// The same over whole runs of a World, where a different force changes the trajectory:
+// a stack of three pinned sheets dropped 8 mm onto each other, and a sheet folded onto
+// itself with self-collision, each stepped for 0.3 s (60 ms for the fold) with walked
+// contact sets and with WorldDef::contact_exact. Their positions stay within 0.2 of the
+// contact thickness h of each other at every frame. The stack bounces: the gap between
+// the runs grows from rounding (1e-7 m after a frame) to about 0.1 h by 0.3 s.
+template <class Setup>
+double largest_position_gap(Setup setup, int frames, int substeps) {
+  World walk = setup(false), exact = setup(true);
+  double most = 0;
+  for (int f = 0; f < frames; ++f) {
+    walk.step(substeps);
+    exact.step(substeps);
+    for (SheetId id : walk.sheets()) {
+      const auto x = walk.state(id), y = exact.state(id);
+      for (std::size_t p = 0; p < x.x.size(); ++p)
+        most = std::max(most, std::hypot(x.x[p] - y.x[p], x.y[p] - y.y[p], x.z[p] - y.z[p]));
+    }
+  }
+  return most;
+}
+
+TEST(Contacts, WalkedContactSetsKeepStackAndFoldRunsWithinTheirBoundOfTheExactSearch) {
+  auto stack = [](bool exact) {
+    WorldDef wd;
+    wd.dt = 1e-3;
+    wd.threads = 1;
+    wd.contact_exact = exact;
+    World world(wd);
+    SheetDef sd;
+    sd.m = sd.n = 15;
+    sd.width = sd.height = 0.3;
+    sd.mass = 1.0;
+    sd.stiffness = 50;
+    sd.damping = 0.05;
+    sd.pins = corner_points(sd.m, sd.n);
+    for (int layer = 0; layer < 3; ++layer) {
+      sd.center = {0.01 * layer, 0.0, 0.008 * layer};
+      world.add_sheet(sd);
+    }
+    return world;
+  };
+  const double h = WorldDef{}.contact_thickness;
+  const double stack_gap = largest_position_gap(stack, 30, 10);
+  EXPECT_LE(stack_gap, 0.2 * h);
+  auto fold = [](bool exact) {
+    WorldDef wd;
+    wd.dt = 2e-4;
+    wd.threads = 1;
+    wd.contact_exact = exact;
+    World world(wd);
+    SheetDef sd;
+    sd.m = 31;
+    sd.n = 15;
+    sd.width = 0.25;
+    sd.height = 0.5;
+    sd.mass = 0.1;
+    sd.stiffness = 50;
+    sd.damping = 1e-3;
+    sd.self_collision = true;
+    const SheetId id = world.add_sheet(sd);
+    auto s = world.state(id);
+    for (std::uint32_t i = 16; i <= sd.m; ++i)
+      for (std::uint32_t j = 0; j <= sd.n; ++j) {
+        const std::uint32_t p = point_index(sd.n, i, j), mirror = point_index(sd.n, sd.m - i, j);
+        s.y[p] = s.y[mirror];
+        s.z[p] = 0.012;
+      }
+    return world;
+  };
+  const double fold_gap = largest_position_gap(fold, 30, 10);
+  EXPECT_LE(fold_gap, 0.2 * h);
 }
 
 }  // namespace

@@ -97,6 +97,34 @@ TEST_F(Cli, KilledRunResumedFromItsCheckpointWritesBitIdenticalFrames) {
   }
 }
 
+// Sheets in contact walk their kept contact sets between searches: the checkpoint holds
+// those sets, so a run resumed at frame 7 (70 substeps, between two full searches) writes
+// the frames of the uninterrupted run, byte for byte.
+TEST_F(Cli, ResumedRunWithSheetsInContactWritesTheSameFrames) {
+  const fs::path scene = write("stack.json", R"({"frames": 10, "dt": 0.001, "substeps": 10,
+    "sheets": [
+      {"name": "a", "grid": [12, 12], "size": [0.3, 0.3], "center": [0, 0, 0], "stiffness": 50, "mass": 1, "damping": 0.05, "pins": "corners"},
+      {"name": "b", "grid": [12, 12], "size": [0.3, 0.3], "center": [0.01, 0, 0.008], "stiffness": 50, "mass": 1, "damping": 0.05, "pins": "corners"},
+      {"name": "c", "grid": [12, 12], "size": [0.3, 0.3], "center": [0.02, 0, 0.016], "stiffness": 50, "mass": 1, "damping": 0.05, "pins": "corners"}]})");
+  const fs::path full = dir / "full", part = dir / "part";
+  ASSERT_EQ(drape("run " + scene.string() + " --out " + full.string()).code, 0);
+  ASSERT_EQ(drape("run " + scene.string() + " --out " + part.string() + " --checkpoint-every 7").code, 0);
+  for (int f = 8; f <= 10; ++f) {
+    char name[32];
+    std::snprintf(name, sizeof name, "frame_%05d.obj", f);
+    fs::remove(part / name);
+  }
+  const Result resumed = drape("run " + scene.string() + " --resume " + part.string() + " --threads 2");
+  ASSERT_EQ(resumed.code, 0) << resumed.err;
+  const auto expected = frame_files(full), got = frame_files(part);
+  ASSERT_EQ(got.size(), expected.size());
+  for (const auto& [name, bytes] : expected) {
+    const auto it = got.find(name);
+    ASSERT_NE(it, got.end()) << name << " missing after the resume";
+    EXPECT_TRUE(it->second == bytes) << name << " differs from the uninterrupted run";
+  }
+}
+
 // Constraints and a moving obstacle take their targets and pose from the time of each
 // substep: a run resumed at a checkpoint continues them exactly (issue 14).
 TEST_F(Cli, ResumedRunWithConstraintsAndAMovingObstacleWritesTheSameFrames) {
@@ -149,12 +177,12 @@ TEST_F(Cli, DamagedForeignOrMissingCheckpointIsRefusedWithExitFiveAndNothingWrit
   std::string flipped = good;
   flipped[good.size() / 2] = char(flipped[good.size() / 2] ^ 0x10);
   std::string other_version = good;
-  other_version[8] = 3;  // u32 little-endian format version after the 8-byte magic
+  other_version[8] = 4;  // u32 little-endian format version after the 8-byte magic
   const std::pair<std::string, std::string> cases[] = {
       {good.substr(0, good.size() / 2), "checksum mismatch"},  // truncated: the checksum read is other bytes
       {good.substr(0, 20), "truncated"},
       {flipped, "checksum mismatch"},
-      {other_version, "format version 3"},
+      {other_version, "format version 4"},
       {"not a checkpoint at all, just text", "not a drape checkpoint"},
   };
   for (const auto& [bytes, message] : cases) {

@@ -10,6 +10,13 @@ machine, the compiler and flags, and the load average around the run. tools/benc
 divides each scene's rate in a later run by the one recorded here. The worktree is removed
 afterwards.
 
+Because today's bench/bench_scenes.cpp is the one built, the baseline is timed exactly as a later
+run is: each scene's span repeated from a fresh world until at least a second is timed (since
+issue 13's third step; a baseline recorded before timed each span once, and its short scenes
+are noise). Record it again after such a change to the benchmark, with the same commit:
+
+    tools/scenes_baseline.py --commit 0598513 --out docs/scenes-baseline.json
+
 Usage: tools/scenes_baseline.py [--commit 0598513] [--out docs/scenes-baseline.json]
 A one-off measurement: rerun it only to move the baseline, on a machine as quiet as you can get.
 """

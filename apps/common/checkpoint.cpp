@@ -211,6 +211,7 @@ Checkpoint capture_checkpoint(const BasicWorld<Real>& world, std::uint64_t finge
     const auto stats = world.solver_stats(id);
     s.solver = {stats.iterations, stats.relative_residual, stats.converged, stats.unconverged_solves};
   }
+  c.contact_memory = world.contact_memory();
   return c;
 }
 
@@ -247,6 +248,13 @@ void apply_checkpoint(const Checkpoint& c, BasicWorld<Real>& world, const std::s
     converted.push_back({narrow(s.x), narrow(s.y), narrow(s.z), narrow(s.vx), narrow(s.vy), narrow(s.vz),
                          narrow(s.integrator_memory)});
 
+  // The only setter that can still refuse (it checks the memory against the sheets), so
+  // first: a refusal leaves the world untouched.
+  try {
+    world.set_contact_memory(c.contact_memory);
+  } catch (const std::invalid_argument& e) {
+    fail(source, e.what());
+  }
   world.set_dt(c.dt);
   world.set_integrator(c.integrator);
   world.set_step_count(c.step_count);
@@ -285,6 +293,8 @@ std::vector<unsigned char> encode_checkpoint(const Checkpoint& c) {
     out.f64(s.solver.relative_residual);
     out.u32(s.solver.converged ? 1 : 0);
   }
+  out.u64(c.contact_memory.size());
+  for (std::uint64_t word : c.contact_memory) out.u64(word);
   out.u64(fnv1a64(out.out));
   return std::move(out.out);
 }
@@ -300,9 +310,9 @@ Checkpoint decode_checkpoint(std::span<const unsigned char> bytes, const std::st
   in.take(magic.size(), "magic");
   // The version comes before the checksum: another version may lay out even that differently.
   const std::uint32_t version = in.u32("format version");
-  if (version != checkpoint_format_version)
-    fail(source, "format version " + std::to_string(version) + ", this drape reads version " +
-                     std::to_string(checkpoint_format_version));
+  if (version < checkpoint_oldest_version || version > checkpoint_format_version)
+    fail(source, "format version " + std::to_string(version) + ", this drape reads versions " +
+                     std::to_string(checkpoint_oldest_version) + " to " + std::to_string(checkpoint_format_version));
   Reader tail(bytes.last(checksum_size), source);
   if (tail.u64("checksum") != fnv1a64(bytes.first(bytes.size() - checksum_size)))
     fail(source, "checksum mismatch: the file is corrupted or truncated");
@@ -344,6 +354,12 @@ Checkpoint decode_checkpoint(std::span<const unsigned char> bytes, const std::st
     const std::uint32_t converged = in.u32("solve converged");
     if (converged > 1) fail(source, "solve converged must be 0 or 1");
     s.solver.converged = converged == 1;
+  }
+  if (version >= 3) {
+    const std::uint64_t words = in.u64("contact memory word count");
+    in.need_items(words, 8, "contact memory");
+    c.contact_memory.resize(words);
+    for (std::uint64_t& word : c.contact_memory) word = in.u64("contact memory");
   }
   if (in.remaining() != 0)
     fail(source, std::to_string(in.remaining()) + " unexpected bytes after the last sheet at offset " +

@@ -17,6 +17,9 @@
 //     integrator memory             memory count values
 //     u64 unconverged solves, u32 last solve's iterations, f64 its relative residual,
 //     u32 converged (0 or 1)        World::solver_stats (format 2 on)
+//   u64 word count + u64 words      World::contact_memory (format 3 on): the contact
+//                                   stage's kept sets, so sheets in contact resume bit for
+//                                   bit; a format 2 file has none and its run searches afresh
 //   u64 FNV-1a 64 of every byte before it
 #pragma once
 
@@ -30,7 +33,9 @@
 
 namespace drape {
 
-inline constexpr std::uint32_t checkpoint_format_version = 2;
+inline constexpr std::uint32_t checkpoint_format_version = 3;
+// The oldest format this drape still reads (format 2: no contact memory).
+inline constexpr std::uint32_t checkpoint_oldest_version = 2;
 
 // A checkpoint in memory, parsed and checked but not applied to any world. Values are held
 // as double whatever the precision: float -> double -> float is exact.
@@ -51,6 +56,7 @@ struct Checkpoint {
   Vec3 gravity{};
   Integrator integrator = Integrator::SemiImplicitEuler;
   std::vector<SheetRecord> sheets;
+  std::vector<std::uint64_t> contact_memory;  // World::contact_memory; empty: search afresh
 };
 
 template <class Real>

@@ -180,6 +180,16 @@ void repel(const Sheet<Real>& qs, std::uint32_t q, V3<Real> p, const Sheet<Real>
 
 constexpr std::uint32_t kNoCell = ~std::uint32_t(0);
 
+// The cell of s at first corner p00 (its two triangles) against the point x.
+template <class Real>
+[[gnu::always_inline]] inline void test_cell(const Sheet<Real>& s, std::uint32_t cols, V3<Real> x, std::uint32_t p00,
+                                             Nearest<Real>& best) {
+  const std::uint32_t p01 = p00 + 1, p10 = p00 + cols, p11 = p10 + 1;
+  const V3<Real> x00 = at(s, p00), x01 = at(s, p01), x10 = at(s, p10), x11 = at(s, p11);
+  consider(x, 2 * p00, p00, p01, p11, x00, x01, x11, best);
+  consider(x, 2 * p00 + 1, p00, p11, p10, x00, x11, x10, best);
+}
+
 // Point p of q (at x) against `near`, its cells of s whose boxes are within R, with their
 // boxes' squared gaps: `last` (the point's nearest cell of the last substep, if it had
 // one) is tested first, else the cell whose box is nearest (the first of equally near
@@ -191,12 +201,6 @@ void repel_nearest(const Sheet<Real>& q, std::uint32_t p, V3<Real> x, const Shee
                    const typename ContactScratch<Real>::Near* near, std::uint32_t found, const ContactParams<Real>& prm,
                    ContactForces<Real>& on_q, ContactForces<Real>& on_s, std::uint32_t& last) {
   const std::uint32_t cols = s.topology->cols();
-  auto test = [&](std::uint32_t p00, Nearest<Real>& best) {
-    const std::uint32_t p01 = p00 + 1, p10 = p00 + cols, p11 = p10 + 1;
-    const V3<Real> x00 = at(s, p00), x01 = at(s, p01), x10 = at(s, p10), x11 = at(s, p11);
-    consider(x, 2 * p00, p00, p01, p11, x00, x01, x11, best);
-    consider(x, 2 * p00 + 1, p00, p11, p10, x00, x11, x10, best);
-  };
   const Real R2 = prm.range * prm.range;
   Nearest<Real> best{};
   best.dist2 = R2;
@@ -210,9 +214,9 @@ void repel_nearest(const Sheet<Real>& q, std::uint32_t p, V3<Real> x, const Shee
       if (near[e].gap2 < near[nearest].gap2) nearest = e;
     first = near[nearest].corner;
   }
-  test(first, best);
+  test_cell(s, cols, x, first, best);
   for (std::uint32_t e = 0; e < found; ++e)
-    if (near[e].corner != first && near[e].gap2 < best.dist2) test(near[e].corner, best);
+    if (near[e].corner != first && near[e].gap2 < best.dist2) test_cell(s, cols, x, near[e].corner, best);
   if (best.dist2 < R2) {
     last = best.tri[0];  // the cell's first corner: both triangles start there
     repel(q, p, x, s, best, prm, on_q, on_s);
@@ -228,18 +232,35 @@ void repel_nearest(const Sheet<Real>& q, std::uint32_t p, V3<Real> x, const Shee
 // exclusion; otherwise q is s and the cells within `ring` rows/columns of the point are
 // left out.
 //
+// The entries [e0, e1) of `kept`, walked (defined below).
+template <class Real>
+void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptContacts& kept, std::size_t e0,
+                    std::size_t e1, const ContactParams<Real>& prm, ContactForces<Real>& on_q,
+                    ContactForces<Real>& on_s, std::uint32_t* last);
+
 // With `lists`, it also makes each point's candidate list (PairContacts): the cells whose
-// boxes are within R + skin of it, in the order this search meets them.
+// boxes are within R + skin of it, in the order this search meets them. With `kept`, it
+// makes the kept contact set instead; with `before` too (the set so far, for these sheets),
+// a block all of whose points are in `before` is not searched: its entries walk and move
+// to `kept` as they are (a partial search, KeptContacts).
 template <class Real>
 void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, const Sheet<Real>& s,
                           const SheetBoxes<Real>& bs, int ring, const ContactParams<Real>& prm,
                           ContactForces<Real>& on_q, ContactForces<Real>& on_s, ContactScratch<Real>& sc,
-                          std::uint32_t* last, Candidates* lists = nullptr, Real skin = 0) {
+                          std::uint32_t* last, Candidates* lists = nullptr, Real skin = 0,
+                          KeptContacts* kept = nullptr, KeptContacts* before = nullptr) {
   if (lists) {
     lists->begin.assign(q.size(), 0);
     lists->count.assign(q.size(), 0);
     lists->cell.clear();
   }
+  const std::size_t blocks = std::size_t(bq.patch_rows) * bq.patch_cols;
+  if (kept) {
+    kept->clear();
+    kept->open.assign(blocks, 1);
+    kept->block_begin.assign(blocks + 1, 0);
+  }
+  if (before && (before->open.size() != blocks || before->block_begin.size() != blocks + 1)) before = nullptr;
   if (bs.m == 0 || bs.n == 0) return;  // a line of points has no cells
   constexpr std::uint32_t P = SheetBoxes<Real>::kPatch;
   const Real R2 = prm.range * prm.range;
@@ -280,6 +301,15 @@ void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
   for (std::uint32_t bi = 0; bi < bq.patch_rows; ++bi)
     for (std::uint32_t bj = 0; bj < bq.patch_cols; ++bj) {
       const std::uint32_t block = bi * bq.patch_cols + bj;
+      if (kept) kept->block_begin[block] = std::uint32_t(kept->point.size());
+      if (before && !before->open[block]) {  // every point in the set: walk, do not search
+        const std::uint32_t e0 = before->block_begin[block], e1 = before->block_begin[block + 1];
+        points_walking(q, s, ring, *before, e0, e1, prm, on_q, on_s, last);
+        kept->point.insert(kept->point.end(), before->point.begin() + e0, before->point.begin() + e1);
+        kept->cell.insert(kept->cell.end(), before->cell.begin() + e0, before->cell.begin() + e1);
+        kept->open[block] = 0;
+        continue;
+      }
       Aabb bb;
       for (int k = 0; k < 3; ++k) {
         bb.lo[k] = bq.patch_lo[k][block];
@@ -320,6 +350,7 @@ void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
       if (count == 0) continue;
       const std::uint32_t i0 = bq.first(bi), i1 = bq.end_point(bi, bq.patch_rows, bq.m);
       const std::uint32_t j0 = bq.first(bj), j1 = bq.end_point(bj, bq.patch_cols, bq.n);
+      const std::size_t entries_before = kept ? kept->point.size() : 0;
       for (std::uint32_t i = i0; i < i1; ++i)
         for (std::uint32_t j = j0; j < j1; ++j) {
           const std::uint32_t p = i * qcols + j;
@@ -354,20 +385,41 @@ void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
               found += cell_gap2[c] < L2;
             }
           }
-          if (lists) {  // the list, then only the cells within R
-            lists->begin[p] = std::uint32_t(lists->cell.size());
-            lists->count[p] = found;
+          // A point within R + skin joins the kept set at the cell whose box is nearest,
+          // or at its nearest triangle's cell if that is within R.
+          std::uint32_t start = kNoCell;
+          if (kept && found > 0) {
+            std::uint32_t nearest = 0;
+            for (std::uint32_t e = 1; e < found; ++e)
+              if (near[e].gap2 < near[nearest].gap2) nearest = e;
+            start = near[nearest].corner;
+          }
+          if (lists || kept) {  // the list, then only the cells within R
+            if (lists) {
+              lists->begin[p] = std::uint32_t(lists->cell.size());
+              lists->count[p] = found;
+            }
             std::uint32_t within = 0;
             for (std::uint32_t e = 0; e < found; ++e) {
-              lists->cell.push_back(near[e].corner);
+              if (lists) lists->cell.push_back(near[e].corner);
               near[within] = near[e];
               within += near[e].gap2 < R2;
             }
             found = within;
           }
-          if (found > 0) repel_nearest(q, p, x, s, near, found, prm, on_q, on_s, last[p]);
+          if (found > 0) {
+            repel_nearest(q, p, x, s, near, found, prm, on_q, on_s, last[p]);
+            if (kept && last[p] != kNoCell) start = last[p];
+          }
+          if (start != kNoCell) {
+            kept->point.push_back(p);
+            kept->cell.push_back(start);
+          }
         }
+      // The block visited rows [i0, i1) × columns [j0, j1): open unless all are in the set.
+      if (kept) kept->open[block] = kept->point.size() - entries_before < std::size_t(i1 - i0) * (j1 - j0);
     }
+  if (kept) kept->block_begin[blocks] = std::uint32_t(kept->point.size());
 }
 
 // Points of q against their candidate lists of cells of s (PairContacts), in the order
@@ -420,6 +472,96 @@ void points_against_lists(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
     }
 }
 
+// Whether grid point (vi, vj) of s is the point of every triangle around it nearest to x:
+// x − v makes an angle of at least 90° with each of its edges (to its four grid neighbours
+// and, along the cells' diagonals, to (vi ± 1, vj ± 1)), which puts x in v's vertex region
+// of each triangle (closest_weights). Then no cell around v holds a nearer point, and a walk
+// that reached v stops without testing their triangles.
+template <class Real>
+bool vertex_is_nearest(const Sheet<Real>& s, V3<Real> x, std::int64_t vi, std::int64_t vj) {
+  const std::int64_t rows = s.topology->m + 1, cols = s.topology->n + 1;
+  const V3<Real> v = at(s, std::uint32_t(vi * cols + vj));
+  const V3<Real> d = sub(x, v);
+  constexpr int kEdges[6][2] = {{-1, 0}, {1, 0}, {0, -1}, {0, 1}, {1, 1}, {-1, -1}};
+  unsigned outside = 1;
+  for (const auto& e : kEdges) {
+    const std::int64_t ui = vi + e[0], uj = vj + e[1];
+    if (ui < 0 || uj < 0 || ui >= rows || uj >= cols) continue;
+    outside &= unsigned(dot(d, sub(at(s, std::uint32_t(ui * cols + uj)), v)) <= 0);
+  }
+  return outside != 0;
+}
+
+// The entries [e0, e1) of `kept` (points of q against cells of s), in order: each walks
+// from its cell to a local minimum of the distance (KeptContacts), which becomes its cell,
+// and repels if within R. Self-contact (`ring` ≥ 0): cells within `ring` rows/columns of
+// the point are never entered.
+template <class Real>
+void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptContacts& kept, std::size_t e0,
+                    std::size_t e1, const ContactParams<Real>& prm, ContactForces<Real>& on_q,
+                    ContactForces<Real>& on_s, std::uint32_t* last) {
+  const std::uint32_t cols = s.topology->cols(), m = s.topology->m, n = s.topology->n;
+  const std::uint32_t qcols = q.topology->cols();
+  const Real R2 = prm.range * prm.range;
+  // At most this many moves per substep: a point's nearest triangle rarely moves by more
+  // than a cell in one, and the bound keeps a walk on a crumpled sheet short.
+  constexpr int kMaxMoves = 8;
+  for (std::size_t e = e0; e < e1; ++e) {
+    const std::uint32_t p = kept.point[e];
+    const V3<Real> x = at(q, p);
+    const std::int64_t pi = p / qcols, pj = p % qcols;
+    auto allowed = [&](std::int64_t ci, std::int64_t cj) {
+      if (ci < 0 || cj < 0 || ci >= std::int64_t(m) || cj >= std::int64_t(n)) return false;
+      return ring < 0 || !(ci >= pi - ring && ci < pi + ring && cj >= pj - ring && cj < pj + ring);
+    };
+    Nearest<Real> best{};
+    best.dist2 = std::numeric_limits<Real>::infinity();
+    best.key = ~std::uint32_t(0);
+    std::uint32_t cell = kept.cell[e];
+    test_cell(s, cols, x, cell, best);
+    if (best.key == ~std::uint32_t(0)) {  // not a number: no triangle, no force
+      last[p] = kNoCell;
+      continue;
+    }
+    for (int move = 0; move < kMaxMoves; ++move) {
+      // The closest point's weights on the cell's corners 00, 01, 10, 11: triangle 0 is
+      // (00, 01, 11), triangle 1 (00, 11, 10). Zero weight on a row's (column's) two
+      // corners puts it on the opposite row (column) edge of the cell.
+      Real w00 = best.w.x, w01, w10, w11;
+      if (best.key & 1) {
+        w01 = 0;
+        w11 = best.w.y;
+        w10 = best.w.z;
+      } else {
+        w01 = best.w.y;
+        w11 = best.w.z;
+        w10 = 0;
+      }
+      const int di = w10 + w11 == 0 ? -1 : (w00 + w01 == 0 ? 1 : 0);
+      const int dj = w01 + w11 == 0 ? -1 : (w00 + w10 == 0 ? 1 : 0);
+      if (di == 0 && dj == 0) break;
+      const std::int64_t ci = cell / cols, cj = cell % cols;
+      if (di != 0 && dj != 0 && allowed(ci + di, cj) && allowed(ci, cj + dj) && allowed(ci + di, cj + dj) &&
+          vertex_is_nearest(s, x, ci + (di > 0), cj + (dj > 0)))
+        break;
+      const std::uint32_t key = best.key;
+      auto corner = [&](std::int64_t i, std::int64_t j) { return std::uint32_t(i * cols + j); };
+      if (di != 0 && allowed(ci + di, cj)) test_cell(s, cols, x, corner(ci + di, cj), best);
+      if (dj != 0 && allowed(ci, cj + dj)) test_cell(s, cols, x, corner(ci, cj + dj), best);
+      if (di != 0 && dj != 0 && allowed(ci + di, cj + dj)) test_cell(s, cols, x, corner(ci + di, cj + dj), best);
+      if (best.key == key) break;  // no neighbour holds a nearer triangle
+      cell = best.key / 2;
+    }
+    kept.cell[e] = cell;
+    if (best.dist2 < R2) {
+      last[p] = cell;
+      repel(q, p, x, s, best, prm, on_q, on_s);
+    } else {
+      last[p] = kNoCell;
+    }
+  }
+}
+
 // Whether no point of s has moved farther than √limit2 from `then`: blocks of points, each
 // a vectorised maximum, stopping at the first block that has.
 template <class Real>
@@ -445,9 +587,13 @@ bool within(const Sheet<Real>& s, const Vec3Array<Real>& then, Real limit2) {
 // farther from the centre than. One pass over each patch's points (rows and columns
 // 8p … 8p + 8, as their boxes).
 template <class Real>
-void patch_motion(const Sheet<Real>& s, const SheetBoxes<Real>& bs, const Vec3Array<Real>& then,
-                  std::vector<Real> (&mid)[3], std::vector<Real>& radius) {
+void patch_motion(const Sheet<Real>& s, const Vec3Array<Real>& then, std::vector<Real> (&mid)[3],
+                  std::vector<Real>& radius) {
   constexpr std::uint32_t P = SheetBoxes<Real>::kPatch;
+  struct {
+    std::uint32_t m, n, patch_rows, patch_cols;
+  } const bs{s.topology->m, s.topology->n, SheetBoxes<Real>::patches_along(s.topology->m),
+             SheetBoxes<Real>::patches_along(s.topology->n)};
   const std::uint32_t cols = bs.n + 1, patches = bs.patch_rows * bs.patch_cols;
   for (int k = 0; k < 3; ++k) mid[k].resize(patches);
   radius.resize(patches);
@@ -494,6 +640,54 @@ void patch_clearance(const SheetBoxes<Real>& ba, const SheetBoxes<Real>& bb, std
     }
 }
 
+// The test of every patch pair below in O(patches), enough when the sheets moved nearly
+// together: through the middle m of all patch middles, |mid_A − mid_B| ≤ |mid_A − m| +
+// |mid_B − m|, so a pair's drift is at most e_A + e_B with e = spread + |mid − m|, and its
+// slack is at least the skin. Holds if the largest e over patches that need the test plus
+// the largest over all patches of the other sheet is within `limit` (both ways round);
+// open_a/open_b null: every patch needs it. False for a NaN.
+template <class Real>
+bool patches_within_skin(ContactScratch<Real>& sc, std::uint32_t pa, std::uint32_t pb, bool self,
+                         const std::uint8_t* open_a, const std::uint8_t* open_b, Real limit) {
+  const auto& mid_b = self ? sc.mid_a : sc.mid_b;
+  const auto& radius_b = self ? sc.radius_a : sc.radius_b;
+  Real lo[3], hi[3];
+  for (int k = 0; k < 3; ++k) {
+    const auto [a0, a1] = std::minmax_element(sc.mid_a[k].begin(), sc.mid_a[k].begin() + pa);
+    const auto [b0, b1] = std::minmax_element(mid_b[k].begin(), mid_b[k].begin() + pb);
+    lo[k] = std::min(*a0, *b0);
+    hi[k] = std::max(*a1, *b1);
+  }
+  const Real m[3] = {Real(0.5) * (lo[0] + hi[0]), Real(0.5) * (lo[1] + hi[1]), Real(0.5) * (lo[2] + hi[2])};
+  // Largest e over all patches and over those needing the test, for each sheet.
+  auto largest = [&](const std::vector<Real>(&mid)[3], const std::vector<Real>& radius, std::uint32_t count,
+                     const std::uint8_t* open, Real& all, Real& needing) {
+    all = needing = 0;
+    for (std::uint32_t P = 0; P < count; ++P) {
+      const Real dx = mid[0][P] - m[0], dy = mid[1][P] - m[1], dz = mid[2][P] - m[2];
+      const Real e = radius[P] + std::sqrt(dx * dx + dy * dy + dz * dz);
+      if (!(e <= all)) all = e;  // a NaN sticks
+      if ((!open || open[P]) && !(e <= needing)) needing = e;
+    }
+  };
+  Real all_a, need_a, all_b, need_b;
+  largest(sc.mid_a, sc.radius_a, pa, open_a, all_a, need_a);
+  largest(mid_b, radius_b, pb, open_b, all_b, need_b);
+  return need_a + all_b <= limit && all_a + need_b <= limit;
+}
+
+// Whether the lists or set kept in `w` were made for these sheets, in this mode.
+template <class Real>
+bool made_for(const PairContacts<Real>& w, const Sheet<Real>& a, const Sheet<Real>& b, bool exact) {
+  return w.kept_exact == exact && w.kept_a == &a && w.kept_b == &b && w.kept_topology_a == a.topology.get() &&
+         w.kept_topology_b == b.topology.get() && w.made_at_a.x.size() == a.size() && w.made_at_b.x.size() == b.size();
+}
+
+// Substeps a kept contact set with entries serves at most since every block was searched:
+// then the search runs again over all, and a walk that stopped at a local minimum
+// (KeptContacts) finds the nearest triangle again.
+constexpr std::uint32_t kKeptLife = 64;
+
 // Whether the lists kept in `w` were made for these sheets and still hold every cell
 // within R of every point (PairContacts): no point moved more than 0.45·skin, or, for
 // every patch A of a and B of b, the most a
@@ -501,11 +695,20 @@ void patch_clearance(const SheetBoxes<Real>& ba, const SheetBoxes<Real>& bb, std
 // displacement plus the difference of their middles) stays within 0.9 of the slack the
 // lists had: the skin, or the patches' gap then less R if that is more.
 template <class Real>
-bool lists_hold(PairContacts<Real>& w, const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sheet<Real>& b,
-                const SheetBoxes<Real>& bb, const ContactParams<Real>& prm, ContactScratch<Real>& sc) {
-  if (w.kept_a != &a || w.kept_b != &b || w.kept_topology_a != a.topology.get() ||
-      w.kept_topology_b != b.topology.get() || w.made_at_a.x.size() != a.size() || w.made_at_b.x.size() != b.size())
-    return false;
+bool lists_hold(PairContacts<Real>& w, const Sheet<Real>& a, const Sheet<Real>& b, const ContactParams<Real>& prm,
+                ContactScratch<Real>& sc) {
+  if (!made_for(w, a, b, prm.exact)) return false;
+  if (!prm.exact) {
+    if (w.since_full >= kKeptLife && !(w.a_on_b.point.empty() && w.b_on_a.point.empty())) return false;
+    // Every point of both sheets in the set: nothing can come into range unseen.
+    const auto closed = [](const KeptContacts& k) {
+      return std::none_of(k.open.begin(), k.open.end(), [](std::uint8_t o) { return o != 0; });
+    };
+    if (closed(w.a_on_b) && (&a == &b || closed(w.b_on_a)) && !w.a_on_b.open.empty()) {
+      ++w.kept_for;
+      return true;
+    }
+  }
   // No point moved more than 0.45·skin: no gap shrank by more than 0.9·skin (cheap, and
   // enough for a pair at rest); otherwise the patches' relative motion decides.
   const Real limit2 = (Real(0.45) * w.skin) * (Real(0.45) * w.skin);
@@ -513,17 +716,31 @@ bool lists_hold(PairContacts<Real>& w, const Sheet<Real>& a, const SheetBoxes<Re
     ++w.kept_for;
     return true;
   }
-  patch_motion(a, ba, w.made_at_a, sc.mid_a, sc.radius_a);
-  if (&a != &b) patch_motion(b, bb, w.made_at_b, sc.mid_b, sc.radius_b);
+  patch_motion(a, w.made_at_a, sc.mid_a, sc.radius_a);
+  if (&a != &b) patch_motion(b, w.made_at_b, sc.mid_b, sc.radius_b);
   const auto& mid_b = &a != &b ? sc.mid_b : sc.mid_a;
   const auto& radius_b = &a != &b ? sc.radius_b : sc.radius_a;
-  const std::uint32_t pa = ba.patch_rows * ba.patch_cols, pb = bb.patch_rows * bb.patch_cols;
+  const auto patches = [](const Sheet<Real>& s) {
+    return SheetBoxes<Real>::patches_along(s.topology->m) * SheetBoxes<Real>::patches_along(s.topology->n);
+  };
+  const std::uint32_t pa = patches(a), pb = patches(b);
   if (w.clearance.size() != std::size_t(pa) * pb) return false;
+  // A kept contact set needs this only where a patch has points outside it: points of A
+  // against cells of B if A is open, points of B against cells of A if B is.
+  const bool sets = !prm.exact;
+  if (sets && (w.a_on_b.open.size() != pa || (&a != &b && w.b_on_a.open.size() != pb))) return false;
+  const std::uint8_t* open_a = sets ? w.a_on_b.open.data() : nullptr;
+  const std::uint8_t* open_b = sets ? (&a != &b ? w.b_on_a.open.data() : open_a) : nullptr;
+  if (patches_within_skin(sc, pa, pb, &a == &b, open_a, open_b, Real(0.9) * w.skin)) {
+    ++w.kept_for;
+    return true;
+  }
   bool hold = true;
   for (std::uint32_t A = 0; A < pa && hold; ++A) {
     const Real* clear = w.clearance.data() + std::size_t(A) * pb;
     unsigned ok = 1;
     for (std::uint32_t B = 0; B < pb; ++B) {
+      if (sets && !(open_a[A] | open_b[B])) continue;
       const Real dx = sc.mid_a[0][A] - mid_b[0][B], dy = sc.mid_a[1][A] - mid_b[1][B],
                  dz = sc.mid_a[2][A] - mid_b[2][B];
       const Real drift = sc.radius_a[A] + radius_b[B] + std::sqrt(dx * dx + dy * dy + dz * dz);
@@ -541,8 +758,10 @@ bool lists_hold(PairContacts<Real>& w, const Sheet<Real>& a, const SheetBoxes<Re
 template <class Real>
 Real next_skin(const PairContacts<Real>& w, const ContactParams<Real>& prm) {
   if (!(w.skin > 0)) return prm.skin;
-  if (w.kept_for == 0 || w.kept_for > 32) return std::max(w.skin / 2, prm.range / 16);
-  if (w.kept_for < 4) return std::min(w.skin * 2, prm.range / 2);
+  // Exact lists grow with the skin and are read every substep, so lists that serve long
+  // narrow it; a kept contact set costs one entry per point within R + skin.
+  if (w.kept_for == 0 || (prm.exact && w.kept_for > 32)) return std::max(w.skin / 2, prm.range / 16);
+  if (w.kept_for < 4) return std::min(w.skin * 2, prm.exact ? prm.range / 2 : prm.range);
   return w.skin;
 }
 
@@ -555,8 +774,9 @@ void remember(Vec3Array<Real>& to, const Sheet<Real>& s) {
 
 template <class Real>
 void keep_lists_for(PairContacts<Real>& w, const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sheet<Real>& b,
-                    const SheetBoxes<Real>& bb, Real skin) {
+                    const SheetBoxes<Real>& bb, Real skin, bool exact) {
   patch_clearance(ba, bb, w.clearance);
+  w.kept_exact = exact;
   w.skin = skin;
   w.kept_for = 0;
   w.kept_a = &a;
@@ -676,12 +896,20 @@ void contacts_of_pair(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sh
     w.guessed_a = a.topology.get();
     w.guessed_b = b.topology.get();
   }
-  if (w.resting == 0 && lists_hold(w, a, ba, b, bb, prm, sc)) {
-    points_against_lists(a, ba, b, bb, w.a_near_b, pair, w.on_a, on_b, sc, w.last_a.data());
-    if (!self) points_against_lists(b, bb, a, ba, w.b_near_a, pair, on_b, w.on_a, sc, w.last_b.data());
+  const bool hold = w.decided >= 0 ? w.decided != 0 : w.resting == 0 && lists_hold(w, a, b, prm, sc);
+  w.decided = -1;
+  if (hold) {
+    ++w.since_full;
+    if (prm.exact) {
+      points_against_lists(a, ba, b, bb, w.a_near_b, pair, w.on_a, on_b, sc, w.last_a.data());
+      if (!self) points_against_lists(b, bb, a, ba, w.b_near_a, pair, on_b, w.on_a, sc, w.last_b.data());
+    } else {
+      points_walking(a, b, ring, w.a_on_b, 0, w.a_on_b.point.size(), pair, w.on_a, on_b, w.last_a.data());
+      if (!self) points_walking(b, a, ring, w.b_on_a, 0, w.b_on_a.point.size(), pair, on_b, w.on_a, w.last_b.data());
+    }
     return;
   }
-  if (w.resting == 0 && w.kept_a && w.kept_for == 0 && w.skin <= prm.range / 16) w.resting = kListRest;
+  if (prm.exact && w.resting == 0 && w.kept_a && w.kept_for == 0 && w.skin <= prm.range / 16) w.resting = kListRest;
   if (w.resting > 0) {
     --w.resting;
     w.kept_a = w.kept_b = nullptr;
@@ -690,13 +918,36 @@ void contacts_of_pair(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sh
     if (!self) points_against_cells(b, bb, a, ba, ring, pair, on_b, w.on_a, sc, w.last_b.data());
     return;
   }
+  // A kept contact set made for these sheets, within its life, is searched again only in
+  // its blocks with points outside it (KeptContacts); otherwise every block is searched.
+  const bool partial = !prm.exact && made_for(w, a, b, false) && w.since_full < kKeptLife;
+  w.since_full = partial ? w.since_full + 1 : 0;
   const Real skin = next_skin(w, prm);
-  points_against_cells(a, ba, b, bb, ring, pair, w.on_a, on_b, sc, w.last_a.data(), &w.a_near_b, skin);
-  if (!self) points_against_cells(b, bb, a, ba, ring, pair, on_b, w.on_a, sc, w.last_b.data(), &w.b_near_a, skin);
-  keep_lists_for(w, a, ba, b, bb, skin);
+  Candidates* lists_a = prm.exact ? &w.a_near_b : nullptr;
+  Candidates* lists_b = prm.exact ? &w.b_near_a : nullptr;
+  KeptContacts* kept_a = prm.exact ? nullptr : &w.spare_a;
+  KeptContacts* kept_b = prm.exact ? nullptr : &w.spare_b;
+  points_against_cells(a, ba, b, bb, ring, pair, w.on_a, on_b, sc, w.last_a.data(), lists_a, skin, kept_a,
+                       partial ? &w.a_on_b : nullptr);
+  if (!self)
+    points_against_cells(b, bb, a, ba, ring, pair, on_b, w.on_a, sc, w.last_b.data(), lists_b, skin, kept_b,
+                         partial ? &w.b_on_a : nullptr);
+  if (!prm.exact) {
+    std::swap(w.a_on_b, w.spare_a);
+    std::swap(w.b_on_a, w.spare_b);
+  }
+  keep_lists_for(w, a, ba, b, bb, skin, prm.exact);
 }
 
 }  // namespace
+
+template <class Real>
+bool pair_needs_boxes(const Sheet<Real>& a, const Sheet<Real>& b, const ContactParams<Real>& prm,
+                      PairContacts<Real>& work, ContactScratch<Real>& scratch) {
+  const bool hold = work.resting == 0 && lists_hold(work, a, b, prm, scratch);
+  work.decided = hold;
+  return !hold || prm.exact;
+}
 
 template <class Real>
 void pair_contacts(const Sheet<Real>& a, const SheetBoxes<Real>& boxes_a, const Sheet<Real>& b,
@@ -738,6 +989,8 @@ void gather_contacts(std::span<const ContactForces<Real>* const> sources, Vec3Ar
 #define DRAPE_CONTACTS(Real)                                                                                   \
   template struct ContactParams<Real>;                                                                         \
   template void build_boxes<Real>(const Sheet<Real>&, SheetBoxes<Real>&);                                     \
+  template bool pair_needs_boxes<Real>(const Sheet<Real>&, const Sheet<Real>&, const ContactParams<Real>&,     \
+                                       PairContacts<Real>&, ContactScratch<Real>&);                            \
   template void pair_contacts<Real>(const Sheet<Real>&, const SheetBoxes<Real>&, const Sheet<Real>&,          \
                                     const SheetBoxes<Real>&, const ContactParams<Real>&, PairContacts<Real>&, \
                                     ContactScratch<Real>&);                                                    \

@@ -59,6 +59,10 @@ struct ContactParams {
   Real dt = 0;        // s, the substep (friction stops at most the slip of one)
   Real friction = 0;  // μ of the pair, max of the two sheets' (pair_contacts sets it)
   Real skin;          // m, the first skin of kept candidate lists (PairContacts): R/4
+  // Between searches: true, every point tests every cell of its kept candidate list (exact,
+  // the reference); false, every point of the kept contact set walks from its cell
+  // (KeptContacts: an approximation, the default).
+  bool exact = false;
 
   static ContactParams make(double thickness, double xi, double strength, double range_in_xi);
 };
@@ -89,6 +93,8 @@ struct ContactForces {
 template <class Real>
 struct SheetBoxes {
   static constexpr std::uint32_t kPatch = 8;  // cells along a patch's side
+  // Patch rows (columns) of a sheet of `cells` cell rows (columns).
+  static std::uint32_t patches_along(std::uint32_t cells) { return cells == 0 ? 1 : (cells + kPatch - 1) / kPatch; }
   std::uint32_t m = 0, n = 0;                 // the sheet's cells
   Aabb box;                                   // every point
   // Cell (i, j), i < m, j < n, at its first corner i·(n + 1) + j (structure of arrays),
@@ -139,6 +145,37 @@ struct Candidates {
   std::vector<std::uint32_t> begin, count, cell;
 };
 
+// The kept contact set of one direction of a pair (structure of arrays, entry e): point
+// point[e] of the query sheet and its cell cell[e] of the other sheet (by first corner),
+// the cell of its nearest triangle when last evaluated. A search puts every point within
+// R + skin of some cell in the set, in the order the search visits points, starting at the
+// cell of its nearest triangle (or, beyond R, the cell whose box is nearest). Between
+// searches each entry walks: the point is tested against its cell's two triangles, and
+// while the closest point lies on the cell's outer edge or corner the neighbouring cells
+// across it are tested too, moving to one that holds a nearer triangle. The walk ends at a
+// local minimum of the distance over the grid, which is the nearest triangle wherever the
+// other sheet is the graph of a function over the point's neighbourhood; where two parts
+// of the other sheet are both within R of the point (a crease, a fold of it), it may stay
+// on the farther one until the next search. A point not in the set costs nothing.
+//
+// Only blocks (patches) with points outside the set need the relative-motion test of
+// PairContacts, and when it fails only they are searched again (a partial search; the other
+// blocks walk); every 64 substeps every block is searched. The contact gap test of a walk
+// is scalar: two triangles per entry (a local-minimum grid point needs none of its
+// neighbours'), read straight from the sheet's position arrays by point index.
+struct KeptContacts {
+  std::vector<std::uint32_t> point, cell;
+  // Per patch of the query sheet (SheetBoxes): 1 if some point of its block is not in the
+  // set. Only open patches can bring a point into range unseen (PairContacts).
+  std::vector<std::uint8_t> open;
+  // Entries of the query sheet's block (patch) k: [block_begin[k], block_begin[k + 1]).
+  std::vector<std::uint32_t> block_begin;
+  void clear() {
+    point.clear();
+    cell.clear();
+  }
+};
+
 // The contact work of one overlapping pair of sheets (a < b), or of one sheet with itself
 // (a == b, only on_a used). Written by one task, read by the gather: no sharing.
 //
@@ -170,9 +207,13 @@ struct PairContacts {
   const Topology<Real>* kept_topology_b = nullptr;
   Vec3Array<Real> made_at_a, made_at_b;  // their positions then
   std::vector<Real> clearance;           // then: the gap of patch A of a to patch B of b
-  Candidates a_near_b, b_near_a;         // points of a against cells of b, and back
+  Candidates a_near_b, b_near_a;         // points of a against cells of b, and back (exact)
+  KeptContacts a_on_b, b_on_a;           // the same as kept contact sets (not exact)
+  KeptContacts spare_a, spare_b;         // the sets a search makes while it walks the old ones
+  bool kept_exact = false;               // which of the two the search made
   Real skin = 0;                         // of the kept lists (0: none made yet)
   std::uint32_t kept_for = 0;            // substeps the kept lists have served
+  std::uint32_t since_full = 0;          // substeps since every block of a set was searched
   std::uint32_t resting = 0;             // substeps left to search without lists
   // Per point of a (against b) and of b (against a): its nearest cell last substep (first
   // corner; ~0 for none), tested first; and the grids those cells belong to.
@@ -180,7 +221,17 @@ struct PairContacts {
   const Topology<Real>* guessed_a = nullptr;
   const Topology<Real>* guessed_b = nullptr;
   std::uint64_t searches = 0;            // how often the lists were made (for tests)
+  signed char decided = -1;              // pair_needs_boxes's decision: 1 keep, 0 search, −1 none
 };
+
+// The first half of a pair's substep, before any boxes are made: whether its kept lists or
+// set serve this substep (then counted as served), else it will search. Returns whether
+// the pair needs both sheets' boxes: to search, or to read exact lists; a kept contact set
+// that holds needs none. pair_contacts / self_contacts then follow the decision; called
+// without it, they decide themselves.
+template <class Real>
+bool pair_needs_boxes(const Sheet<Real>& a, const Sheet<Real>& b, const ContactParams<Real>& params,
+                      PairContacts<Real>& work, ContactScratch<Real>& scratch);
 
 // Points of `a` against the cells of `b` and points of `b` against the cells of `a`, each
 // sheet's boxes made by build_boxes from its positions now. Clears and fills work.on_a/on_b.
@@ -207,5 +258,19 @@ std::uint32_t self_contact_ring(const Sheet<Real>& s, const ContactParams<Real>&
 template <class Real>
 void gather_contacts(std::span<const ContactForces<Real>* const> sources, Vec3Array<Real>& out, std::size_t begin,
                      std::size_t end);
+
+// The contact stage's memory between substeps, as words (a Real by its bits), for
+// checkpoints: every pair's kept lists and sets, the positions and clearances they were
+// made at, their skin and counters, and its guesses, in pair_work's order (gone pairs
+// too). A kept set's walk and the substeps that search depend on all of it, so a world
+// that takes it back continues bit for bit. `sheets` are the world's sheets in order.
+// read_contact_memory checks every count and index against them and throws
+// std::invalid_argument naming the problem, leaving `pair_work` as it was.
+template <class Real>
+std::vector<std::uint64_t> write_contact_memory(const std::vector<PairContacts<Real>>& pair_work,
+                                                std::span<const Sheet<Real>* const> sheets);
+template <class Real>
+void read_contact_memory(std::span<const std::uint64_t> memory, std::span<const Sheet<Real>* const> sheets,
+                         std::vector<PairContacts<Real>>& pair_work);
 
 }  // namespace drape::detail

@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <vector>
 
 #include "terms/terms.h"
 #include "world_impl.h"
@@ -58,7 +59,7 @@ void BasicWorld<Real>::Impl::run_stage(Stage stage, double h) {
     case Stage::RigidParts: return move_rigid_parts();
     case Stage::Bounds: return contact_bounds(h);
     case Stage::BroadPhase: return find_pairs();
-    case Stage::ContactBoxes: return contact_boxes();
+    case Stage::ContactBoxes: return contact_boxes(h);
     case Stage::NarrowPhase: return narrow_phase(h);
     case Stage::GatherPlan: return plan_gather();
     case Stage::Obstacles: return assign_obstacles(h);
@@ -72,6 +73,7 @@ detail::ContactParams<Real> BasicWorld<Real>::Impl::contact_params(double h) con
   auto params = detail::ContactParams<Real>::make(def.contact_thickness, def.contact_xi, def.contact_strength,
                                                   def.contact_range);
   params.dt = static_cast<Real>(h);
+  params.exact = def.contact_exact;
   return params;
 }
 
@@ -105,14 +107,66 @@ void BasicWorld<Real>::Impl::find_pairs() {
   }
 }
 
-// The boxes of every sheet in some pair, made once here and read by all of its pairs
-// (contacts.h, SheetBoxes): a sheet in no pair makes none.
+// Slot q of pair_work serves pairs[q]. A pair keeps its work (its kept contact set,
+// contacts.h) while pairs appear and vanish around it: when the list changed, each pair
+// takes the work last made for the same two sheets, wherever it sat, and work of pairs
+// gone stays behind the list for their return. Only the pair list decides, so the result
+// is the same on any thread count.
+namespace {
 template <class Real>
-void BasicWorld<Real>::Impl::contact_boxes() {
+void keep_pair_work(const std::vector<detail::BoxPair>& pairs, std::vector<detail::PairContacts<Real>>& pair_work) {
+  auto same = [&](std::size_t q) { return pair_work[q].a == pairs[q].first && pair_work[q].b == pairs[q].second; };
+  std::size_t q = 0;
+  while (q < pairs.size() && q < pair_work.size() && same(q)) ++q;
+  if (q == pairs.size()) return;
+  auto key = [](std::uint32_t a, std::uint32_t b) { return (std::uint64_t(a) << 32) | b; };
+  std::vector<std::uint32_t> order(pair_work.size());
+  for (std::uint32_t r = 0; r < order.size(); ++r) order[r] = r;
+  std::stable_sort(order.begin(), order.end(), [&](std::uint32_t x, std::uint32_t y) {
+    return key(pair_work[x].a, pair_work[x].b) < key(pair_work[y].a, pair_work[y].b);
+  });
+  std::vector<char> taken(pair_work.size(), 0);
+  std::vector<detail::PairContacts<Real>> next;
+  next.reserve(std::max(pairs.size(), pair_work.size()));
+  for (const detail::BoxPair& pair : pairs) {
+    const std::uint64_t want = key(pair.first, pair.second);
+    auto it = std::lower_bound(order.begin(), order.end(), want, [&](std::uint32_t r, std::uint64_t k) {
+      return key(pair_work[r].a, pair_work[r].b) < k;
+    });
+    while (it != order.end() && key(pair_work[*it].a, pair_work[*it].b) == want && taken[*it]) ++it;
+    if (it != order.end() && key(pair_work[*it].a, pair_work[*it].b) == want) {
+      taken[*it] = 1;
+      next.push_back(std::move(pair_work[*it]));
+    } else {
+      next.emplace_back();
+      next.back().a = pair.first;
+      next.back().b = pair.second;
+    }
+  }
+  // At most as many gone as present, so a scene whose pairs keep changing does not grow.
+  for (std::size_t r = 0; r < pair_work.size() && next.size() < 2 * pairs.size(); ++r)
+    if (!taken[r]) next.push_back(std::move(pair_work[r]));
+  pair_work = std::move(next);
+}
+}  // namespace
+
+// Each pair first decides whether its kept contacts serve this substep (contacts.h,
+// pair_needs_boxes); then the boxes of every sheet in a pair that needs them are made
+// once here and read by all of its pairs (SheetBoxes). A sheet whose pairs all keep
+// their contact sets, or in no pair, makes none.
+template <class Real>
+void BasicWorld<Real>::Impl::contact_boxes(double h) {
   if (!contacting) return;
+  const auto params = contact_params(h);
   const std::size_t count = active.size();
+  keep_pair_work(pairs, pair_work);
+  parallel(pairs.size(), [&](std::size_t q) {
+    auto& w = pair_work[q];
+    detail::pair_needs_boxes(at(w.a), at(w.b), params, w, contact_scratch.local());
+  });
   in_pair.assign(count, 0);
-  for (const detail::BoxPair& pair : pairs) in_pair[pair.first] = in_pair[pair.second] = 1;
+  for (std::size_t q = 0; q < pairs.size(); ++q)
+    if (pair_work[q].decided == 0 || params.exact) in_pair[pairs[q].first] = in_pair[pairs[q].second] = 1;
   if (sheet_boxes.size() < count) sheet_boxes.resize(count);
   parallel(count, [&](std::size_t k) {
     if (in_pair[k]) detail::build_boxes(at(k), sheet_boxes[k]);
@@ -123,11 +177,8 @@ template <class Real>
 void BasicWorld<Real>::Impl::narrow_phase(double h) {
   if (!contacting) return;
   const auto params = contact_params(h);
-  if (pair_work.size() < pairs.size()) pair_work.resize(pairs.size());
   parallel(pairs.size(), [&](std::size_t q) {
     auto& w = pair_work[q];
-    w.a = pairs[q].first;
-    w.b = pairs[q].second;
     auto& scratch = contact_scratch.local();
     if (w.a == w.b)
       detail::self_contacts(at(w.a), sheet_boxes[w.a], params, w, scratch);

@@ -433,6 +433,25 @@ void BasicWorld<Real>::set_integrator_memory(SheetId id, std::span<const Real> m
 }
 
 template <class Real>
+std::vector<std::uint64_t> BasicWorld<Real>::contact_memory() const {
+  auto& impl = *impl_;
+  std::vector<const detail::Sheet<Real>*> sheets;
+  for (std::size_t k = 0; k < impl.active.size(); ++k) sheets.push_back(&impl.at(k));
+  return detail::write_contact_memory<Real>(impl.pair_work, sheets);
+}
+
+template <class Real>
+void BasicWorld<Real>::set_contact_memory(std::span<const std::uint64_t> memory) {
+  if (memory.empty()) {
+    impl_->pair_work.clear();
+    return;
+  }
+  std::vector<const detail::Sheet<Real>*> sheets;
+  for (std::size_t k = 0; k < impl_->active.size(); ++k) sheets.push_back(&impl_->at(k));
+  detail::read_contact_memory<Real>(memory, sheets, impl_->pair_work);
+}
+
+template <class Real>
 SheetDiagnostics BasicWorld<Real>::diagnostics(SheetId id) const {
   const auto& sheet = impl_->sheet(id);
   SheetDiagnostics d = detail::sheet_diagnostics(sheet, impl_->def.gravity);

@@ -81,7 +81,7 @@ struct BasicWorld<Real>::Impl {
   std::vector<detail::Aabb> bounds, grown;
   detail::TrackingBroadPhase broad_phase;  // reset when `active` changes
   std::vector<detail::BoxPair> pairs;
-  std::vector<char> in_pair;                          // per sheet: in some pair this substep
+  std::vector<char> in_pair;                          // per sheet: in a pair that needs its boxes
   std::vector<detail::SheetBoxes<Real>> sheet_boxes;  // per sheet in a pair, shared by its pairs
   std::vector<detail::PairContacts<Real>> pair_work;
   tbb::enumerable_thread_specific<detail::ContactScratch<Real>> contact_scratch;  // narrow phase
@@ -175,7 +175,7 @@ struct BasicWorld<Real>::Impl {
   detail::ContactParams<Real> contact_params(double h) const;
   void contact_bounds(double h);
   void find_pairs();
-  void contact_boxes();
+  void contact_boxes(double h);
   void narrow_phase(double h);
   void plan_gather();
   void plan_blocks();

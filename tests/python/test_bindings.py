@@ -263,3 +263,29 @@ def test_run_frames_calls_back_per_frame_and_stops_on_false():
 
     with pytest.raises(RuntimeError, match="callback failed"):
         world.run_frames(2, 1, broken)
+
+
+def test_contact_memory_makes_a_copied_world_in_contact_continue_bit_for_bit():
+    def stack():
+        world = drape.World(dt=1e-3, threads=1)
+        sheets = [world.add_sheet(m=12, n=12, width=0.3, height=0.3, stiffness=50, damping=0.05,
+                                  center=(0.01 * k, 0, 0.008 * k), pins=drape.corner_points(12, 12))
+                  for k in range(3)]
+        return world, sheets
+
+    first, sheets = stack()
+    first.step(50)
+    copy, copied = stack()
+    copy.step_count = first.step_count
+    for a, b in zip(sheets, copied):
+        s = first.view(a)
+        copy.set_state(b, s.x, s.y, s.z, s.vx, s.vy, s.vz)
+    memory = first.contact_memory()
+    assert memory.dtype == np.uint64 and memory.size > 0
+    copy.set_contact_memory(memory)
+    first.step(100)
+    copy.step(100)
+    for a, b in zip(sheets, copied):
+        assert np.array_equal(first.view(a).z.view(np.uint8), copy.view(b).z.view(np.uint8))
+    with pytest.raises(ValueError, match="contact memory"):
+        copy.set_contact_memory(memory[:-1])

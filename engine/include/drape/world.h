@@ -63,6 +63,12 @@ struct WorldDef {
   double contact_xi = 0.002;         // ξ, m: how fast the repulsion decays with distance
   double contact_strength = 1e-3;    // c, J: the barrier at d = 0 is c·exp(h/ξ) ≈ 0.012 J
   double contact_range = 6.0;        // cut-off beyond h, in units of ξ
+  // Between two searches for contacts, each point near another sheet follows its nearest
+  // triangle by walking across that sheet's grid from the triangle it had (fast, and the
+  // nearest triangle wherever the other sheet is not folded within contact range of the
+  // point); true: every point tests every cell within reach instead, the exact nearest
+  // triangle at several times the cost (the reference the walk is tested against).
+  bool contact_exact = false;
 
   // A sheet of at least 2·block_points points is stepped as row blocks of about this many
   // points, so one large sheet keeps every core busy; the result is the same bit for bit.
@@ -261,7 +267,8 @@ class BasicWorld {
   std::uint64_t step_count() const;   // substeps taken
 
   // Full state, for checkpoints. Everything step() changes is the step count, each sheet's
-  // positions and velocities, and the integrator's memory of each sheet; copying these out
+  // positions and velocities, the integrator's memory of each sheet and the contact
+  // stage's memory; copying these out
   // and back into a world built from the same definitions (same sheets added in the same
   // order, same WorldDef) continues bit for bit. The engine does no I/O: a caller stores
   // the spans as it likes (apps/common/checkpoint.h is one format).
@@ -274,6 +281,13 @@ class BasicWorld {
   // change when the integrator does). set_integrator_memory replaces them.
   std::span<const Real> integrator_memory(SheetId id) const;
   void set_integrator_memory(SheetId id, std::span<const Real> memory);
+  // What the contact stage carries from one substep to the next (each pair's kept contact
+  // sets and lists, when it searches next): without it a world in contact searches afresh
+  // and may continue differently. Opaque words, valid only for a world built from the same
+  // definitions. set_contact_memory checks them (else std::invalid_argument naming the
+  // problem, the world unchanged); an empty span forgets: the next substep searches.
+  std::vector<std::uint64_t> contact_memory() const;
+  void set_contact_memory(std::span<const std::uint64_t> memory);
 
   SheetDiagnostics diagnostics(SheetId id) const;
   Energies energies() const;  // summed over sheets

@@ -1,0 +1,265 @@
+// The contact stage's memory as words, for checkpoints (contacts.h, write_contact_memory).
+#include <bit>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <type_traits>
+
+#include "contacts.h"
+
+namespace drape::detail {
+
+namespace {
+
+constexpr std::uint64_t kLayout = 1;  // bumped whenever the words below change
+constexpr std::uint32_t kNone = ~std::uint32_t(0);
+
+[[noreturn]] void bad(const std::string& problem) { throw std::invalid_argument("drape: contact memory " + problem); }
+
+template <class Real>
+std::uint64_t bits(Real v) {
+  if constexpr (std::is_same_v<Real, float>)
+    return std::bit_cast<std::uint32_t>(v);
+  else
+    return std::bit_cast<std::uint64_t>(v);
+}
+
+template <class Real>
+class Words {
+ public:
+  std::vector<std::uint64_t> out;
+  void word(std::uint64_t v) { out.push_back(v); }
+  template <class T>
+  void list(const T& values) {
+    out.push_back(values.size());
+    for (auto v : values) {
+      if constexpr (std::is_floating_point_v<decltype(v)>)
+        out.push_back(bits<Real>(v));
+      else
+        out.push_back(v);
+    }
+  }
+};
+
+// Bounds-checked: a count read from the memory is checked against what is left before
+// anything is allocated for it.
+template <class Real>
+class Reading {
+ public:
+  explicit Reading(std::span<const std::uint64_t> in) : in_(in) {}
+  std::uint64_t word(const char* what) {
+    if (pos_ >= in_.size()) bad(std::string("ends before ") + what);
+    return in_[pos_++];
+  }
+  std::uint32_t u32(const char* what) {
+    const std::uint64_t v = word(what);
+    if (v > kNone) bad(std::string(what) + " out of range");
+    return std::uint32_t(v);
+  }
+  Real real(const char* what) {
+    const std::uint64_t v = word(what);
+    if constexpr (std::is_same_v<Real, float>) {
+      if (v > kNone) bad(std::string(what) + " is not a float");
+      return std::bit_cast<float>(std::uint32_t(v));
+    } else {
+      return std::bit_cast<double>(v);
+    }
+  }
+  template <class T>
+  void list(T& values, const char* what) {
+    const std::uint64_t count = word(what);
+    if (count > in_.size() - pos_) bad(std::string(what) + " claims more entries than it holds");
+    values.resize(count);
+    for (auto& v : values) {
+      if constexpr (std::is_floating_point_v<std::remove_reference_t<decltype(v)>>)
+        v = real(what);
+      else if constexpr (sizeof(v) == 1)
+        v = std::uint8_t(word(what) != 0);
+      else
+        v = u32(what);
+    }
+  }
+  bool done() const { return pos_ == in_.size(); }
+
+ private:
+  std::span<const std::uint64_t> in_;
+  std::size_t pos_ = 0;
+};
+
+// Whether first corner `c` is a cell of sheet s (so c + n + 2 is still a point).
+template <class Real>
+bool is_cell(std::uint32_t c, const Sheet<Real>& s) {
+  const std::uint32_t row = s.topology->n + 1;
+  return c / row < s.topology->m && c % row < s.topology->n;
+}
+
+template <class Real>
+void check_cells(const std::vector<std::uint32_t>& cells, const Sheet<Real>& s, bool none_allowed, const char* what) {
+  for (std::uint32_t c : cells)
+    if (!(is_cell(c, s) || (none_allowed && c == kNone))) bad(std::string(what) + " names a cell the sheet lacks");
+}
+
+template <class Real>
+void check_candidates(const Candidates& c, const Sheet<Real>& query, const Sheet<Real>& other) {
+  if (c.begin.size() != c.count.size() || (!c.begin.empty() && c.begin.size() != query.size()))
+    bad("candidate lists do not fit their sheet");
+  for (std::size_t p = 0; p < c.begin.size(); ++p)
+    if (std::uint64_t(c.begin[p]) + c.count[p] > c.cell.size()) bad("candidate list runs past its cells");
+  check_cells(c.cell, other, false, "a candidate list");
+}
+
+template <class Real>
+void check_kept(const KeptContacts& k, const Sheet<Real>& query, const Sheet<Real>& other) {
+  if (k.point.size() != k.cell.size()) bad("kept set has points and cells of different counts");
+  for (std::uint32_t p : k.point)
+    if (p >= query.size()) bad("kept set names a point the sheet lacks");
+  check_cells(k.cell, other, false, "a kept set");
+  if (k.block_begin.empty() != k.open.empty() || (!k.open.empty() && k.block_begin.size() != k.open.size() + 1))
+    bad("kept set's blocks do not match");
+  for (std::size_t b = 0; b < k.block_begin.size(); ++b)
+    if (k.block_begin[b] > k.point.size() || (b > 0 && k.block_begin[b] < k.block_begin[b - 1]))
+      bad("kept set's blocks are out of order");
+}
+
+}  // namespace
+
+template <class Real>
+std::vector<std::uint64_t> write_contact_memory(const std::vector<PairContacts<Real>>& pair_work,
+                                                std::span<const Sheet<Real>* const> sheets) {
+  Words<Real> w;
+  if (pair_work.empty()) return {};  // a world that never coupled sheets carries nothing
+  w.word(kLayout);
+  w.word(sizeof(Real));
+  w.word(sheets.size());
+  w.word(pair_work.size());
+  const Vec3Array<Real> none;
+  const std::vector<Real> no_clearance;
+  const Candidates no_lists;
+  const KeptContacts no_set;
+  const std::vector<std::uint32_t> no_guesses;
+  for (const PairContacts<Real>& p : pair_work) {
+    const bool known = p.a < sheets.size() && p.b < sheets.size();
+    // Lists made for other sheets than the pair's are never read again (made_for fails and
+    // the pair searches), so they are written as none; so are guesses for other grids.
+    const bool kept = known && p.kept_a == sheets[p.a] && p.kept_b == sheets[p.b] &&
+                      p.kept_topology_a == sheets[p.a]->topology.get() &&
+                      p.kept_topology_b == sheets[p.b]->topology.get();
+    const bool guessed =
+        known && p.guessed_a == sheets[p.a]->topology.get() && p.guessed_b == sheets[p.b]->topology.get();
+    w.word(p.a);
+    w.word(p.b);
+    w.word((kept ? 1u : 0u) | (guessed ? 2u : 0u) | (p.kept_exact ? 4u : 0u));
+    w.word(bits(p.skin));
+    w.word(p.kept_for);
+    w.word(p.since_full);
+    w.word(p.resting);
+    w.word(p.searches);
+    w.word(std::uint64_t(std::int64_t(p.decided) + 1));
+    for (const Vec3Array<Real>* at : {&p.made_at_a, &p.made_at_b}) {
+      const Vec3Array<Real>& v = kept ? *at : none;
+      w.list(v.x);
+      w.list(v.y);
+      w.list(v.z);
+    }
+    w.list(kept ? p.clearance : no_clearance);
+    for (const Candidates* c : {&p.a_near_b, &p.b_near_a}) {
+      const Candidates& l = kept ? *c : no_lists;
+      w.list(l.begin);
+      w.list(l.count);
+      w.list(l.cell);
+    }
+    for (const KeptContacts* k : {&p.a_on_b, &p.b_on_a}) {
+      const KeptContacts& s = kept ? *k : no_set;
+      w.list(s.point);
+      w.list(s.cell);
+      w.list(s.open);
+      w.list(s.block_begin);
+    }
+    w.list(guessed ? p.last_a : no_guesses);
+    w.list(guessed ? p.last_b : no_guesses);
+  }
+  return std::move(w.out);
+}
+
+template <class Real>
+void read_contact_memory(std::span<const std::uint64_t> memory, std::span<const Sheet<Real>* const> sheets,
+                         std::vector<PairContacts<Real>>& pair_work) {
+  Reading<Real> in(memory);
+  if (in.word("its layout") != kLayout) bad("has another layout than this drape writes");
+  if (in.word("its precision") != sizeof(Real)) bad("was written by a world of the other precision");
+  if (in.word("its sheet count") != sheets.size()) bad("was written for another number of sheets");
+  const std::uint64_t pairs = in.word("its pair count");
+  if (pairs > memory.size()) bad("claims more pairs than it holds");
+  std::vector<PairContacts<Real>> read(pairs);
+  for (PairContacts<Real>& p : read) {
+    p.a = in.u32("a pair's first sheet");
+    p.b = in.u32("a pair's second sheet");
+    if (p.a > p.b || p.b >= sheets.size()) bad("names a pair of sheets the world lacks");
+    const Sheet<Real>& a = *sheets[p.a];
+    const Sheet<Real>& b = *sheets[p.b];
+    const std::uint64_t flags = in.word("a pair's flags");
+    if (flags > 7) bad("has unknown pair flags");
+    p.kept_exact = (flags & 4) != 0;
+    p.skin = in.real("a pair's skin");
+    p.kept_for = in.u32("a pair's kept count");
+    p.since_full = in.u32("a pair's substeps since a full search");
+    p.resting = in.u32("a pair's resting count");
+    p.searches = in.word("a pair's search count");
+    const std::uint64_t decided = in.word("a pair's decision");
+    if (decided > 2) bad("has an unknown decision");
+    p.decided = static_cast<signed char>(std::int64_t(decided) - 1);
+    for (auto [at, sheet] : {std::pair{&p.made_at_a, &a}, std::pair{&p.made_at_b, &b}}) {
+      in.list(at->x, "positions lists were made at");
+      in.list(at->y, "positions lists were made at");
+      in.list(at->z, "positions lists were made at");
+      if (at->x.size() != at->y.size() || at->x.size() != at->z.size() ||
+          (!at->x.empty() && at->x.size() != sheet->size()))
+        bad("holds positions that do not fit their sheet");
+    }
+    in.list(p.clearance, "clearances");
+    for (Candidates* c : {&p.a_near_b, &p.b_near_a}) {
+      in.list(c->begin, "candidate lists");
+      in.list(c->count, "candidate lists");
+      in.list(c->cell, "candidate lists");
+    }
+    check_candidates(p.a_near_b, a, b);
+    check_candidates(p.b_near_a, b, a);
+    for (KeptContacts* k : {&p.a_on_b, &p.b_on_a}) {
+      in.list(k->point, "kept sets");
+      in.list(k->cell, "kept sets");
+      in.list(k->open, "kept sets");
+      in.list(k->block_begin, "kept sets");
+    }
+    check_kept(p.a_on_b, a, b);
+    check_kept(p.b_on_a, b, a);
+    in.list(p.last_a, "guesses");
+    in.list(p.last_b, "guesses");
+    if ((!p.last_a.empty() && p.last_a.size() != a.size()) || (!p.last_b.empty() && p.last_b.size() != b.size()))
+      bad("holds guesses that do not fit their sheet");
+    check_cells(p.last_a, b, true, "a guess");
+    check_cells(p.last_b, a, true, "a guess");
+    if (flags & 1) {
+      p.kept_a = &a;
+      p.kept_b = &b;
+      p.kept_topology_a = a.topology.get();
+      p.kept_topology_b = b.topology.get();
+    }
+    if (flags & 2) {
+      p.guessed_a = a.topology.get();
+      p.guessed_b = b.topology.get();
+    }
+  }
+  if (!in.done()) bad("has words after its last pair");
+  pair_work = std::move(read);
+}
+
+#define DRAPE_CONTACT_MEMORY(Real)                                                                             \
+  template std::vector<std::uint64_t> write_contact_memory<Real>(const std::vector<PairContacts<Real>>&,      \
+                                                                 std::span<const Sheet<Real>* const>);        \
+  template void read_contact_memory<Real>(std::span<const std::uint64_t>, std::span<const Sheet<Real>* const>, \
+                                          std::vector<PairContacts<Real>>&);
+DRAPE_CONTACT_MEMORY(double)
+DRAPE_CONTACT_MEMORY(float)
+#undef DRAPE_CONTACT_MEMORY
+
+}  // namespace drape::detail
