@@ -183,58 +183,6 @@ void expect_cell_boxes_hold_their_corners() {
 TEST(Simd, CellBoxesOfEveryTargetHoldTheirFourCorners) { expect_cell_boxes_hold_their_corners<double>(); }
 TEST(Simd, CellBoxesOfEveryTargetHoldTheirFourCornersInFloat) { expect_cell_boxes_hold_their_corners<float>(); }
 
-// The contact gap test against the distance to the box's nearest point (the point clamped
-// into it): the same bits, as the gap along an axis is that difference exactly and the
-// squares are summed in the same order. Points inside, beside, and beyond a corner.
-template <class Real>
-void expect_box_gaps_are_distances_to_the_nearest_point() {
-  std::mt19937 rng(153);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  const std::size_t count = 19;
-  std::vector<Real> lo[3], hi[3];
-  for (int c = 0; c < 3; ++c)
-    for (std::size_t t = 0; t < count; ++t) {
-      const Real e0 = Real(u(rng)), e1 = Real(u(rng));
-      lo[c].push_back(std::min(e0, e1));
-      hi[c].push_back(t % 7 == 0 ? std::min(e0, e1) : std::max(e0, e1));  // some flat boxes
-    }
-  for_each_target([&](std::int64_t) {
-    for (int trial = 0; trial < 8; ++trial) {
-      const Real p[3] = {Real(1.5 * u(rng)), Real(1.5 * u(rng)), Real(1.5 * u(rng))};
-      std::vector<Real> gap2(count, Real(-1));
-      detail::simd::BoxGaps<Real> q;
-      q.px = p[0];
-      q.py = p[1];
-      q.pz = p[2];
-      q.count = count;
-      q.lo_x = lo[0].data();
-      q.lo_y = lo[1].data();
-      q.lo_z = lo[2].data();
-      q.hi_x = hi[0].data();
-      q.hi_y = hi[1].data();
-      q.hi_z = hi[2].data();
-      q.gap2 = gap2.data();
-      detail::simd::box_gaps(q);
-      for (std::size_t t = 0; t < count; ++t) {
-        volatile Real square[3];  // rounded one by one: this file may contract a*b + c into an FMA
-        for (int c = 0; c < 3; ++c) {
-          const Real e = p[c] - std::clamp(p[c], lo[c][t], hi[c][t]);
-          square[c] = e * e;
-        }
-        const Real expected = square[0] + square[1] + square[2];
-        EXPECT_EQ(gap2[t], expected) << "box " << t;
-      }
-    }
-  });
-}
-
-TEST(Simd, BoxGapsOfEveryTargetAreSquaredDistancesToTheBoxes) {
-  expect_box_gaps_are_distances_to_the_nearest_point<double>();
-}
-TEST(Simd, BoxGapsOfEveryTargetAreSquaredDistancesToTheBoxesInFloat) {
-  expect_box_gaps_are_distances_to_the_nearest_point<float>();
-}
-
 // One step by hand: forward Euler moves x with the old v, semi-implicit Euler with the new.
 TEST(Simd, PointUpdateOfEveryTargetIsTheEulerStepByHand) {
   const std::size_t count = 21;

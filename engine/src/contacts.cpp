@@ -1,5 +1,7 @@
 #include "contacts.h"
 
+#include "simd/kernels.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -810,17 +812,12 @@ void build_boxes(const Sheet<Real>& s, SheetBoxes<Real>& out) {
     out.strip_lo[k].resize(std::size_t(m) * out.patch_cols);
     out.strip_hi[k].resize(std::size_t(m) * out.patch_cols);
   }
-  // Cell boxes, a row of cells at a time from two rows of points (vectorised).
+  // Cell boxes, a row of cells at a time from two rows of points (the widest vectors).
   for (std::uint32_t i = 0; i < m; ++i)
     for (int k = 0; k < 3; ++k) {
       const Real* a = axis[k] + std::size_t(i) * cols;
-      const Real* b = a + cols;
-      Real* __restrict lo = out.cell_lo[k].data() + std::size_t(i) * cols;
-      Real* __restrict hi = out.cell_hi[k].data() + std::size_t(i) * cols;
-      for (std::uint32_t j = 0; j < n; ++j) {
-        lo[j] = std::min(std::min(a[j], a[j + 1]), std::min(b[j], b[j + 1]));
-        hi[j] = std::max(std::max(a[j], a[j + 1]), std::max(b[j], b[j + 1]));
-      }
+      simd::cell_boxes(simd::CellRow<Real>{n, a, a + cols, out.cell_lo[k].data() + std::size_t(i) * cols,
+                                           out.cell_hi[k].data() + std::size_t(i) * cols});
     }
   // Strip boxes from their cells' boxes.
   for (std::uint32_t i = 0; i < m; ++i)

@@ -209,25 +209,6 @@ HWY_INLINE void cell_boxes_of(const CellRow<Real>& r) {
   });
 }
 
-// max(a, 0) as (a + |a|)/2: exact, and the same bits as that scalar expression, NaN included.
-template <class V>
-HWY_INLINE V positive_part(V a) {
-  const hn::DFromV<V> d;
-  return hn::Mul(hn::Add(a, hn::Abs(a)), hn::Set(d, hn::TFromV<V>(0.5)));
-}
-
-template <class Real>
-HWY_INLINE void box_gaps_of(const BoxGaps<Real>& q) {
-  over_lanes<Real>(q.count, [&](auto l, std::size_t t) __attribute__((always_inline)) {
-    const auto d = l.d;
-    const auto px = hn::Set(d, q.px), py = hn::Set(d, q.py), pz = hn::Set(d, q.pz);
-    const auto ex = hn::Add(positive_part(hn::Sub(l.load(q.lo_x + t), px)), positive_part(hn::Sub(px, l.load(q.hi_x + t))));
-    const auto ey = hn::Add(positive_part(hn::Sub(l.load(q.lo_y + t), py)), positive_part(hn::Sub(py, l.load(q.hi_y + t))));
-    const auto ez = hn::Add(positive_part(hn::Sub(l.load(q.lo_z + t), pz)), positive_part(hn::Sub(pz, l.load(q.hi_z + t))));
-    l.store(hn::Add(hn::Add(hn::Mul(ex, ex), hn::Mul(ey, ey)), hn::Mul(ez, ez)), q.gap2 + t);
-  });
-}
-
 }  // namespace HWY_NAMESPACE
 }  // namespace drape::detail::simd
 HWY_AFTER_NAMESPACE();

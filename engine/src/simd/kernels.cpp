@@ -28,8 +28,6 @@ Extent<float> ExtentF32(const float* x, const float* y, const float* z, std::siz
 }
 void CellBoxesF64(const CellRow<double>& r) { cell_boxes_of(r); }
 void CellBoxesF32(const CellRow<float>& r) { cell_boxes_of(r); }
-void BoxGapsF64(const BoxGaps<double>& q) { box_gaps_of(q); }
-void BoxGapsF32(const BoxGaps<float>& q) { box_gaps_of(q); }
 const char* Name() { return hwy::TargetName(HWY_TARGET); }
 
 }  // namespace HWY_NAMESPACE
@@ -47,8 +45,6 @@ HWY_EXPORT(ExtentF64);
 HWY_EXPORT(ExtentF32);
 HWY_EXPORT(CellBoxesF64);
 HWY_EXPORT(CellBoxesF32);
-HWY_EXPORT(BoxGapsF64);
-HWY_EXPORT(BoxGapsF32);
 HWY_EXPORT(Name);
 
 void springs(const SpringRun<double>& run) { HWY_DYNAMIC_DISPATCH(SpringsF64)(run); }
@@ -63,8 +59,6 @@ Extent<float> points_extent(const float* x, const float* y, const float* z, std:
 }
 void cell_boxes(const CellRow<double>& row) { HWY_DYNAMIC_DISPATCH(CellBoxesF64)(row); }
 void cell_boxes(const CellRow<float>& row) { HWY_DYNAMIC_DISPATCH(CellBoxesF32)(row); }
-void box_gaps(const BoxGaps<double>& q) { HWY_DYNAMIC_DISPATCH(BoxGapsF64)(q); }
-void box_gaps(const BoxGaps<float>& q) { HWY_DYNAMIC_DISPATCH(BoxGapsF32)(q); }
 const char* target_name() { return HWY_DYNAMIC_DISPATCH(Name)(); }
 
 std::vector<std::int64_t> supported_targets() { return hwy::SupportedAndGeneratedTargets(); }

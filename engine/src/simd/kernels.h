@@ -155,21 +155,6 @@ struct CellRow {
 void cell_boxes(const CellRow<double>& row);
 void cell_boxes(const CellRow<float>& row);
 
-// The contact gap test: gap2[t] = squared distance from point p to box t, t < count, the
-// box [lo, hi] per axis (lo ≤ hi). Along an axis the gap is max(lo − p, 0) + max(p − hi, 0)
-// (one of the two is zero), each max taken as (a + |a|)/2, exact; then gx² + gy² + gz² in
-// that order, so every target gives the same bits as that scalar expression.
-template <class Real>
-struct BoxGaps {
-  Real px = 0, py = 0, pz = 0;
-  std::size_t count = 0;
-  const Real *lo_x = nullptr, *lo_y = nullptr, *lo_z = nullptr;
-  const Real *hi_x = nullptr, *hi_y = nullptr, *hi_z = nullptr;
-  Real* gap2 = nullptr;
-};
-void box_gaps(const BoxGaps<double>& q);
-void box_gaps(const BoxGaps<float>& q);
-
 // The instruction set the kernels run with now: "AVX3" (Highway's name for AVX-512),
 // "AVX2", "SSE4" or "SCALAR" (portable, one lane) on x86.
 const char* target_name();
