@@ -47,6 +47,34 @@ std::map<std::string, std::string> snapshot(const fs::path& dir) {
   return files;
 }
 
+// Every frame file of the uninterrupted run in `full` is in `part`, with the same bytes.
+void expect_same_frames(const fs::path& full, const fs::path& part) {
+  const auto expected = frame_files(full), got = frame_files(part);
+  ASSERT_EQ(got.size(), expected.size());
+  for (const auto& [name, bytes] : expected) {
+    const auto it = got.find(name);
+    ASSERT_NE(it, got.end()) << name << " missing after the resume";
+    EXPECT_TRUE(it->second == bytes) << name << " differs from the uninterrupted run";
+  }
+}
+
+// Runs `scene` whole, and again with a checkpoint every `every` of its `frames` frames; deletes
+// the frames after the checkpoint, resumes them on 2 threads and compares with the whole run.
+void expect_resume_writes_the_same_frames(Cli& cli, const fs::path& scene, int every, int frames) {
+  const fs::path full = cli.dir / "full", part = cli.dir / "part";
+  ASSERT_EQ(cli.drape("run " + scene.string() + " --out " + full.string()).code, 0);
+  ASSERT_EQ(cli.drape("run " + scene.string() + " --out " + part.string() + " --checkpoint-every " +
+                      std::to_string(every)).code, 0);
+  for (int f = every + 1; f <= frames; ++f) {
+    char name[32];
+    std::snprintf(name, sizeof name, "frame_%05d.obj", f);
+    fs::remove(part / name);
+  }
+  const Result resumed = cli.drape("run " + scene.string() + " --resume " + part.string() + " --threads 2");
+  ASSERT_EQ(resumed.code, 0) << resumed.err;
+  expect_same_frames(full, part);
+}
+
 pid_t spawn(const std::vector<std::string>& args) {
   const pid_t pid = ::fork();
   if (pid == 0) {
@@ -87,14 +115,8 @@ TEST_F(Cli, KilledRunResumedFromItsCheckpointWritesBitIdenticalFrames) {
   ASSERT_EQ(resumed.code, 0) << resumed.err;
   EXPECT_NE(resumed.err.find("resuming"), std::string::npos) << resumed.err;
 
-  const auto expected = frame_files(full), got = frame_files(part);
-  EXPECT_GT(got.size(), before);
-  ASSERT_EQ(got.size(), expected.size());
-  for (const auto& [name, bytes] : expected) {
-    const auto it = got.find(name);
-    ASSERT_NE(it, got.end()) << name << " missing after the resume";
-    EXPECT_TRUE(it->second == bytes) << name << " differs from the uninterrupted run";
-  }
+  EXPECT_GT(frame_files(part).size(), before);
+  expect_same_frames(full, part);
 }
 
 // Sheets in contact walk their kept contact sets between searches: the checkpoint holds
@@ -106,23 +128,7 @@ TEST_F(Cli, ResumedRunWithSheetsInContactWritesTheSameFrames) {
       {"name": "a", "grid": [12, 12], "size": [0.3, 0.3], "center": [0, 0, 0], "stiffness": 50, "mass": 1, "damping": 0.05, "pins": "corners"},
       {"name": "b", "grid": [12, 12], "size": [0.3, 0.3], "center": [0.01, 0, 0.008], "stiffness": 50, "mass": 1, "damping": 0.05, "pins": "corners"},
       {"name": "c", "grid": [12, 12], "size": [0.3, 0.3], "center": [0.02, 0, 0.016], "stiffness": 50, "mass": 1, "damping": 0.05, "pins": "corners"}]})");
-  const fs::path full = dir / "full", part = dir / "part";
-  ASSERT_EQ(drape("run " + scene.string() + " --out " + full.string()).code, 0);
-  ASSERT_EQ(drape("run " + scene.string() + " --out " + part.string() + " --checkpoint-every 7").code, 0);
-  for (int f = 8; f <= 10; ++f) {
-    char name[32];
-    std::snprintf(name, sizeof name, "frame_%05d.obj", f);
-    fs::remove(part / name);
-  }
-  const Result resumed = drape("run " + scene.string() + " --resume " + part.string() + " --threads 2");
-  ASSERT_EQ(resumed.code, 0) << resumed.err;
-  const auto expected = frame_files(full), got = frame_files(part);
-  ASSERT_EQ(got.size(), expected.size());
-  for (const auto& [name, bytes] : expected) {
-    const auto it = got.find(name);
-    ASSERT_NE(it, got.end()) << name << " missing after the resume";
-    EXPECT_TRUE(it->second == bytes) << name << " differs from the uninterrupted run";
-  }
+  expect_resume_writes_the_same_frames(*this, scene, 7, 10);
 }
 
 // Constraints and a moving obstacle take their targets and pose from the time of each
@@ -140,23 +146,7 @@ TEST_F(Cli, ResumedRunWithConstraintsAndAMovingObstacleWritesTheSameFrames) {
        "motion": {"circle": {"center": [-0.3, -0.2, 0], "start": [-0.2, -0.2, 0], "period": 0.05}}},
       {"type": "frame", "sheet": "b", "points": "corners", "stiffness": 500, "obstacle": 0},
       {"type": "rail", "sheet": "a", "points": {"row": 8}, "stiffness": 500, "rail": [[-1, 0.2, 0], [1, 0.2, 0]]}]})");
-  const fs::path full = dir / "full", part = dir / "part";
-  ASSERT_EQ(drape("run " + scene.string() + " --out " + full.string()).code, 0);
-  ASSERT_EQ(drape("run " + scene.string() + " --out " + part.string() + " --checkpoint-every 5").code, 0);
-  for (int f = 6; f <= 10; ++f) {
-    char name[32];
-    std::snprintf(name, sizeof name, "frame_%05d.obj", f);
-    fs::remove(part / name);
-  }
-  const Result resumed = drape("run " + scene.string() + " --resume " + part.string() + " --threads 2");
-  ASSERT_EQ(resumed.code, 0) << resumed.err;
-  const auto expected = frame_files(full), got = frame_files(part);
-  ASSERT_EQ(got.size(), expected.size());
-  for (const auto& [name, bytes] : expected) {
-    const auto it = got.find(name);
-    ASSERT_NE(it, got.end()) << name << " missing after the resume";
-    EXPECT_TRUE(it->second == bytes) << name << " differs from the uninterrupted run";
-  }
+  expect_resume_writes_the_same_frames(*this, scene, 5, 10);
 }
 
 TEST_F(Cli, DamagedForeignOrMissingCheckpointIsRefusedWithExitFiveAndNothingWritten) {
