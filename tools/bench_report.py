@@ -37,6 +37,7 @@ TARGET_FLOOR_PRICE = 0.40         # a floor under every point, vs bare
 TARGET_SELF_CONTACT_RATIO = 3.0   # a 128×128 sheet folded onto itself, with vs without
 TARGET_OVER_BULLET = 30.0         # the stacked sheets, drape ÷ Bullet per simulated second
 TARGET_SCENES_SPEEDUP = 10.0      # each shipped many-sheet scene against docs/scenes-baseline.json
+MANY_SHEETS = 10                  # a scene with at least this many sheets is a many-sheet scene (issue 13's target)
 TARGET_PORTABLE_FRACTION = 0.90  # issue 15: a DRAPE_NATIVE=OFF build within 10 % of the native one
 TARGET_F32_OVER_F64 = 1.8  # issue 15: 48 sheets in float32 at least 1.8× float64, on AVX2
 TARGET_AVX2_SPEEDUP = 3.0  # issue 15: on AVX2, the 1024-point step and 48 sheets ≥ 3× docs/simd-baseline.json
@@ -454,7 +455,9 @@ class Report:
                  f"whole frames), or its whole run if shorter (bench/bench_scenes.cpp), from a fresh world each time, "
                  f"repeated until at least a second is timed (a scene of a few milliseconds runs hundreds of times). "
                  f"One thread in CPU time (the engine's cost, as little touched by other jobs on a shared machine as a "
-                 f"figure gets), two in wall time.")
+                 f"figure gets), two in wall time. Issue 13's ≥ {TARGET_SCENES_SPEEDUP:.0f}× is asked of the many-sheet "
+                 f"scenes (at least {MANY_SHEETS} sheets, all in contact); the others are free or nearly free sheets, "
+                 f"already near the machine's ceiling in the baseline, and are listed for regressions.")
         if record:
             load = ", ".join(f"{x:.2f}" for x in record.get("load_avg_before", []))
             intro += (f" The baseline is the same benchmark built against the engine of {record['commit'][:7]} "
@@ -477,8 +480,8 @@ class Report:
             self.out(f"| {scene}{note} | {threads} | {int(r.counters.get('sheets', 0))} | {int(r.points)} | "
                      f"{r.counters['s_per_simulated_s']:.3g}{cv_text(r)} | {baseline} | "
                      f"{f'{ratio:.2f}×' if ratio else '–'} |")
-            if threads == 1:
-                self.target(f"Scene {scene} now ÷ baseline (1 thread){note}", f"{ratio:.2f}×" if ratio else "–",
+            if threads == 1 and r.counters.get("sheets", 0) >= MANY_SHEETS:
+                self.target(f"Many-sheet scene {scene} now ÷ baseline (1 thread){note}", f"{ratio:.2f}×" if ratio else "–",
                             f"≥ {TARGET_SCENES_SPEEDUP:.0f}×", ratio >= TARGET_SCENES_SPEEDUP if ratio else None,
                             "" if not ratio or ratio >= TARGET_SCENES_SPEEDUP
                             else f"{TARGET_SCENES_SPEEDUP / ratio:.1f}× short")
