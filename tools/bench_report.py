@@ -456,7 +456,7 @@ class Report:
                  f"repeated until at least a second is timed (a scene of a few milliseconds runs hundreds of times). "
                  f"One thread in CPU time (the engine's cost, as little touched by other jobs on a shared machine as a "
                  f"figure gets), two in wall time. Issue 13's ≥ {TARGET_SCENES_SPEEDUP:.0f}× is asked of the many-sheet "
-                 f"scenes (at least {MANY_SHEETS} sheets, all in contact); the others are free or nearly free sheets, "
+                 f"scenes (at least {MANY_SHEETS} sheets, which meet each other and obstacles); the others are free or nearly free sheets, "
                  f"already near the machine's ceiling in the baseline, and are listed for regressions.")
         if record:
             load = ", ".join(f"{x:.2f}" for x in record.get("load_avg_before", []))
