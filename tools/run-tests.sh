@@ -18,8 +18,14 @@ jobs=$(nproc)
 stamp() { echo "run-tests: $1 ($(( SECONDS - started )) s)"; }
 started=$SECONDS
 
+# A new build folder is made with Ninja: it compiles a target's objects while the libraries
+# it links are still compiling, where Make waits for them, so the row sweep's long files
+# (compiled once per instruction set) no longer leave one core idle. A folder configured
+# before keeps its generator.
+generator() { [[ -f "$1/CMakeCache.txt" ]] || echo "-GNinja"; }
+
 build=${DRAPE_BUILD_DIR:-build}
-cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release -DDRAPE_WERROR=ON >/dev/null
+cmake -S . -B "$build" $(generator "$build") -DCMAKE_BUILD_TYPE=Release -DDRAPE_WERROR=ON >/dev/null
 cmake --build "$build" -j"$jobs"
 ctest --test-dir "$build" --output-on-failure -j"$jobs"
 stamp "release build and tests passed"
@@ -33,7 +39,7 @@ if [[ "${DRAPE_SKIP_SANITIZE:-0}" != 1 ]]; then
   # (HWY_DISABLED_TARGETS = AVX3 | SSE4 on top of engine/src/simd/targets.h's AVX3_DL | SSSE3,
   # bits 8, 11, 7, 12): each target compiles the whole row sweep again, and stage 1 already
   # runs every target this CPU has; dispatch itself is still what runs here.
-  cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g" \
+  cmake -S . -B build-asan $(generator build-asan) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g" \
     -DCMAKE_CXX_FLAGS="-DHWY_DISABLED_TARGETS=6528" \
     -DDRAPE_SANITIZE=ON -DDRAPE_WERROR=ON -DDRAPE_OPTIONAL_PACKAGES=OFF -DDRAPE_NATIVE=OFF | grep "optional packages"
   cmake --build build-asan -j"$jobs"
@@ -46,7 +52,7 @@ if [[ "${DRAPE_SKIP_FUZZ:-0}" != 1 ]]; then
   seconds=${DRAPE_FUZZ_SECONDS:-15}
   # The readers are what is fuzzed: the row sweep is compiled for the baseline target only
   # (HWY_DISABLED_TARGETS = AVX3_DL | AVX3 | AVX2 | SSE4 | SSSE3), once instead of four times.
-  cmake -S . -B build-fuzz -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  cmake -S . -B build-fuzz $(generator build-fuzz) -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g" -DDRAPE_FUZZ=ON -DDRAPE_WERROR=ON \
     -DDRAPE_NATIVE=OFF -DCMAKE_CXX_FLAGS="-DHWY_DISABLED_TARGETS=7040" \
     -DDRAPE_BUILD_TESTS=OFF -DDRAPE_BUILD_BENCH=OFF >/dev/null
