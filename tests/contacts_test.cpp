@@ -288,12 +288,18 @@ Sheet<double> folded_sheet(const SheetDef& d, double above) {
   return s;
 }
 
-TEST(Contacts, FoldedSheetPushesItsHalvesApartAndConservesMomentum) {
+// The 20×10-cell, 0.2 × 0.4 m sheet the fold tests fold in half.
+SheetDef fold_def() {
   SheetDef d;
   d.m = 20;
   d.n = 10;
   d.width = 0.2;
   d.height = 0.4;
+  return d;
+}
+
+TEST(Contacts, FoldedSheetPushesItsHalvesApartAndConservesMomentum) {
+  const SheetDef d = fold_def();
   const auto s = folded_sheet(d, 0.008);
   const std::uint32_t cols = d.n + 1;
   PairContacts<double> work;
@@ -363,11 +369,7 @@ TEST(Contacts, KeptCandidatesFindWhatAFreshSearchFindsBitForBit) {
   EXPECT_GT(kept.searches, 2u);             // remade when points had moved far enough
   EXPECT_LT(kept.searches, std::uint64_t(steps) / 2);  // and kept in between
 
-  SheetDef d;
-  d.m = 20;
-  d.n = 10;
-  d.width = 0.2;
-  d.height = 0.4;
+  const SheetDef d = fold_def();
   auto s = folded_sheet(d, 0.008);
   PairContacts<double> own;
   for (int step = 0; step < steps; ++step) {
@@ -681,11 +683,7 @@ TEST(Contacts, WalkedContactSetsStayWithinTheirBoundOfTheExactSearch) {
   EXPECT_LT(walked.searches, std::uint64_t(steps) / 4);  // the walk served most steps
   EXPECT_LE(gap, 1e-3 * scale) << "pair: summed |dF| " << gap << " of " << scale;
 
-  SheetDef d;
-  d.m = 20;
-  d.n = 10;
-  d.width = 0.2;
-  d.height = 0.4;
+  const SheetDef d = fold_def();
   auto s = folded_sheet(d, 0.008);
   PairContacts<double> own;
   double fold_gap = 0, fold_scale = 0;
