@@ -185,7 +185,20 @@ void BasicWorld<Real>::Impl::advance(double seconds) {
   substeps(seconds / count, static_cast<std::uint64_t>(count));
 }
 
-template struct BasicWorld<double>::Impl;
-template struct BasicWorld<float>::Impl;
+// The members defined here, for both precisions: one explicit instantiation of Impl as a
+// whole in each of the files that define its members would instantiate it more than once.
+#define DRAPE_WORLD_FRAMES(Real)                                                                              \
+  template void BasicWorld<Real>::Impl::plan_wave_blocks(std::uint32_t);                                      \
+  template void BasicWorld<Real>::Impl::integrate_runs(double, std::uint64_t, std::vector<detail::Aabb>*);    \
+  template bool BasicWorld<Real>::Impl::frame_may_be_contact_free() const;                                    \
+  template bool BasicWorld<Real>::Impl::apart(const std::vector<detail::Aabb>&, detail::TrackingBroadPhase&); \
+  template bool BasicWorld<Real>::Impl::try_frame(double, std::uint64_t);                                     \
+  template void BasicWorld<Real>::Impl::substeps(double, std::uint64_t);                                      \
+  template double BasicWorld<Real>::Impl::omega_max() const;                                                  \
+  template double BasicWorld<Real>::Impl::max_substep() const;                                                \
+  template void BasicWorld<Real>::Impl::advance(double);
+DRAPE_WORLD_FRAMES(double)
+DRAPE_WORLD_FRAMES(float)
+#undef DRAPE_WORLD_FRAMES
 
 }  // namespace drape

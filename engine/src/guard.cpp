@@ -125,7 +125,15 @@ StabilityReport BasicWorld<Real>::Impl::finish_step() {
   return report;
 }
 
-template struct BasicWorld<double>::Impl;
-template struct BasicWorld<float>::Impl;
+// The members defined here, for both precisions (as in frames.cpp).
+#define DRAPE_WORLD_GUARD(Real)                                              \
+  template Energies BasicWorld<Real>::Impl::guard_energy(const Slot&) const; \
+  template void BasicWorld<Real>::Impl::take_reference(Slot&);               \
+  template void BasicWorld<Real>::Impl::take_references();                   \
+  template StabilityReport BasicWorld<Real>::Impl::check() const;            \
+  template StabilityReport BasicWorld<Real>::Impl::finish_step();
+DRAPE_WORLD_GUARD(double)
+DRAPE_WORLD_GUARD(float)
+#undef DRAPE_WORLD_GUARD
 
 }  // namespace drape

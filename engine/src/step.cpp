@@ -317,7 +317,27 @@ void BasicWorld<Real>::Impl::count_substeps(double h, std::uint64_t count) {
   steps += count;
 }
 
-template struct BasicWorld<double>::Impl;
-template struct BasicWorld<float>::Impl;
+// The members defined here, for both precisions (as in frames.cpp).
+#define DRAPE_WORLD_STEP(Real)                                                                        \
+  template void BasicWorld<Real>::Impl::move_rigid_parts();                                           \
+  template void BasicWorld<Real>::Impl::assign_obstacles(double);                                     \
+  template bool BasicWorld<Real>::Impl::contacts_possible() const;                                    \
+  template void BasicWorld<Real>::Impl::run_stage(Stage, double);                                     \
+  template detail::ContactParams<Real> BasicWorld<Real>::Impl::contact_params(double) const;          \
+  template void BasicWorld<Real>::Impl::contact_bounds(double);                                       \
+  template void BasicWorld<Real>::Impl::find_pairs();                                                 \
+  template void BasicWorld<Real>::Impl::contact_boxes(double);                                        \
+  template void BasicWorld<Real>::Impl::narrow_phase(double);                                         \
+  template void BasicWorld<Real>::Impl::plan_gather();                                                \
+  template void BasicWorld<Real>::Impl::plan_blocks();                                                \
+  template void BasicWorld<Real>::Impl::push_row_blocks(std::uint32_t, std::uint32_t, std::uint64_t); \
+  template void BasicWorld<Real>::Impl::gather(std::size_t, std::size_t, std::size_t);                \
+  template void BasicWorld<Real>::Impl::integrate_sheets(const detail::StepParams<Real>&);            \
+  template void BasicWorld<Real>::Impl::substep(double);                                              \
+  template detail::StepParams<Real> BasicWorld<Real>::Impl::step_params(double) const;                \
+  template void BasicWorld<Real>::Impl::count_substeps(double, std::uint64_t);
+DRAPE_WORLD_STEP(double)
+DRAPE_WORLD_STEP(float)
+#undef DRAPE_WORLD_STEP
 
 }  // namespace drape

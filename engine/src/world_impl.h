@@ -2,7 +2,8 @@
 // stage and of frames, and the stability guard's references. Its member functions live
 // by concept: world.cpp (the pools and ids behind the public API), step.cpp (the
 // substep's stages, in order), frames.cpp (runs of substeps, contact-free frames, waves),
-// guard.cpp (the stability guard). Each of them instantiates the members it defines.
+// guard.cpp (the stability guard). Each of them instantiates the members it defines, one
+// by one (an explicit instantiation of Impl itself may appear only once in a program).
 #pragma once
 
 #include <drape/world.h>
