@@ -150,10 +150,11 @@ void expect_dense_solve(drape::Preconditioner preconditioner, double stiffness) 
   const drape::SheetDef& d = forces.d;
   EXPECT_TRUE(stats.converged);
   EXPECT_LE(stats.relative_residual, 1e-13);
-  // an exact factor leaves CG one iteration, two with rounding; a wrong one would still
-  // converge (CG corrects it) but take many
+  // an exact factor leaves CG one iteration, two with rounding; the float factor, each
+  // iteration shrinking the residual by about κ·ε_float, a few to 1e-13 on this small
+  // sheet; a wrong one would still converge (CG corrects it) but take many
   if (preconditioner == drape::Preconditioner::Cholesky) {
-    EXPECT_LE(stats.iterations, 2);
+    EXPECT_LE(stats.iterations, 5);
   }
 
   const std::size_t n3 = 3 * forces.points();
@@ -199,8 +200,10 @@ TEST(ImplicitEuler, StepSolvesTheLinearisedSystemLikeADenseSolve) {
 // random 3×3 blocks made positive definite by a dominant diagonal. Its point pattern comes
 // from Eigen's simplicial analysis under AMD, as in the engine (local_global.h); the grid's
 // separators must come out as supernodes of several columns. A matrix that is not positive
-// definite is refused.
-TEST(Supernodal, FactorSolvesLikeADenseCholeskyOnAGrid) {
+// definite is refused. In float (implicit Euler's first factor) the solve is as close as
+// float's rounding allows: this matrix's condition number is small.
+template <class Scalar>
+void expect_factor_solves_like_dense(double tolerance) {
   const int rows = 12, cols = 10, points = rows * cols;
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> u(-1, 1);
@@ -234,7 +237,7 @@ TEST(Supernodal, FactorSolvesLikeADenseCholeskyOnAGrid) {
   std::vector<int> point_of(points);
   for (int p = 0; p < points; ++p) point_of[std::size_t(order[p])] = p;
 
-  drape::detail::SupernodalFactor factor;
+  drape::detail::SupernodalFactor<Scalar> factor;
   factor.analyse(l.outerIndexPtr(), l.innerIndexPtr(), std::size_t(points));
   EXPECT_LT(factor.supernodes(), std::size_t(points) * 3 / 4);
   auto write = [&](const Eigen::MatrixXd& m) {
@@ -242,29 +245,36 @@ TEST(Supernodal, FactorSolvesLikeADenseCholeskyOnAGrid) {
     for (int j = 0; j < points; ++j)
       for (int k = l.outerIndexPtr()[j]; k < l.outerIndexPtr()[j + 1]; ++k) {
         const int pi = point_of[std::size_t(l.innerIndexPtr()[k])], pj = point_of[std::size_t(j)];
-        double* block = factor.values() + factor.entry_offset(std::size_t(k));
+        Scalar* block = factor.values() + factor.entry_offset(std::size_t(k));
         for (int r = 0; r < 3; ++r)
-          for (int c = 0; c < 3; ++c) block[std::size_t(r) + std::size_t(c) * factor.leading(std::size_t(j))] = m(3 * pi + r, 3 * pj + c);
+          for (int c = 0; c < 3; ++c) block[std::size_t(r) + std::size_t(c) * factor.leading(std::size_t(j))] = Scalar(m(3 * pi + r, 3 * pj + c));
       }
   };
   write(a);
   ASSERT_TRUE(factor.factor());
   Eigen::VectorXd b(3 * points);
   for (auto& x : b) x = u(rng);
-  drape::detail::SupernodalFactor::Aligned x(3 * std::size_t(points));
+  typename drape::detail::SupernodalFactor<Scalar>::Aligned x(3 * std::size_t(points));
   for (int p = 0; p < points; ++p)
-    for (int r = 0; r < 3; ++r) x[3 * std::size_t(order[p]) + std::size_t(r)] = b[3 * p + r];
+    for (int r = 0; r < 3; ++r) x[3 * std::size_t(order[p]) + std::size_t(r)] = Scalar(b[3 * p + r]);
   factor.solve(x.data());
-  const Eigen::VectorXd dense = a.llt().solve(b);
+  const Eigen::LLT<Eigen::MatrixXd> llt(a);
+  Eigen::VectorXd dense(3 * points);
+  dense = llt.solve(b);
   double worst = 0;
   for (int p = 0; p < points; ++p)
-    for (int r = 0; r < 3; ++r) worst = std::max(worst, std::abs(x[3 * std::size_t(order[p]) + std::size_t(r)] - dense[3 * p + r]));
-  EXPECT_LT(worst, 1e-12 * dense.cwiseAbs().maxCoeff());
+    for (int r = 0; r < 3; ++r) worst = std::max(worst, std::abs(double(x[3 * std::size_t(order[p]) + std::size_t(r)]) - dense[3 * p + r]));
+  EXPECT_LT(worst, tolerance * dense.cwiseAbs().maxCoeff());
 
   Eigen::MatrixXd indefinite = a;
   indefinite(3 * (points - 1), 3 * (points - 1)) = -1.0;
   write(indefinite);
   EXPECT_FALSE(factor.factor());
+}
+
+TEST(Supernodal, FactorSolvesLikeADenseCholeskyOnAGrid) {
+  expect_factor_solves_like_dense<double>(1e-12);
+  expect_factor_solves_like_dense<float>(1e-5);
 }
 
 // Issue 16: every solve reaches its tolerance across k from 1e-2 to 1e8 N/m at dt = 1/60 s

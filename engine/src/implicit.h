@@ -58,8 +58,13 @@ struct ImplicitScratch {
   std::uint64_t structure_factorisations = 0;
   std::vector<std::array<int, 3>> source;
   std::vector<int> point_of;                 // factor row → point
-  SupernodalFactor factor;
-  SupernodalFactor::Aligned solve_work;
+  // The factor in float first (half the memory traffic, twice the vector width; a few CG
+  // iterations instead of one), in double when float's does not serve (implicit.cpp).
+  SupernodalFactor<float> single;
+  SupernodalFactor<double> full;
+  bool full_analysed = false;
+  SupernodalFactor<float>::Aligned single_work;
+  SupernodalFactor<double>::Aligned full_work;
 };
 
 template <class Real>
