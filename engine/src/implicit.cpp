@@ -258,15 +258,17 @@ SolveResult cholesky_cg(ImplicitScratch<Real>& sc, Sheet<Real>& s, double dt, do
   return full;
 }
 
-// Auto: block Jacobi's iterations grow with dt·ω_max (on a 64×64 sheet about 15 at
-// dt·ω_max ≈ 3, 100 at 30, 195 at 95, where some solves pass the default cap of 200), the
-// factor's cost does not: a factor and its solve cost about as much as 180 block-Jacobi
-// iterations there. Block Jacobi up to dt·ω_max = 50 keeps it both cheaper and converged.
+// Auto: block Jacobi's iterations grow with dt·ω_max (and with the sheet), the factor's
+// cost does not: a factor in float and its one or two solves cost about as much as 45
+// block-Jacobi iterations on a 64×64 sheet, which block Jacobi needs at dt·ω_max ≈ 10; on
+// 128×128 the factor costs more but so do block Jacobi's iterations (90 at dt·ω_max ≈ 19,
+// already dearer than the factor). Block Jacobi up to dt·ω_max = 10
+// (BM_ImplicitEulerStep's dt_omega_max counter, docs/integrators.md).
 bool use_cholesky(Preconditioner preconditioner, double dt, double omega_max) {
   switch (preconditioner) {
     case Preconditioner::BlockJacobi: return false;
     case Preconditioner::Cholesky: return true;
-    default: return dt * omega_max > 50.0;
+    default: return dt * omega_max > 10.0;
   }
 }
 
