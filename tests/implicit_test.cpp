@@ -10,6 +10,7 @@
 #include <cmath>
 #include <random>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -270,6 +271,9 @@ void expect_factor_solves_like_dense(double tolerance) {
   indefinite(3 * (points - 1), 3 * (points - 1)) = -1.0;
   write(indefinite);
   EXPECT_FALSE(factor.factor());
+  // beyond float's range (3.4e38) the float factor must refuse, not return ∞ or NaN
+  write(1e37 * a);
+  EXPECT_EQ(factor.factor(), (std::is_same_v<Scalar, double>));
 }
 
 TEST(Supernodal, FactorSolvesLikeADenseCholeskyOnAGrid) {
@@ -301,6 +305,37 @@ TEST(ImplicitEuler, EverySolveConvergesFromSoftToStiffSheets) {
     EXPECT_LE(stats.relative_residual, wd.cg_tolerance) << "k = " << stiffness;
     EXPECT_TRUE(world.all_finite()) << "k = " << stiffness;
   }
+}
+
+// The Cholesky preconditioner factors in float first and in double only when float's does
+// not bring CG to its tolerance within 10 iterations (implicit.cpp). Float's factor serves
+// even at k = 1e8 N/m with masses 1e6 apart (one or two iterations); it cannot where the
+// matrix leaves float's range: k = 1e42 N/m at dt = 1/60 s puts dt²k ≈ 3e38 per spring on
+// the diagonal, whose sums pass float's 3.4e38, so the float factor refuses it (the test
+// above). With 1e30 kg the matrix is as well conditioned as a 1 kg sheet at k = 1e12 N/m,
+// and the double factor must take over and solve every step in one or two iterations
+// (block Jacobi, the last resort, takes tens here). The residual is the engine's
+// |b − A·Δv|, which no preconditioner enters.
+TEST(ImplicitEuler, CholeskyGoesOnInDoubleWhereTheFloatFactorCannotServe) {
+  drape::WorldDef wd;
+  wd.integrator = Integrator::ImplicitEuler;
+  wd.dt = 1.0 / 60;
+  wd.cg_preconditioner = drape::Preconditioner::Cholesky;
+  drape::World world(wd);
+  drape::SheetDef d;
+  d.m = d.n = 15;
+  d.mass = 1e30;
+  d.stiffness = 1e42;
+  d.pins = drape::corner_points(d.m, d.n);
+  const auto id = world.add_sheet(d);
+  for (int step = 0; step < 3; ++step) {
+    ASSERT_TRUE(world.step(1).ok()) << "step " << step;
+    const auto stats = world.solver_stats(id);
+    EXPECT_TRUE(stats.converged) << "step " << step;
+    EXPECT_LE(stats.iterations, 2) << "step " << step;
+  }
+  EXPECT_EQ(world.solver_stats(id).unconverged_solves, 0u);
+  EXPECT_TRUE(world.all_finite());
 }
 
 // Auto's rule (Preconditioner::Auto): block Jacobi while dt·ω_max ≤ 10, the factor above.

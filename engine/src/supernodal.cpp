@@ -118,7 +118,8 @@ bool SupernodalFactor<Scalar>::factor() {
     const Eigen::Index w3 = 3 * width;
     auto diagonal = panel.topLeftCorner(w3, w3);
     Eigen::LLT<Eigen::Ref<Dense<Scalar>>, Eigen::Lower> llt(diagonal);
-    if (llt.info() != Eigen::Success) return false;
+    // LLT refuses a pivot ≤ 0 but passes NaN and ∞ (a matrix beyond float's range)
+    if (llt.info() != Eigen::Success || !diagonal.diagonal().allFinite()) return false;
     if (count > width) {
       auto below = panel.bottomRows(ld - w3);
       diagonal.template triangularView<Eigen::Lower>().transpose().template solveInPlace<Eigen::OnTheRight>(below);
