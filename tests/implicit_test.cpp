@@ -281,6 +281,16 @@ TEST(Supernodal, FactorSolvesLikeADenseCholeskyOnAGrid) {
   expect_factor_solves_like_dense<float>(1e-5);
 }
 
+// A 16×16 sheet of `mass` hanging from its corners.
+drape::SheetDef hanging_sheet(double stiffness, double mass) {
+  drape::SheetDef d;
+  d.m = d.n = 15;
+  d.mass = mass;
+  d.stiffness = stiffness;
+  d.pins = drape::corner_points(d.m, d.n);
+  return d;
+}
+
 // Issue 16: every solve reaches its tolerance across k from 1e-2 to 1e8 N/m at dt = 1/60 s
 // with the default preconditioner (Auto), on a sheet hanging from its corners, and the
 // run stays finite. The residual is the engine's report; the test above checks that
@@ -291,12 +301,7 @@ TEST(ImplicitEuler, EverySolveConvergesFromSoftToStiffSheets) {
     wd.integrator = Integrator::ImplicitEuler;
     wd.dt = 1.0 / 60;
     drape::World world(wd);
-    drape::SheetDef d;
-    d.m = d.n = 15;
-    d.mass = 1.0;
-    d.stiffness = stiffness;
-    d.pins = drape::corner_points(d.m, d.n);
-    const auto id = world.add_sheet(d);
+    const auto id = world.add_sheet(hanging_sheet(stiffness, 1.0));
     const auto report = world.step(30);
     const auto stats = world.solver_stats(id);
     EXPECT_TRUE(report.ok()) << "k = " << stiffness << ": " << drape::describe(report);
@@ -322,12 +327,7 @@ TEST(ImplicitEuler, CholeskyGoesOnInDoubleWhereTheFloatFactorCannotServe) {
   wd.dt = 1.0 / 60;
   wd.cg_preconditioner = drape::Preconditioner::Cholesky;
   drape::World world(wd);
-  drape::SheetDef d;
-  d.m = d.n = 15;
-  d.mass = 1e30;
-  d.stiffness = 1e42;
-  d.pins = drape::corner_points(d.m, d.n);
-  const auto id = world.add_sheet(d);
+  const auto id = world.add_sheet(hanging_sheet(1e42, 1e30));
   for (int step = 0; step < 3; ++step) {
     ASSERT_TRUE(world.step(1).ok()) << "step " << step;
     const auto stats = world.solver_stats(id);
