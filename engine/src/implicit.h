@@ -9,7 +9,8 @@
 //   Cholesky: a sparse Cholesky factor of the matrix itself, refactored every step, in 3×3
 //     blocks on the symbolic structure (pattern of L, fill-reducing permutation) of
 //     local/global's factored matrix, whose point graph is the same (local_global.h), by
-//     supernodes with dense kernels (supernodal.h).
+//     supernodes with dense kernels (supernodal.h); in float first, in double when float's
+//     factor does not bring CG to its tolerance (cholesky_cg, implicit.cpp).
 // The factored mass–spring matrix of local/global (M̃ + dt²·L, the same for x, y and z) was
 // tried as the preconditioner first and measured worse than block Jacobi: it counts every
 // spring as stiff in all three directions, while the system is stiff only along each
