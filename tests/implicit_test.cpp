@@ -152,7 +152,7 @@ void expect_dense_solve(drape::Preconditioner preconditioner, double stiffness) 
   EXPECT_TRUE(stats.converged);
   EXPECT_LE(stats.relative_residual, 1e-13);
   // an exact factor leaves CG one iteration, two with rounding; the float factor, each
-  // iteration shrinking the residual by about κ·ε_float, a few to 1e-13 on this small
+  // iteration shrinking the residual by its rounding error, a few to 1e-13 on this small
   // sheet; a wrong one would still converge (CG corrects it) but take many
   if (preconditioner == drape::Preconditioner::Cholesky) {
     EXPECT_LE(stats.iterations, 5);
