@@ -36,9 +36,9 @@ const Stepping steppings[] = {
     {Integrator::VertexBlockDescent, 1.0 / 30, 2, "vertex_block_descent/dt_1_30/it_2"},
 };
 
-// 64×64 points, 1 m square, 1 kg, corners pinned: the issue's sheet.
-drape::SheetDef stiff_sheet(double stiffness, drape::Vec3 center = {}) {
-  drape::SheetDef sd = drape::bench::square_sheet(64, {true, false, false}, center);
+// 64×64 points (by default), 1 m square, 1 kg, corners pinned: the issue's sheet.
+drape::SheetDef stiff_sheet(double stiffness, drape::Vec3 center = {}, std::uint32_t side = 64) {
+  drape::SheetDef sd = drape::bench::square_sheet(side, {true, false, false}, center);
   sd.mass = 1.0;
   sd.stiffness = stiffness;
   return sd;
@@ -102,18 +102,21 @@ void BM_EqualStiffness48(benchmark::State& state, Stepping s) {
 }
 
 // Implicit Euler per step on the issue's sheet (64×64, 1 kg, corners pinned, dt = 1/60 s) at
-// k = 1e4, 1e5, 1e6 N/m, with each preconditioner measured in the same run: block Jacobi at
-// the default cap (200 iterations, the path before issue 16) and the Cholesky factor. Each
+// k = 1e4, 1e5, 1e6 N/m (the issue's target), 1e8, and 10 to 1e3 (where auto's threshold
+// between the two lies), and on 128×128 (the factor grows faster with the sheet than an
+// iteration does), with each preconditioner measured in the same run: block Jacobi at the
+// default cap (200 iterations, the path before issue 16) and the Cholesky factor. Each
 // iteration is one step of a sheet falling from flat (30 steps, the same trajectory for
-// both up to the solves' tolerance); the counters say how many CG iterations a step took
-// and whether every solve converged.
+// both up to the solves' tolerance; the first step also pays for the factor's analysis);
+// the counters say how many CG iterations a step took and whether every solve converged.
 void BM_ImplicitEulerStep(benchmark::State& state, drape::Preconditioner preconditioner) {
   drape::WorldDef wd = drape::bench::world_def(1);
   wd.integrator = Integrator::ImplicitEuler;
   wd.dt = 1.0 / 60;
   wd.cg_preconditioner = preconditioner;
   drape::World world(wd);
-  const drape::SheetId id = world.add_sheet(stiff_sheet(double(state.range(0))));
+  const auto side = std::uint32_t(state.range(0));
+  const drape::SheetId id = world.add_sheet(stiff_sheet(double(state.range(1)), {}, side));
   double iterations = 0;
   for (auto _ : state) {
     world.step(1);
@@ -123,17 +126,17 @@ void BM_ImplicitEulerStep(benchmark::State& state, drape::Preconditioner precond
   }
   state.counters["cg_iterations"] = iterations / double(state.iterations());
   state.counters["unconverged_solves"] = double(world.solver_stats(id).unconverged_solves);
-  drape::bench::set_point_rate(state, 64.0 * 64.0, 1);
+  state.counters["dt_omega_max"] = wd.dt * 2.0 / world.stable_step_estimate(id);
+  drape::bench::set_point_rate(state, double(side) * side, 1);
 }
 
 const int registered = [] {
   for (auto preconditioner : {drape::Preconditioner::BlockJacobi, drape::Preconditioner::Cholesky})
     benchmark::RegisterBenchmark(("BM_ImplicitEulerStep/" + std::string(drape::preconditioner_name(preconditioner))).c_str(),
                                  BM_ImplicitEulerStep, preconditioner)
-        ->ArgName("k")
-        ->Arg(10000)
-        ->Arg(100000)
-        ->Arg(1000000)
+        ->ArgNames({"side", "k"})
+        ->ArgsProduct({{64}, {10, 100, 1000, 10000, 100000, 1000000, 100000000}})
+        ->ArgsProduct({{128}, {10, 100, 1000, 100000}})
         ->Unit(benchmark::kMillisecond)
         ->Iterations(30);
   for (const Stepping& s : steppings) {

@@ -204,7 +204,7 @@ def main():
       "5 times and its fastest time kept, so other load on the machine shows less)")
     w(f"- Implicit Euler's CG: relative residual {meta.get('cg_tolerance', '?')}, at most "
       f"{meta.get('cg_max_iterations', '?')} iterations, preconditioner `{meta.get('cg_preconditioner', 'block_jacobi')}` "
-      "(`auto`: 3×3 block Jacobi while dt·ω_max ≤ 50, else a sparse Cholesky factor of each step's matrix)")
+      "(`auto`: 3×3 block Jacobi while dt·ω_max ≤ 10, else a sparse Cholesky factor of each step's matrix)")
     w(f"- Local/global: {meta.get('local_global_iterations', '?')} iterations per step, vertex block descent "
       f"{meta.get('vertex_block_iterations', '?')}, unless a table says otherwise")
     w(f"- Date: {datetime.datetime.now(datetime.timezone.utc).strftime('%Y-%m-%d %H:%M UTC')}\n")

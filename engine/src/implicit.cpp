@@ -155,7 +155,7 @@ SolveResult block_jacobi_cg(ImplicitScratch<Real>& sc, double tolerance, int max
 }
 
 // The Cholesky blocks' sources in `system` for local/global's symbolic structure `ms`, and
-// the supernodes of that structure.
+// the supernodes of that structure (the double factor's only when it is first needed).
 template <class Real>
 void map_blocks(ImplicitScratch<Real>& sc, const LocalGlobalScratch& ms) {
   const std::size_t count = ms.permutation.size();
@@ -172,49 +172,61 @@ void map_blocks(ImplicitScratch<Real>& sc, const LocalGlobalScratch& ms) {
       const bool present = std::binary_search(begin, end, 3 * pj);
       for (int r = 0; r < 3; ++r) src[std::size_t(r)] = present ? offset_of(sc.system, 3 * pi + r, 3 * pj) : -1;
     }
-  sc.factor.analyse(ms.column_start.data(), ms.row_index.data(), count);
-  sc.solve_work.resize(3 * count);
+  sc.single.analyse(ms.column_start.data(), ms.row_index.data(), count);
+  sc.single_work.resize(3 * count);
+  sc.full_analysed = false;
   sc.structure = &ms;
   sc.structure_factorisations = ms.factorisations;
 }
 
-// The step's matrix (its lower blocks, in double) into the supernodes' panels, then L.
-// False when it is not positive definite.
-template <class Real>
-bool block_factor(ImplicitScratch<Real>& sc, const LocalGlobalScratch& ms) {
+// The step's matrix (its lower blocks) into the supernodes' panels of `factor`, then L.
+// False when it is not positive definite in that precision.
+template <class Scalar, class Real>
+bool block_factor(SupernodalFactor<Scalar>& factor, const ImplicitScratch<Real>& sc, const LocalGlobalScratch& ms) {
   const std::size_t count = ms.permutation.size();
   const Real* a = sc.system.valuePtr();
-  sc.factor.clear();
-  double* value = sc.factor.values();
+  factor.clear();
+  Scalar* value = factor.values();
   for (std::size_t j = 0; j < count; ++j) {
-    const std::size_t ld = sc.factor.leading(j);
+    const std::size_t ld = factor.leading(j);
     for (int k = ms.column_start[j]; k < ms.column_start[j + 1]; ++k) {
       const auto& src = sc.source[std::size_t(k)];
       if (src[0] < 0) continue;  // fill: not in the matrix
-      double* block = value + sc.factor.entry_offset(std::size_t(k));
+      Scalar* block = value + factor.entry_offset(std::size_t(k));
       for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) block[std::size_t(r) + std::size_t(c) * ld] = double(a[src[std::size_t(r)] + c]);
+        for (int c = 0; c < 3; ++c) block[std::size_t(r) + std::size_t(c) * ld] = Scalar(a[src[std::size_t(r)] + c]);
     }
   }
-  return sc.factor.factor();
+  return factor.factor();
 }
 
-// z = (L Lᵀ)⁻¹ r through the factor, permuted.
-template <class Real>
-void block_solve(ImplicitScratch<Real>& sc, const LocalGlobalScratch& ms, const Real* in, Real* out) {
+// z = (L Lᵀ)⁻¹ r through `factor`, permuted, in its precision.
+template <class Scalar, class Real>
+void block_solve(const SupernodalFactor<Scalar>& factor, typename SupernodalFactor<Scalar>::Aligned& work,
+                 const LocalGlobalScratch& ms, const Real* in, Real* out) {
   const std::size_t count = ms.permutation.size();
-  double* y = sc.solve_work.data();
+  Scalar* y = work.data();
   for (std::size_t p = 0; p < count; ++p)
-    for (int r = 0; r < 3; ++r) y[3 * std::size_t(ms.permutation[p]) + std::size_t(r)] = double(in[3 * p + std::size_t(r)]);
-  sc.factor.solve(y);
+    for (int r = 0; r < 3; ++r) y[3 * std::size_t(ms.permutation[p]) + std::size_t(r)] = Scalar(in[3 * p + std::size_t(r)]);
+  factor.solve(y);
   for (std::size_t p = 0; p < count; ++p)
     for (int r = 0; r < 3; ++r) out[3 * p + std::size_t(r)] = Real(y[3 * std::size_t(ms.permutation[p]) + std::size_t(r)]);
 }
 
-// Cholesky: the step's matrix factored in double (a float sheet's too), every step. The
+// How many CG iterations the float factor gets before the step factors in double. Each
+// iteration shrinks the residual by the float factor's relative error, far below κ·ε_float
+// on these matrices (Cholesky's backward error is small entry by entry): one or two
+// iterations to 1e-6 up to k = 1e8 N/m. Where it does not serve (a matrix beyond float's
+// range, or one too ill-conditioned), the double factor takes over.
+constexpr int single_iterations = 10;
+
+// Cholesky: the step's matrix factored every step, in float first and CG (in the sheet's
+// precision) preconditioned by it; when that factor breaks down or CG does not reach the
+// tolerance within single_iterations, in double, CG going on from the best iterate. The
 // matrix is positive definite (masses on the diagonal, every spring block clamped to
-// G ⪰ 0), so the factor exists; if rounding still breaks it, the step falls back to block
-// Jacobi.
+// G ⪰ 0), so the double factor exists; if rounding still breaks it, the step falls back to
+// block Jacobi. Which path a step takes depends only on its matrix, so the bits do not
+// depend on earlier steps, threads or a resume.
 template <class Real>
 SolveResult cholesky_cg(ImplicitScratch<Real>& sc, Sheet<Real>& s, double dt, double tolerance, int max_iterations) {
   using Vector = typename ImplicitScratch<Real>::Vector;
@@ -223,20 +235,42 @@ SolveResult cholesky_cg(ImplicitScratch<Real>& sc, Sheet<Real>& s, double dt, do
   LocalGlobalScratch& ms = *s.local_global_scratch;
   prepare_factor(ms, s, dt);
   if (sc.structure != &ms || sc.structure_factorisations != ms.factorisations) map_blocks(sc, ms);
-  if (!block_factor(sc, ms)) return block_jacobi_cg(sc, tolerance, max_iterations);
-  return preconditioned_cg(sc, tolerance, max_iterations,
-                           [&](const Vector& in, Vector& out) { block_solve(sc, ms, in.data(), out.data()); });
+  int done = 0;
+  if (block_factor(sc.single, sc, ms)) {
+    const SolveResult single =
+        preconditioned_cg(sc, tolerance, std::min(single_iterations, max_iterations), [&](const Vector& in, Vector& out) {
+          block_solve(sc.single, sc.single_work, ms, in.data(), out.data());
+        });
+    if (single.relative_residual <= tolerance || single.iterations >= max_iterations) return single;
+    done = single.iterations;
+  }
+  if (!sc.full_analysed) {
+    sc.full.analyse(ms.column_start.data(), ms.row_index.data(), ms.permutation.size());
+    sc.full_work.resize(sc.single_work.size());
+    sc.full_analysed = true;
+  }
+  SolveResult full;
+  if (block_factor(sc.full, sc, ms))
+    full = preconditioned_cg(sc, tolerance, max_iterations - done, [&](const Vector& in, Vector& out) {
+      block_solve(sc.full, sc.full_work, ms, in.data(), out.data());
+    });
+  else
+    full = block_jacobi_cg(sc, tolerance, max_iterations - done);
+  full.iterations += done;
+  return full;
 }
 
-// Auto: block Jacobi's iterations grow with dt·ω_max (on a 64×64 sheet about 15 at
-// dt·ω_max ≈ 3, 100 at 30, 195 at 95, where some solves pass the default cap of 200), the
-// factor's cost does not: a factor and its solve cost about as much as 180 block-Jacobi
-// iterations there. Block Jacobi up to dt·ω_max = 50 keeps it both cheaper and converged.
+// Auto: block Jacobi's iterations grow with dt·ω_max (and with the sheet), the factor's
+// cost does not: a factor in float and its one or two solves cost about as much as 45
+// block-Jacobi iterations on a 64×64 sheet, which block Jacobi needs at dt·ω_max ≈ 10; on
+// 128×128 the factor costs more but so do block Jacobi's iterations (90 at dt·ω_max ≈ 19,
+// already dearer than the factor). Block Jacobi up to dt·ω_max = 10
+// (BM_ImplicitEulerStep's dt_omega_max counter, docs/integrators.md).
 bool use_cholesky(Preconditioner preconditioner, double dt, double omega_max) {
   switch (preconditioner) {
     case Preconditioner::BlockJacobi: return false;
     case Preconditioner::Cholesky: return true;
-    default: return dt * omega_max > 50.0;
+    default: return dt * omega_max > 10.0;
   }
 }
 

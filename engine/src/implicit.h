@@ -9,7 +9,8 @@
 //   Cholesky: a sparse Cholesky factor of the matrix itself, refactored every step, in 3×3
 //     blocks on the symbolic structure (pattern of L, fill-reducing permutation) of
 //     local/global's factored matrix, whose point graph is the same (local_global.h), by
-//     supernodes with dense kernels (supernodal.h).
+//     supernodes with dense kernels (supernodal.h); in float first, in double when float's
+//     factor does not bring CG to its tolerance (cholesky_cg, implicit.cpp).
 // The factored mass–spring matrix of local/global (M̃ + dt²·L, the same for x, y and z) was
 // tried as the preconditioner first and measured worse than block Jacobi: it counts every
 // spring as stiff in all three directions, while the system is stiff only along each
@@ -58,8 +59,13 @@ struct ImplicitScratch {
   std::uint64_t structure_factorisations = 0;
   std::vector<std::array<int, 3>> source;
   std::vector<int> point_of;                 // factor row → point
-  SupernodalFactor factor;
-  SupernodalFactor::Aligned solve_work;
+  // The factor in float first (half the memory traffic, twice the vector width; a few CG
+  // iterations instead of one), in double when float's does not serve (implicit.cpp).
+  SupernodalFactor<float> single;
+  SupernodalFactor<double> full;
+  bool full_analysed = false;
+  SupernodalFactor<float>::Aligned single_work;
+  SupernodalFactor<double>::Aligned full_work;
 };
 
 template <class Real>

@@ -8,11 +8,18 @@
 namespace drape::detail {
 
 namespace {
-using Panel = Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic>, 0, Eigen::OuterStride<>>;
-using ConstPanel = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic>, 0, Eigen::OuterStride<>>;
+template <class Scalar>
+using Dense = Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic>;
+template <class Scalar>
+using Panel = Eigen::Map<Dense<Scalar>, 0, Eigen::OuterStride<>>;
+template <class Scalar>
+using ConstPanel = Eigen::Map<const Dense<Scalar>, 0, Eigen::OuterStride<>>;
+template <class Scalar>
+using Column = Eigen::Map<Eigen::Matrix<Scalar, Eigen::Dynamic, 1>>;
 }  // namespace
 
-void SupernodalFactor::analyse(const int* column_start, const int* row_index, std::size_t columns) {
+template <class Scalar>
+void SupernodalFactor<Scalar>::analyse(const int* column_start, const int* row_index, std::size_t columns) {
   // Column j + 1 joins j's supernode when it is j's first row below the diagonal and has one
   // row fewer: then its rows are j's without j (a column's rows below it are a subset of
   // those of its first row's column).
@@ -46,7 +53,7 @@ void SupernodalFactor::analyse(const int* column_start, const int* row_index, st
       entry_offset_[std::size_t(k)] =
           value_start_[s] + 3 * local * leading_[s] + 3 * (local + std::size_t(k - column_start[j]));
   }
-  value_.assign(value_start_.back(), 0.0);
+  value_.assign(value_start_.back(), Scalar(0));
   map_.assign(columns, 0);
   head_.resize(supernodes);
   next_.resize(supernodes);
@@ -54,9 +61,11 @@ void SupernodalFactor::analyse(const int* column_start, const int* row_index, st
   gathered_.resize(3 * columns);
 }
 
-void SupernodalFactor::clear() { std::fill(value_.begin(), value_.end(), 0.0); }
+template <class Scalar>
+void SupernodalFactor<Scalar>::clear() { std::fill(value_.begin(), value_.end(), Scalar(0)); }
 
-bool SupernodalFactor::factor() {
+template <class Scalar>
+bool SupernodalFactor<Scalar>::factor() {
   const std::size_t supernodes = first_.size() - 1;
   std::fill(head_.begin(), head_.end(), -1);
   // d waits in the list of the supernode holding its next row below the ones it updated
@@ -71,7 +80,7 @@ bool SupernodalFactor::factor() {
     const int* rows = rows_.data() + row_start_[s];
     const int count = row_start_[s + 1] - row_start_[s];
     const Eigen::Index ld = Eigen::Index(leading_[s]);
-    Panel panel(value_.data() + value_start_[s], ld, 3 * width, Eigen::OuterStride<>(ld));
+    Panel<Scalar> panel(value_.data() + value_start_[s], ld, 3 * width, Eigen::OuterStride<>(ld));
     for (int i = 0; i < count; ++i) map_[std::size_t(rows[i])] = i;
     for (int d = head_[s]; d != -1;) {
       const int after = next_[std::size_t(d)];
@@ -81,22 +90,22 @@ bool SupernodalFactor::factor() {
       int q = p;
       while (q < dcount && drows[q] < c1) ++q;
       const Eigen::Index dld = Eigen::Index(leading_[std::size_t(d)]);
-      const ConstPanel dpanel(value_.data() + value_start_[std::size_t(d)], dld,
+      const ConstPanel<Scalar> dpanel(value_.data() + value_start_[std::size_t(d)], dld,
                               Eigen::Index(3 * (first_[std::size_t(d) + 1] - first_[std::size_t(d)])),
                               Eigen::OuterStride<>(dld));
       // the product of d's rows from p down with its rows in s's columns
       const Eigen::Index m = 3 * (dcount - p), n = 3 * (q - p);
       update_.resize(std::size_t(m * n));
-      Eigen::Map<Eigen::MatrixXd> product(update_.data(), m, n);
+      Eigen::Map<Dense<Scalar>> product(update_.data(), m, n);
       product.noalias() = dpanel.middleRows(3 * p, m) * dpanel.middleRows(3 * p, n).transpose();
       for (int b = p; b < q; ++b) {
         const Eigen::Index col = 3 * (drows[b] - c0);
         for (int c = 0; c < 3; ++c) {
-          double* target = panel.col(col + c).data();
-          const double* source = product.col(3 * (b - p) + c).data();
+          Scalar* target = panel.col(col + c).data();
+          const Scalar* source = product.col(3 * (b - p) + c).data();
           for (int a = p; a < dcount; ++a) {
-            double* t = target + 3 * map_[std::size_t(drows[a])];
-            const double* u = source + 3 * (a - p);
+            Scalar* t = target + 3 * map_[std::size_t(drows[a])];
+            const Scalar* u = source + 3 * (a - p);
             t[0] -= u[0];
             t[1] -= u[1];
             t[2] -= u[2];
@@ -108,38 +117,40 @@ bool SupernodalFactor::factor() {
     }
     const Eigen::Index w3 = 3 * width;
     auto diagonal = panel.topLeftCorner(w3, w3);
-    Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>, Eigen::Lower> llt(diagonal);
-    if (llt.info() != Eigen::Success) return false;
+    Eigen::LLT<Eigen::Ref<Dense<Scalar>>, Eigen::Lower> llt(diagonal);
+    // LLT refuses a pivot ≤ 0 but passes NaN and ∞ (a matrix beyond float's range)
+    if (llt.info() != Eigen::Success || !diagonal.diagonal().allFinite()) return false;
     if (count > width) {
       auto below = panel.bottomRows(ld - w3);
-      diagonal.triangularView<Eigen::Lower>().transpose().solveInPlace<Eigen::OnTheRight>(below);
+      diagonal.template triangularView<Eigen::Lower>().transpose().template solveInPlace<Eigen::OnTheRight>(below);
       wait(s, width);
     }
   }
   return true;
 }
 
-void SupernodalFactor::solve(double* x) const {
+template <class Scalar>
+void SupernodalFactor<Scalar>::solve(Scalar* x) const {
   const std::size_t supernodes = first_.size() - 1;
   // supernode s: its panel, x at its columns, its rows below them
   struct Part {
-    const ConstPanel panel;
-    Eigen::Map<Eigen::VectorXd> own;
+    const ConstPanel<Scalar> panel;
+    Column<Scalar> own;
     const int* rows;
     int count;
   };
   auto part = [&](std::size_t s) {
     const int width = first_[s + 1] - first_[s];
     const Eigen::Index ld = Eigen::Index(leading_[s]);
-    return Part{ConstPanel(value_.data() + value_start_[s], ld, 3 * width, Eigen::OuterStride<>(ld)),
-                Eigen::Map<Eigen::VectorXd>(x + 3 * first_[s], 3 * width), rows_.data() + row_start_[s] + width,
+    return Part{ConstPanel<Scalar>(value_.data() + value_start_[s], ld, 3 * width, Eigen::OuterStride<>(ld)),
+                Column<Scalar>(x + 3 * first_[s], 3 * width), rows_.data() + row_start_[s] + width,
                 row_start_[s + 1] - row_start_[s] - width};
   };
-  Eigen::Map<Eigen::VectorXd> gathered(gathered_.data(), Eigen::Index(gathered_.size()));
+  Column<Scalar> gathered(gathered_.data(), Eigen::Index(gathered_.size()));
   for (std::size_t s = 0; s < supernodes; ++s) {  // L y = b
     Part p = part(s);
     const Eigen::Index w3 = p.own.size();
-    p.panel.topLeftCorner(w3, w3).triangularView<Eigen::Lower>().solveInPlace(p.own);
+    p.panel.topLeftCorner(w3, w3).template triangularView<Eigen::Lower>().solveInPlace(p.own);
     if (p.count == 0) continue;
     gathered.head(3 * p.count).noalias() = p.panel.bottomRows(3 * p.count) * p.own;
     for (int i = 0; i < p.count; ++i)
@@ -153,8 +164,11 @@ void SupernodalFactor::solve(double* x) const {
         for (int r = 0; r < 3; ++r) gathered[3 * i + r] = x[3 * p.rows[i] + r];
       p.own.noalias() -= p.panel.bottomRows(3 * p.count).transpose() * gathered.head(3 * p.count);
     }
-    p.panel.topLeftCorner(w3, w3).triangularView<Eigen::Lower>().transpose().solveInPlace(p.own);
+    p.panel.topLeftCorner(w3, w3).template triangularView<Eigen::Lower>().transpose().solveInPlace(p.own);
   }
 }
+
+template class SupernodalFactor<double>;
+template class SupernodalFactor<float>;
 
 }  // namespace drape::detail

@@ -23,9 +23,10 @@
 
 namespace drape::detail {
 
+template <class Scalar>
 class SupernodalFactor {
  public:
-  using Aligned = std::vector<double, Eigen::aligned_allocator<double>>;
+  using Aligned = std::vector<Scalar, Eigen::aligned_allocator<Scalar>>;
 
   // The point pattern of L: `columns` columns, column j's rows at row_index[column_start[j] ..
   // column_start[j + 1]).
@@ -38,12 +39,13 @@ class SupernodalFactor {
   std::size_t supernodes() const { return first_.empty() ? 0 : first_.size() - 1; }
   // Zeroes the panels; the caller then writes A's lower blocks into them.
   void clear();
-  double* values() { return value_.data(); }
+  Scalar* values() { return value_.data(); }
 
-  // A's blocks (written as above) → L in place. False when A is not positive definite.
+  // A's blocks (written as above) → L in place. False when A is not positive definite in
+  // this precision (a pivot ≤ 0, or not finite: A beyond its range).
   bool factor();
   // x ← (L Lᵀ)⁻¹ x, 3 values per point, in the pattern's (permuted) order; x aligned as Aligned.
-  void solve(double* x) const;
+  void solve(Scalar* x) const;
 
  private:
   std::vector<int> first_;                  // per supernode: its first column; one more at the end

@@ -64,12 +64,12 @@ enum class Integrator {
 
 // Implicit Euler's preconditioner for its conjugate-gradient solve (WorldDef::cg_preconditioner).
 enum class Preconditioner {
-  Auto,         // block Jacobi while dt·ω_max ≤ 50 (ω_max: the sheet's stiffest mode, as in
-                // stable_step_estimate), else Cholesky: the cheaper of the two on a 64×64 sheet
+  Auto,         // block Jacobi while dt·ω_max ≤ 10 (ω_max: the sheet's stiffest mode, as in
+                // stable_step_estimate), else Cholesky: the cheaper of the two on 64×64 and 128×128
   BlockJacobi,  // the inverse 3×3 diagonal blocks: cheap iterations, but their number grows
                 // with dt·ω_max and stops at the cap on stiff sheets
-  Cholesky,     // a sparse Cholesky factor of the step's own matrix, factored every step: the
-                // solve converges in one or two iterations at any stiffness
+  Cholesky,     // a sparse Cholesky factor of the step's own matrix, factored every step (in
+                // float, in double where float's does not serve): a few iterations at any stiffness
 };
 std::string_view preconditioner_name(Preconditioner preconditioner);  // "auto", "block_jacobi", "cholesky"
 std::optional<Preconditioner> preconditioner_from_name(std::string_view name);
