@@ -265,10 +265,13 @@ void gather_contacts(std::span<const ContactForces<Real>* const> sources, Vec3Ar
 // too). A kept set's walk and the substeps that search depend on all of it, so a world
 // that takes it back continues bit for bit. `sheets` are the world's sheets in order.
 // read_contact_memory checks every count and index against them and throws
-// std::invalid_argument naming the problem, leaving `pair_work` as it was.
+// std::invalid_argument naming the problem, leaving `pair_work` as it was. Indices, flags
+// and floats are packed two to a word (layout 2); `one_entry_a_word` writes layout 1, one
+// word per entry as before, which read_contact_memory still reads (for older checkpoints).
 template <class Real>
 std::vector<std::uint64_t> write_contact_memory(const std::vector<PairContacts<Real>>& pair_work,
-                                                std::span<const Sheet<Real>* const> sheets);
+                                                std::span<const Sheet<Real>* const> sheets,
+                                                bool one_entry_a_word = false);
 template <class Real>
 void read_contact_memory(std::span<const std::uint64_t> memory, std::span<const Sheet<Real>* const> sheets,
                          std::vector<PairContacts<Real>>& pair_work);
