@@ -586,43 +586,64 @@ bool within(const Sheet<Real>& s, const Vec3Array<Real>& then, Real limit2) {
 
 // How the points of each patch of s moved since `then`: per patch, the centre of the box
 // of its points' displacements and that box's half-diagonal, which no displacement is
-// farther from the centre than. One pass over each patch's points (rows and columns
-// 8p … 8p + 8, as their boxes).
+// farther from the centre than (rows and columns 8p … 8p + 8, as their boxes). A patch row
+// at a time: its point rows are folded into per-column extremes along whole rows (long
+// vector loops), then each patch takes the extremes of its 9 columns.
 template <class Real>
 void patch_motion(const Sheet<Real>& s, const Vec3Array<Real>& then, std::vector<Real> (&mid)[3],
-                  std::vector<Real>& radius) {
+                  std::vector<Real>& radius, ContactScratch<Real>& sc) {
   constexpr std::uint32_t P = SheetBoxes<Real>::kPatch;
-  struct {
-    std::uint32_t m, n, patch_rows, patch_cols;
-  } const bs{s.topology->m, s.topology->n, SheetBoxes<Real>::patches_along(s.topology->m),
-             SheetBoxes<Real>::patches_along(s.topology->n)};
-  const std::uint32_t cols = bs.n + 1, patches = bs.patch_rows * bs.patch_cols;
+  const std::uint32_t m = s.topology->m, n = s.topology->n;
+  const std::uint32_t patch_rows = SheetBoxes<Real>::patches_along(m), patch_cols = SheetBoxes<Real>::patches_along(n);
+  const std::uint32_t cols = n + 1, patches = patch_rows * patch_cols;
   for (int k = 0; k < 3; ++k) mid[k].resize(patches);
   radius.resize(patches);
   const Real* now[3] = {s.position.x.data(), s.position.y.data(), s.position.z.data()};
   const Real* old[3] = {then.x.data(), then.y.data(), then.z.data()};
-  for (std::uint32_t pi = 0; pi < bs.patch_rows; ++pi)
-    for (std::uint32_t pj = 0; pj < bs.patch_cols; ++pj) {
-      const std::uint32_t i0 = pi * P, i1 = std::min(i0 + P, bs.m), j0 = pj * P, j1 = std::min(j0 + P, bs.n);
-      const std::uint32_t patch = pi * bs.patch_cols + pj;
-      Real r2 = 0, nan = 0;  // nan: NaN if a displacement is (not a number, or infinite)
-      for (int k = 0; k < 3; ++k) {
-        Real lo = std::numeric_limits<Real>::infinity(), hi = -lo;
-        for (std::uint32_t i = i0; i <= i1; ++i) {
-          const Real* a = now[k] + std::size_t(i) * cols;
-          const Real* b = old[k] + std::size_t(i) * cols;
-          for (std::uint32_t j = j0; j <= j1; ++j) {
-            const Real d = a[j] - b[j];
-            lo = d < lo ? d : lo;  // a NaN is lost here, but not in `nan`
-            hi = d > hi ? d : hi;
-            nan += d * Real(0);
-          }
+  for (int k = 0; k < 3; ++k) {
+    sc.column_lo[k].resize(cols);
+    sc.column_hi[k].resize(cols);
+  }
+  sc.column_nan.resize(cols);
+  Real* __restrict nan = sc.column_nan.data();  // NaN where a displacement is (not a number, or infinite)
+  for (std::uint32_t pi = 0; pi < patch_rows; ++pi) {
+    const std::uint32_t i0 = pi * P, i1 = std::min(i0 + P, m);
+    std::fill(nan, nan + cols, Real(0));
+    for (int k = 0; k < 3; ++k) {
+      Real* __restrict lo = sc.column_lo[k].data();
+      Real* __restrict hi = sc.column_hi[k].data();
+      std::fill(lo, lo + cols, std::numeric_limits<Real>::infinity());
+      std::fill(hi, hi + cols, -std::numeric_limits<Real>::infinity());
+      for (std::uint32_t i = i0; i <= i1; ++i) {
+        const Real* __restrict a = now[k] + std::size_t(i) * cols;
+        const Real* __restrict b = old[k] + std::size_t(i) * cols;
+        for (std::uint32_t j = 0; j < cols; ++j) {
+          const Real d = a[j] - b[j];
+          lo[j] = d < lo[j] ? d : lo[j];  // a NaN is lost here, but not in `nan`
+          hi[j] = d > hi[j] ? d : hi[j];
+          nan[j] += d * Real(0);
         }
-        mid[k][patch] = Real(0.5) * (lo + hi);
-        r2 += Real(0.25) * (hi - lo) * (hi - lo);
       }
-      radius[patch] = std::sqrt(r2) + nan;  // NaN fails the check
     }
+    for (std::uint32_t pj = 0; pj < patch_cols; ++pj) {
+      const std::uint32_t j0 = pj * P, j1 = std::min(j0 + P, n);
+      const std::uint32_t patch = pi * patch_cols + pj;
+      Real r2 = 0, bad = 0;
+      for (std::uint32_t j = j0; j <= j1; ++j) bad += nan[j];
+      for (int k = 0; k < 3; ++k) {
+        const Real* lo = sc.column_lo[k].data();
+        const Real* hi = sc.column_hi[k].data();
+        Real l = lo[j0], h = hi[j0];
+        for (std::uint32_t j = j0 + 1; j <= j1; ++j) {
+          l = lo[j] < l ? lo[j] : l;
+          h = hi[j] > h ? hi[j] : h;
+        }
+        mid[k][patch] = Real(0.5) * (l + h);
+        r2 += Real(0.25) * (h - l) * (h - l);
+      }
+      radius[patch] = std::sqrt(r2) + bad;  // NaN fails the check
+    }
+  }
 }
 
 // The gap between every patch box of a and every patch box of b, at row a·patches(b) + b.
@@ -718,8 +739,8 @@ bool lists_hold(PairContacts<Real>& w, const Sheet<Real>& a, const Sheet<Real>& 
     ++w.kept_for;
     return true;
   }
-  patch_motion(a, w.made_at_a, sc.mid_a, sc.radius_a);
-  if (&a != &b) patch_motion(b, w.made_at_b, sc.mid_b, sc.radius_b);
+  patch_motion(a, w.made_at_a, sc.mid_a, sc.radius_a, sc);
+  if (&a != &b) patch_motion(b, w.made_at_b, sc.mid_b, sc.radius_b, sc);
   const auto& mid_b = &a != &b ? sc.mid_b : sc.mid_a;
   const auto& radius_b = &a != &b ? sc.radius_b : sc.radius_a;
   const auto patches = [](const Sheet<Real>& s) {

@@ -136,6 +136,7 @@ struct ContactScratch {
   std::vector<Near> near;                      // and those cells
   std::vector<Real> mid_a[3], mid_b[3];        // per patch of each sheet of a pair: the middle
   std::vector<Real> radius_a, radius_b;        // and spread of its points' displacements
+  std::vector<Real> column_lo[3], column_hi[3], column_nan;  // patch_motion's, per column
 };
 
 // Candidate cells of one direction of a pair: for point p of the query sheet, the cells
