@@ -243,8 +243,8 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
 // With `lists`, it also makes each point's candidate list (PairContacts): the cells whose
 // boxes are within R + skin of it, in the order this search meets them. With `kept`, it
 // makes the kept contact set instead; with `before` too (the set so far, for these sheets),
-// a block all of whose points are in `before` is not searched: its entries walk and move
-// to `kept` as they are (a partial search, KeptContacts).
+// the entries of `before` walk and move to `kept` as they are, block by block, and only a
+// block's points outside `before` are searched (a partial search, KeptContacts).
 template <class Real>
 void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, const Sheet<Real>& s,
                           const SheetBoxes<Real>& bs, int ring, const ContactParams<Real>& prm,
@@ -304,13 +304,20 @@ void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
     for (std::uint32_t bj = 0; bj < bq.patch_cols; ++bj) {
       const std::uint32_t block = bi * bq.patch_cols + bj;
       if (kept) kept->block_begin[block] = std::uint32_t(kept->point.size());
-      if (before && !before->open[block]) {  // every point in the set: walk, do not search
-        const std::uint32_t e0 = before->block_begin[block], e1 = before->block_begin[block + 1];
+      const std::size_t entries_before = kept ? kept->point.size() : 0;
+      // The block's points in the set walk and stay in it; only a block with points
+      // outside the set is searched, and only for those points.
+      std::uint32_t e0 = 0, e1 = 0;
+      if (before) {
+        e0 = before->block_begin[block];
+        e1 = before->block_begin[block + 1];
         points_walking(q, s, ring, *before, e0, e1, prm, on_q, on_s, last);
         kept->point.insert(kept->point.end(), before->point.begin() + e0, before->point.begin() + e1);
         kept->cell.insert(kept->cell.end(), before->cell.begin() + e0, before->cell.begin() + e1);
-        kept->open[block] = 0;
-        continue;
+        if (!before->open[block]) {
+          kept->open[block] = 0;
+          continue;
+        }
       }
       Aabb bb;
       for (int k = 0; k < 3; ++k) {
@@ -352,10 +359,14 @@ void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
       if (count == 0) continue;
       const std::uint32_t i0 = bq.first(bi), i1 = bq.end_point(bi, bq.patch_rows, bq.m);
       const std::uint32_t j0 = bq.first(bj), j1 = bq.end_point(bj, bq.patch_cols, bq.n);
-      const std::size_t entries_before = kept ? kept->point.size() : 0;
+      if (before) {
+        sc.in_set.resize(q.size());
+        for (std::uint32_t e = e0; e < e1; ++e) sc.in_set[before->point[e]] = 1;
+      }
       for (std::uint32_t i = i0; i < i1; ++i)
         for (std::uint32_t j = j0; j < j1; ++j) {
           const std::uint32_t p = i * qcols + j;
+          if (before && sc.in_set[p]) continue;  // walked above
           const V3<Real> x{Q.x[p], Q.y[p], Q.z[p]};
           // The gathered strips within R, then their cells within R.
           box_gaps(x, rlo, rhi, count, gap2);
@@ -418,6 +429,8 @@ void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
             kept->cell.push_back(start);
           }
         }
+      if (before)
+        for (std::uint32_t e = e0; e < e1; ++e) sc.in_set[before->point[e]] = 0;
       // The block visited rows [i0, i1) × columns [j0, j1): open unless all are in the set.
       if (kept) kept->open[block] = kept->point.size() - entries_before < std::size_t(i1 - i0) * (j1 - j0);
     }

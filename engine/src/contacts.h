@@ -137,6 +137,7 @@ struct ContactScratch {
   std::vector<Real> mid_a[3], mid_b[3];        // per patch of each sheet of a pair: the middle
   std::vector<Real> radius_a, radius_b;        // and spread of its points' displacements
   std::vector<Real> column_lo[3], column_hi[3], column_nan;  // patch_motion's, per column
+  std::vector<std::uint8_t> in_set;  // per point of the query sheet: walked in this block (all 0 between blocks)
 };
 
 // Candidate cells of one direction of a pair: for point p of the query sheet, the cells
@@ -160,8 +161,8 @@ struct Candidates {
 // on the farther one until the next search. A point not in the set costs nothing.
 //
 // Only blocks (patches) with points outside the set need the relative-motion test of
-// PairContacts, and when it fails only they are searched again (a partial search; the other
-// blocks walk); every 64 substeps every block is searched. The contact gap test of a walk
+// PairContacts, and when it fails only their points outside the set are searched again (a
+// partial search; every point in the set walks); every 64 substeps every block is searched. The contact gap test of a walk
 // is scalar: two triangles per entry (a local-minimum grid point needs none of its
 // neighbours'), read straight from the sheet's position arrays by point index.
 struct KeptContacts {
