@@ -826,5 +826,53 @@ TEST(ContactMemory, PackedAndOneEntryAWordLayoutsReadBackTheSamePairs) {
   EXPECT_EQ(write_contact_memory<double>(untouched, sheets), packed);  // left as it was
 }
 
+// In float, lists of positions pack two to a word as well: a WorldF stack in contact takes
+// back the memory it wrote (the same words again), and a twin that forgot its memory and
+// took those words instead runs on bit for bit with it, where one that forgot it (searches
+// afresh) ends elsewhere; the same words cut short are refused.
+TEST(ContactMemory, FloatWorldTakesItsPackedMemoryBackAndRunsOnBitForBit) {
+  const auto stack = [] {
+    WorldF world(WorldDef{.dt = 1e-3, .threads = 1});
+    SheetDef sd;
+    sd.m = sd.n = 12;
+    sd.width = sd.height = 0.3;
+    sd.stiffness = 50;
+    sd.damping = 0.05;
+    sd.pins = corner_points(sd.m, sd.n);
+    for (int layer = 0; layer < 3; ++layer) {
+      sd.center = {0.01 * layer, 0.0, 0.008 * layer};
+      world.add_sheet(sd);
+    }
+    return world;
+  };
+  WorldF world = stack(), twin = stack(), forgot = stack();
+  world.step(50);
+  twin.step(50);
+  forgot.step(50);
+  forgot.set_contact_memory({});
+  const std::vector<std::uint64_t> words = world.contact_memory();
+  ASSERT_GT(words.size(), 8u);
+  world.set_contact_memory(words);
+  EXPECT_EQ(world.contact_memory(), words);
+  twin.set_contact_memory({});
+  twin.set_contact_memory(words);
+  auto cut = words;
+  cut.pop_back();
+  EXPECT_THROW(twin.set_contact_memory(cut), std::invalid_argument);
+  world.step(250);
+  twin.step(250);
+  forgot.step(250);
+  const auto same = [&](const WorldF& other) {
+    for (SheetId id : world.sheets()) {
+      const auto a = world.view(id), b = other.view(id);
+      for (std::size_t p = 0; p < a.x.size(); ++p)
+        if (!(a.x[p] == b.x[p] && a.y[p] == b.y[p] && a.z[p] == b.z[p])) return false;
+    }
+    return true;
+  };
+  EXPECT_TRUE(same(twin));
+  EXPECT_FALSE(same(forgot));  // the memory is what makes them equal
+}
+
 }  // namespace
 }  // namespace drape::detail
