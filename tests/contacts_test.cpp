@@ -773,5 +773,106 @@ TEST(Contacts, WalkedContactSetsKeepStackAndFoldRunsWithinTheirBoundOfTheExactSe
   EXPECT_LE(fold_gap, 0.2 * h);
 }
 
+// The contact memory packs indices and flags two to a word (layout 2) and still reads the
+// one-entry-a-word layout 1 of older checkpoints: both, read back, give pairs that write
+// the same layout-2 words, and layout 2 is shorter than layout 1 by half of each index or
+// flag list (rounded down), counted here from the pairs themselves.
+TEST(ContactMemory, PackedAndOneEntryAWordLayoutsReadBackTheSamePairs) {
+  auto [a, b] = close_sheets(7);
+  std::mt19937 rng(8);
+  ContactScratch<double> scratch;
+  std::vector<PairContacts<double>> pairs(1);
+  pairs[0].a = 0;
+  pairs[0].b = 1;
+  for (int step = 0; step < 6; ++step) {
+    jostle(a, rng);
+    jostle(b, rng);
+    pair_contacts(a, boxes(a), b, boxes(b), kParams, pairs[0], scratch);
+  }
+  const PairContacts<double>& p = pairs[0];
+  ASSERT_FALSE(p.a_on_b.point.empty());
+  const std::array<const Sheet<double>*, 2> sheets{&a, &b};
+  const auto packed = write_contact_memory<double>(pairs, sheets);
+  const auto loose = write_contact_memory<double>(pairs, sheets, true);
+  std::size_t halved = 0;
+  for (const auto* list : {&p.a_near_b.begin, &p.a_near_b.count, &p.a_near_b.cell, &p.b_near_a.begin,
+                           &p.b_near_a.count, &p.b_near_a.cell, &p.a_on_b.point, &p.a_on_b.cell,
+                           &p.a_on_b.block_begin, &p.b_on_a.point, &p.b_on_a.cell, &p.b_on_a.block_begin,
+                           &p.last_a, &p.last_b})
+    halved += list->size() / 2;
+  halved += p.a_on_b.open.size() / 2 + p.b_on_a.open.size() / 2;
+  EXPECT_EQ(loose.size() - packed.size(), halved);
+
+  for (const auto* words : {&packed, &loose}) {
+    std::vector<PairContacts<double>> read;
+    read_contact_memory<double>(*words, sheets, read);
+    EXPECT_EQ(write_contact_memory<double>(read, sheets), packed);
+  }
+
+  // A packed flag that is neither 0 nor 1, or bits after a list's last entry, are refused.
+  ASSERT_EQ(p.a_on_b.open.size() % 2, 1u) << "the test wants an odd number of blocks";
+  std::vector<PairContacts<double>> marked = pairs;
+  marked[0].a_on_b.open.back() = 0xAB;  // written as it is, so it can be found
+  const auto bad_flag = write_contact_memory<double>(marked, sheets);
+  std::vector<PairContacts<double>> untouched = pairs;
+  EXPECT_THROW(read_contact_memory<double>(bad_flag, sheets, untouched), std::invalid_argument);
+  std::size_t at = 0;
+  while (at < bad_flag.size() && bad_flag[at] != 0xAB) ++at;
+  ASSERT_LT(at, bad_flag.size());
+  auto past_end = packed;
+  ASSERT_EQ(past_end[at] >> 32, 0u);
+  past_end[at] |= std::uint64_t(1) << 32;
+  EXPECT_THROW(read_contact_memory<double>(past_end, sheets, untouched), std::invalid_argument);
+  EXPECT_EQ(write_contact_memory<double>(untouched, sheets), packed);  // left as it was
+}
+
+// In float, lists of positions pack two to a word as well: a WorldF stack in contact takes
+// back the memory it wrote (the same words again), and a twin that forgot its memory and
+// took those words instead runs on bit for bit with it, where one that forgot it (searches
+// afresh) ends elsewhere; the same words cut short are refused.
+TEST(ContactMemory, FloatWorldTakesItsPackedMemoryBackAndRunsOnBitForBit) {
+  const auto stack = [] {
+    WorldF world(WorldDef{.dt = 1e-3, .threads = 1});
+    SheetDef sd;
+    sd.m = sd.n = 12;
+    sd.width = sd.height = 0.3;
+    sd.stiffness = 50;
+    sd.damping = 0.05;
+    sd.pins = corner_points(sd.m, sd.n);
+    for (int layer = 0; layer < 3; ++layer) {
+      sd.center = {0.01 * layer, 0.0, 0.008 * layer};
+      world.add_sheet(sd);
+    }
+    return world;
+  };
+  WorldF world = stack(), twin = stack(), forgot = stack();
+  world.step(50);
+  twin.step(50);
+  forgot.step(50);
+  forgot.set_contact_memory({});
+  const std::vector<std::uint64_t> words = world.contact_memory();
+  ASSERT_GT(words.size(), 8u);
+  world.set_contact_memory(words);
+  EXPECT_EQ(world.contact_memory(), words);
+  twin.set_contact_memory({});
+  twin.set_contact_memory(words);
+  auto cut = words;
+  cut.pop_back();
+  EXPECT_THROW(twin.set_contact_memory(cut), std::invalid_argument);
+  world.step(250);
+  twin.step(250);
+  forgot.step(250);
+  const auto same = [&](const WorldF& other) {
+    for (SheetId id : world.sheets()) {
+      const auto a = world.view(id), b = other.view(id);
+      for (std::size_t p = 0; p < a.x.size(); ++p)
+        if (!(a.x[p] == b.x[p] && a.y[p] == b.y[p] && a.z[p] == b.z[p])) return false;
+    }
+    return true;
+  };
+  EXPECT_TRUE(same(twin));
+  EXPECT_FALSE(same(forgot));  // the memory is what makes them equal
+}
+
 }  // namespace
 }  // namespace drape::detail

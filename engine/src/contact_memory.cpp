@@ -11,7 +11,10 @@ namespace drape::detail {
 
 namespace {
 
-constexpr std::uint64_t kLayout = 1;  // bumped whenever the words below change
+// Bumped whenever the words below change. Layout 1 gave every list entry a word of its own;
+// layout 2 packs entries of 4 bytes or less (indices, flags, floats) two to a word, first
+// in the low half, and keeps doubles one to a word. Both are read.
+constexpr std::uint64_t kLayout = 2, kOneEntryAWord = 1;
 constexpr std::uint32_t kNone = ~std::uint32_t(0);
 
 [[noreturn]] void bad(const std::string& problem) { throw std::invalid_argument("drape: contact memory " + problem); }
@@ -24,20 +27,39 @@ std::uint64_t bits(Real v) {
     return std::bit_cast<std::uint64_t>(v);
 }
 
+// Whether entries of type T share words (layout 2): all but doubles.
+template <class T>
+constexpr bool kHalfWord = sizeof(T) <= 4;
+
 template <class Real>
 class Words {
  public:
   std::vector<std::uint64_t> out;
+  bool packed = true;
   void word(std::uint64_t v) { out.push_back(v); }
   template <class T>
   void list(const T& values) {
+    using V = typename T::value_type;
     out.push_back(values.size());
-    for (auto v : values) {
-      if constexpr (std::is_floating_point_v<decltype(v)>)
-        out.push_back(bits<Real>(v));
-      else
-        out.push_back(v);
+    if constexpr (kHalfWord<V>) {
+      if (!packed) {
+        for (V v : values) out.push_back(bits32(v));
+        return;
+      }
+      for (std::size_t e = 0; e < values.size(); e += 2)
+        out.push_back(bits32(values[e]) | (e + 1 < values.size() ? std::uint64_t(bits32(values[e + 1])) << 32 : 0));
+    } else {
+      for (V v : values) out.push_back(bits<Real>(v));
     }
+  }
+
+ private:
+  template <class V>
+  static std::uint32_t bits32(V v) {
+    if constexpr (std::is_floating_point_v<V>)
+      return std::bit_cast<std::uint32_t>(v);
+    else
+      return v;
   }
 };
 
@@ -47,6 +69,7 @@ template <class Real>
 class Reading {
  public:
   explicit Reading(std::span<const std::uint64_t> in) : in_(in) {}
+  bool packed = true;  // layout 2; false for layout 1, one entry a word
   std::uint64_t word(const char* what) {
     if (pos_ >= in_.size()) bad(std::string("ends before ") + what);
     return in_[pos_++];
@@ -67,13 +90,25 @@ class Reading {
   }
   template <class T>
   void list(T& values, const char* what) {
+    using V = typename T::value_type;
     const std::uint64_t count = word(what);
-    if (count > in_.size() - pos_) bad(std::string(what) + " claims more entries than it holds");
+    const bool halves = packed && kHalfWord<V>;
+    const std::uint64_t words = halves ? count / 2 + count % 2 : count;
+    if (words > in_.size() - pos_) bad(std::string(what) + " claims more entries than it holds");
     values.resize(count);
+    if (halves) {
+      for (std::size_t e = 0; e < count; e += 2) {
+        const std::uint64_t w = word(what);
+        if (e + 1 == count && (w >> 32) != 0) bad(std::string(what) + " has bits past its last entry");
+        values[e] = entry<V>(std::uint32_t(w), what);
+        if (e + 1 < count) values[e + 1] = entry<V>(std::uint32_t(w >> 32), what);
+      }
+      return;
+    }
     for (auto& v : values) {
-      if constexpr (std::is_floating_point_v<std::remove_reference_t<decltype(v)>>)
+      if constexpr (std::is_floating_point_v<V>)
         v = real(what);
-      else if constexpr (sizeof(v) == 1)
+      else if constexpr (sizeof(V) == 1)
         v = std::uint8_t(word(what) != 0);
       else
         v = u32(what);
@@ -82,6 +117,18 @@ class Reading {
   bool done() const { return pos_ == in_.size(); }
 
  private:
+  // One entry of a packed word's half.
+  template <class V>
+  static V entry(std::uint32_t half, const char* what) {
+    if constexpr (std::is_floating_point_v<V>)
+      return std::bit_cast<float>(half);
+    else if constexpr (sizeof(V) == 1) {
+      if (half > 1) bad(std::string(what) + " has a flag that is neither 0 nor 1");
+      return V(half);
+    } else
+      return half;
+  }
+
   std::span<const std::uint64_t> in_;
   std::size_t pos_ = 0;
 };
@@ -125,10 +172,11 @@ void check_kept(const KeptContacts& k, const Sheet<Real>& query, const Sheet<Rea
 
 template <class Real>
 std::vector<std::uint64_t> write_contact_memory(const std::vector<PairContacts<Real>>& pair_work,
-                                                std::span<const Sheet<Real>* const> sheets) {
+                                                std::span<const Sheet<Real>* const> sheets, bool one_entry_a_word) {
   Words<Real> w;
   if (pair_work.empty()) return {};  // a world that never coupled sheets carries nothing
-  w.word(kLayout);
+  w.packed = !one_entry_a_word;
+  w.word(one_entry_a_word ? kOneEntryAWord : kLayout);
   w.word(sizeof(Real));
   w.word(sheets.size());
   w.word(pair_work.size());
@@ -185,7 +233,9 @@ template <class Real>
 void read_contact_memory(std::span<const std::uint64_t> memory, std::span<const Sheet<Real>* const> sheets,
                          std::vector<PairContacts<Real>>& pair_work) {
   Reading<Real> in(memory);
-  if (in.word("its layout") != kLayout) bad("has another layout than this drape writes");
+  const std::uint64_t layout = in.word("its layout");
+  if (layout != kLayout && layout != kOneEntryAWord) bad("has another layout than this drape writes");
+  in.packed = layout == kLayout;
   if (in.word("its precision") != sizeof(Real)) bad("was written by a world of the other precision");
   if (in.word("its sheet count") != sheets.size()) bad("was written for another number of sheets");
   const std::uint64_t pairs = in.word("its pair count");
@@ -255,7 +305,7 @@ void read_contact_memory(std::span<const std::uint64_t> memory, std::span<const 
 
 #define DRAPE_CONTACT_MEMORY(Real)                                                                             \
   template std::vector<std::uint64_t> write_contact_memory<Real>(const std::vector<PairContacts<Real>>&,      \
-                                                                 std::span<const Sheet<Real>* const>);        \
+                                                                 std::span<const Sheet<Real>* const>, bool);  \
   template void read_contact_memory<Real>(std::span<const std::uint64_t>, std::span<const Sheet<Real>* const>, \
                                           std::vector<PairContacts<Real>>&);
 DRAPE_CONTACT_MEMORY(double)

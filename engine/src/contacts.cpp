@@ -243,8 +243,8 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
 // With `lists`, it also makes each point's candidate list (PairContacts): the cells whose
 // boxes are within R + skin of it, in the order this search meets them. With `kept`, it
 // makes the kept contact set instead; with `before` too (the set so far, for these sheets),
-// a block all of whose points are in `before` is not searched: its entries walk and move
-// to `kept` as they are (a partial search, KeptContacts).
+// the entries of `before` walk and move to `kept` as they are, block by block, and only a
+// block's points outside `before` are searched (a partial search, KeptContacts).
 template <class Real>
 void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, const Sheet<Real>& s,
                           const SheetBoxes<Real>& bs, int ring, const ContactParams<Real>& prm,
@@ -304,13 +304,20 @@ void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
     for (std::uint32_t bj = 0; bj < bq.patch_cols; ++bj) {
       const std::uint32_t block = bi * bq.patch_cols + bj;
       if (kept) kept->block_begin[block] = std::uint32_t(kept->point.size());
-      if (before && !before->open[block]) {  // every point in the set: walk, do not search
-        const std::uint32_t e0 = before->block_begin[block], e1 = before->block_begin[block + 1];
+      const std::size_t entries_before = kept ? kept->point.size() : 0;
+      // The block's points in the set walk and stay in it; only a block with points
+      // outside the set is searched, and only for those points.
+      std::uint32_t e0 = 0, e1 = 0;
+      if (before) {
+        e0 = before->block_begin[block];
+        e1 = before->block_begin[block + 1];
         points_walking(q, s, ring, *before, e0, e1, prm, on_q, on_s, last);
         kept->point.insert(kept->point.end(), before->point.begin() + e0, before->point.begin() + e1);
         kept->cell.insert(kept->cell.end(), before->cell.begin() + e0, before->cell.begin() + e1);
-        kept->open[block] = 0;
-        continue;
+        if (!before->open[block]) {
+          kept->open[block] = 0;
+          continue;
+        }
       }
       Aabb bb;
       for (int k = 0; k < 3; ++k) {
@@ -352,10 +359,14 @@ void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
       if (count == 0) continue;
       const std::uint32_t i0 = bq.first(bi), i1 = bq.end_point(bi, bq.patch_rows, bq.m);
       const std::uint32_t j0 = bq.first(bj), j1 = bq.end_point(bj, bq.patch_cols, bq.n);
-      const std::size_t entries_before = kept ? kept->point.size() : 0;
+      if (before) {
+        sc.in_set.resize(q.size());
+        for (std::uint32_t e = e0; e < e1; ++e) sc.in_set[before->point[e]] = 1;
+      }
       for (std::uint32_t i = i0; i < i1; ++i)
         for (std::uint32_t j = j0; j < j1; ++j) {
           const std::uint32_t p = i * qcols + j;
+          if (before && sc.in_set[p]) continue;  // walked above
           const V3<Real> x{Q.x[p], Q.y[p], Q.z[p]};
           // The gathered strips within R, then their cells within R.
           box_gaps(x, rlo, rhi, count, gap2);
@@ -418,6 +429,8 @@ void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
             kept->cell.push_back(start);
           }
         }
+      if (before)
+        for (std::uint32_t e = e0; e < e1; ++e) sc.in_set[before->point[e]] = 0;
       // The block visited rows [i0, i1) × columns [j0, j1): open unless all are in the set.
       if (kept) kept->open[block] = kept->point.size() - entries_before < std::size_t(i1 - i0) * (j1 - j0);
     }
@@ -586,43 +599,64 @@ bool within(const Sheet<Real>& s, const Vec3Array<Real>& then, Real limit2) {
 
 // How the points of each patch of s moved since `then`: per patch, the centre of the box
 // of its points' displacements and that box's half-diagonal, which no displacement is
-// farther from the centre than. One pass over each patch's points (rows and columns
-// 8p … 8p + 8, as their boxes).
+// farther from the centre than (rows and columns 8p … 8p + 8, as their boxes). A patch row
+// at a time: its point rows are folded into per-column extremes along whole rows (long
+// vector loops), then each patch takes the extremes of its 9 columns.
 template <class Real>
 void patch_motion(const Sheet<Real>& s, const Vec3Array<Real>& then, std::vector<Real> (&mid)[3],
-                  std::vector<Real>& radius) {
+                  std::vector<Real>& radius, ContactScratch<Real>& sc) {
   constexpr std::uint32_t P = SheetBoxes<Real>::kPatch;
-  struct {
-    std::uint32_t m, n, patch_rows, patch_cols;
-  } const bs{s.topology->m, s.topology->n, SheetBoxes<Real>::patches_along(s.topology->m),
-             SheetBoxes<Real>::patches_along(s.topology->n)};
-  const std::uint32_t cols = bs.n + 1, patches = bs.patch_rows * bs.patch_cols;
+  const std::uint32_t m = s.topology->m, n = s.topology->n;
+  const std::uint32_t patch_rows = SheetBoxes<Real>::patches_along(m), patch_cols = SheetBoxes<Real>::patches_along(n);
+  const std::uint32_t cols = n + 1, patches = patch_rows * patch_cols;
   for (int k = 0; k < 3; ++k) mid[k].resize(patches);
   radius.resize(patches);
   const Real* now[3] = {s.position.x.data(), s.position.y.data(), s.position.z.data()};
   const Real* old[3] = {then.x.data(), then.y.data(), then.z.data()};
-  for (std::uint32_t pi = 0; pi < bs.patch_rows; ++pi)
-    for (std::uint32_t pj = 0; pj < bs.patch_cols; ++pj) {
-      const std::uint32_t i0 = pi * P, i1 = std::min(i0 + P, bs.m), j0 = pj * P, j1 = std::min(j0 + P, bs.n);
-      const std::uint32_t patch = pi * bs.patch_cols + pj;
-      Real r2 = 0, nan = 0;  // nan: NaN if a displacement is (not a number, or infinite)
-      for (int k = 0; k < 3; ++k) {
-        Real lo = std::numeric_limits<Real>::infinity(), hi = -lo;
-        for (std::uint32_t i = i0; i <= i1; ++i) {
-          const Real* a = now[k] + std::size_t(i) * cols;
-          const Real* b = old[k] + std::size_t(i) * cols;
-          for (std::uint32_t j = j0; j <= j1; ++j) {
-            const Real d = a[j] - b[j];
-            lo = d < lo ? d : lo;  // a NaN is lost here, but not in `nan`
-            hi = d > hi ? d : hi;
-            nan += d * Real(0);
-          }
+  for (int k = 0; k < 3; ++k) {
+    sc.column_lo[k].resize(cols);
+    sc.column_hi[k].resize(cols);
+  }
+  sc.column_nan.resize(cols);
+  Real* __restrict nan = sc.column_nan.data();  // NaN where a displacement is (not a number, or infinite)
+  for (std::uint32_t pi = 0; pi < patch_rows; ++pi) {
+    const std::uint32_t i0 = pi * P, i1 = std::min(i0 + P, m);
+    std::fill(nan, nan + cols, Real(0));
+    for (int k = 0; k < 3; ++k) {
+      Real* __restrict lo = sc.column_lo[k].data();
+      Real* __restrict hi = sc.column_hi[k].data();
+      std::fill(lo, lo + cols, std::numeric_limits<Real>::infinity());
+      std::fill(hi, hi + cols, -std::numeric_limits<Real>::infinity());
+      for (std::uint32_t i = i0; i <= i1; ++i) {
+        const Real* __restrict a = now[k] + std::size_t(i) * cols;
+        const Real* __restrict b = old[k] + std::size_t(i) * cols;
+        for (std::uint32_t j = 0; j < cols; ++j) {
+          const Real d = a[j] - b[j];
+          lo[j] = d < lo[j] ? d : lo[j];  // a NaN is lost here, but not in `nan`
+          hi[j] = d > hi[j] ? d : hi[j];
+          nan[j] += d * Real(0);
         }
-        mid[k][patch] = Real(0.5) * (lo + hi);
-        r2 += Real(0.25) * (hi - lo) * (hi - lo);
       }
-      radius[patch] = std::sqrt(r2) + nan;  // NaN fails the check
     }
+    for (std::uint32_t pj = 0; pj < patch_cols; ++pj) {
+      const std::uint32_t j0 = pj * P, j1 = std::min(j0 + P, n);
+      const std::uint32_t patch = pi * patch_cols + pj;
+      Real r2 = 0, bad = 0;
+      for (std::uint32_t j = j0; j <= j1; ++j) bad += nan[j];
+      for (int k = 0; k < 3; ++k) {
+        const Real* lo = sc.column_lo[k].data();
+        const Real* hi = sc.column_hi[k].data();
+        Real l = lo[j0], h = hi[j0];
+        for (std::uint32_t j = j0 + 1; j <= j1; ++j) {
+          l = lo[j] < l ? lo[j] : l;
+          h = hi[j] > h ? hi[j] : h;
+        }
+        mid[k][patch] = Real(0.5) * (l + h);
+        r2 += Real(0.25) * (h - l) * (h - l);
+      }
+      radius[patch] = std::sqrt(r2) + bad;  // NaN fails the check
+    }
+  }
 }
 
 // The gap between every patch box of a and every patch box of b, at row a·patches(b) + b.
@@ -718,8 +752,8 @@ bool lists_hold(PairContacts<Real>& w, const Sheet<Real>& a, const Sheet<Real>& 
     ++w.kept_for;
     return true;
   }
-  patch_motion(a, w.made_at_a, sc.mid_a, sc.radius_a);
-  if (&a != &b) patch_motion(b, w.made_at_b, sc.mid_b, sc.radius_b);
+  patch_motion(a, w.made_at_a, sc.mid_a, sc.radius_a, sc);
+  if (&a != &b) patch_motion(b, w.made_at_b, sc.mid_b, sc.radius_b, sc);
   const auto& mid_b = &a != &b ? sc.mid_b : sc.mid_a;
   const auto& radius_b = &a != &b ? sc.radius_b : sc.radius_a;
   const auto patches = [](const Sheet<Real>& s) {

@@ -136,6 +136,8 @@ struct ContactScratch {
   std::vector<Near> near;                      // and those cells
   std::vector<Real> mid_a[3], mid_b[3];        // per patch of each sheet of a pair: the middle
   std::vector<Real> radius_a, radius_b;        // and spread of its points' displacements
+  std::vector<Real> column_lo[3], column_hi[3], column_nan;  // patch_motion's, per column
+  std::vector<std::uint8_t> in_set;  // per point of the query sheet: walked in this block (all 0 between blocks)
 };
 
 // Candidate cells of one direction of a pair: for point p of the query sheet, the cells
@@ -159,8 +161,8 @@ struct Candidates {
 // on the farther one until the next search. A point not in the set costs nothing.
 //
 // Only blocks (patches) with points outside the set need the relative-motion test of
-// PairContacts, and when it fails only they are searched again (a partial search; the other
-// blocks walk); every 64 substeps every block is searched. The contact gap test of a walk
+// PairContacts, and when it fails only their points outside the set are searched again (a
+// partial search; every point in the set walks); every 64 substeps every block is searched. The contact gap test of a walk
 // is scalar: two triangles per entry (a local-minimum grid point needs none of its
 // neighbours'), read straight from the sheet's position arrays by point index.
 struct KeptContacts {
@@ -265,10 +267,13 @@ void gather_contacts(std::span<const ContactForces<Real>* const> sources, Vec3Ar
 // too). A kept set's walk and the substeps that search depend on all of it, so a world
 // that takes it back continues bit for bit. `sheets` are the world's sheets in order.
 // read_contact_memory checks every count and index against them and throws
-// std::invalid_argument naming the problem, leaving `pair_work` as it was.
+// std::invalid_argument naming the problem, leaving `pair_work` as it was. Indices, flags
+// and floats are packed two to a word (layout 2); `one_entry_a_word` writes layout 1, one
+// word per entry as before, which read_contact_memory still reads (for older checkpoints).
 template <class Real>
 std::vector<std::uint64_t> write_contact_memory(const std::vector<PairContacts<Real>>& pair_work,
-                                                std::span<const Sheet<Real>* const> sheets);
+                                                std::span<const Sheet<Real>* const> sheets,
+                                                bool one_entry_a_word = false);
 template <class Real>
 void read_contact_memory(std::span<const std::uint64_t> memory, std::span<const Sheet<Real>* const> sheets,
                          std::vector<PairContacts<Real>>& pair_work);
