@@ -288,6 +288,24 @@ Sheet<double> folded_sheet(const SheetDef& d, double above) {
   return s;
 }
 
+// Three corner-pinned 0.3 m sheets of `cells` × `cells` cells (k = 50 N/m), each layer
+// 8 mm above and 10 mm beside the one below: in contact range from the first substep.
+template <class W>
+W three_layers(const WorldDef& wd, std::uint32_t cells) {
+  W world(wd);
+  SheetDef sd;
+  sd.m = sd.n = cells;
+  sd.width = sd.height = 0.3;
+  sd.stiffness = 50;
+  sd.damping = 0.05;
+  sd.pins = corner_points(sd.m, sd.n);
+  for (int layer = 0; layer < 3; ++layer) {
+    sd.center = {0.01 * layer, 0.0, 0.008 * layer};
+    world.add_sheet(sd);
+  }
+  return world;
+}
+
 // The 20×10-cell, 0.2 × 0.4 m sheet the fold tests fold in half.
 SheetDef fold_def() {
   SheetDef d;
@@ -723,23 +741,7 @@ double largest_position_gap(Setup setup, int frames, int substeps) {
 
 TEST(Contacts, WalkedContactSetsKeepStackAndFoldRunsWithinTheirBoundOfTheExactSearch) {
   auto stack = [](bool exact) {
-    WorldDef wd;
-    wd.dt = 1e-3;
-    wd.threads = 1;
-    wd.contact_exact = exact;
-    World world(wd);
-    SheetDef sd;
-    sd.m = sd.n = 15;
-    sd.width = sd.height = 0.3;
-    sd.mass = 1.0;
-    sd.stiffness = 50;
-    sd.damping = 0.05;
-    sd.pins = corner_points(sd.m, sd.n);
-    for (int layer = 0; layer < 3; ++layer) {
-      sd.center = {0.01 * layer, 0.0, 0.008 * layer};
-      world.add_sheet(sd);
-    }
-    return world;
+    return three_layers<World>(WorldDef{.dt = 1e-3, .threads = 1, .contact_exact = exact}, 15);
   };
   const double h = WorldDef{}.contact_thickness;
   const double stack_gap = largest_position_gap(stack, 30, 10);
@@ -831,20 +833,7 @@ TEST(ContactMemory, PackedAndOneEntryAWordLayoutsReadBackTheSamePairs) {
 // took those words instead runs on bit for bit with it, where one that forgot it (searches
 // afresh) ends elsewhere; the same words cut short are refused.
 TEST(ContactMemory, FloatWorldTakesItsPackedMemoryBackAndRunsOnBitForBit) {
-  const auto stack = [] {
-    WorldF world(WorldDef{.dt = 1e-3, .threads = 1});
-    SheetDef sd;
-    sd.m = sd.n = 12;
-    sd.width = sd.height = 0.3;
-    sd.stiffness = 50;
-    sd.damping = 0.05;
-    sd.pins = corner_points(sd.m, sd.n);
-    for (int layer = 0; layer < 3; ++layer) {
-      sd.center = {0.01 * layer, 0.0, 0.008 * layer};
-      world.add_sheet(sd);
-    }
-    return world;
-  };
+  const auto stack = [] { return three_layers<WorldF>(WorldDef{.dt = 1e-3, .threads = 1}, 12); };
   WorldF world = stack(), twin = stack(), forgot = stack();
   world.step(50);
   twin.step(50);
