@@ -88,7 +88,9 @@ P3 total(const ContactForces<double>& f) {
 }
 
 TEST(Contacts, ForceIsMinusGradientOfBruteForcePotentialOverAllCells) {
-  auto [a, b] = close_sheets(3);
+  auto sheets = close_sheets(3);  // named, not bound: the energy lambda captures them
+  Sheet<double>& a = sheets.first;
+  Sheet<double>& b = sheets.second;
   PairContacts<double> work;
   ContactScratch<double> scratch;
   pair_contacts(a, boxes(a), b, boxes(b), kParams, work, scratch);
