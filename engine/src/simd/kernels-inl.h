@@ -120,6 +120,45 @@ HWY_INLINE void springs_run(const SpringRun<Real>& r) {
     with_outputs.template operator()<false>();
 }
 
+// Air on the cells of one vector from j (AirCells; terms/air.h gives the formula).
+template <class Real, class Lanes>
+HWY_INLINE void air_cells_at(Lanes l, const AirCells<Real>& r, std::size_t j) {
+  const auto d = l.d;
+  const auto d1x = hn::Sub(l.load(r.bx + j + 1), l.load(r.ax + j));
+  const auto d1y = hn::Sub(l.load(r.by + j + 1), l.load(r.ay + j));
+  const auto d1z = hn::Sub(l.load(r.bz + j + 1), l.load(r.az + j));
+  const auto d2x = hn::Sub(l.load(r.bx + j), l.load(r.ax + j + 1));
+  const auto d2y = hn::Sub(l.load(r.by + j), l.load(r.ay + j + 1));
+  const auto d2z = hn::Sub(l.load(r.bz + j), l.load(r.az + j + 1));
+  const auto cx = hn::Sub(hn::Mul(d1y, d2z), hn::Mul(d1z, d2y));
+  const auto cy = hn::Sub(hn::Mul(d1z, d2x), hn::Mul(d1x, d2z));
+  const auto cz = hn::Sub(hn::Mul(d1x, d2y), hn::Mul(d1y, d2x));
+  const auto quarter = hn::Set(d, Real(0.25));
+  auto mean = [&](const Real* a, const Real* b, Real wind) __attribute__((always_inline)) {
+    const auto sum = hn::Add(hn::Add(hn::Add(l.load(a + j), l.load(a + j + 1)), l.load(b + j)), l.load(b + j + 1));
+    return hn::Sub(hn::Mul(quarter, sum), hn::Set(d, wind));
+  };
+  const auto vx = mean(r.avx, r.bvx, r.wx), vy = mean(r.avy, r.bvy, r.wy), vz = mean(r.avz, r.bvz, r.wz);
+  const auto cc = hn::Add(hn::Add(hn::Mul(cx, cx), hn::Mul(cy, cy)), hn::Mul(cz, cz));
+  // a collapsed cell feels no air: its lane's 1/0 is dropped
+  const auto inv = hn::IfThenElseZero(hn::Gt(cc, hn::Zero(d)), hn::Div(hn::Set(d, Real(1)), cc));
+  const auto vc = hn::Add(hn::Add(hn::Mul(vx, cx), hn::Mul(vy, cy)), hn::Mul(vz, cz));
+  const auto normal = hn::Mul(hn::Mul(hn::Mul(hn::Set(d, -r.half_pressure), hn::Abs(vc)), vc), inv);
+  const auto vc_inv = hn::Mul(vc, inv);
+  const auto tx = hn::Sub(vx, hn::Mul(vc_inv, cx)), ty = hn::Sub(vy, hn::Mul(vc_inv, cy)),
+             tz = hn::Sub(vz, hn::Mul(vc_inv, cz));
+  const auto tt = hn::Add(hn::Add(hn::Mul(tx, tx), hn::Mul(ty, ty)), hn::Mul(tz, tz));
+  const auto tangential = hn::Mul(hn::Set(d, -r.half_friction), hn::Sqrt(hn::Mul(cc, tt)));
+  l.store(hn::Add(hn::Mul(normal, cx), hn::Mul(tangential, tx)), r.fx + j);
+  l.store(hn::Add(hn::Mul(normal, cy), hn::Mul(tangential, ty)), r.fy + j);
+  l.store(hn::Add(hn::Mul(normal, cz), hn::Mul(tangential, tz)), r.fz + j);
+}
+
+template <class Real>
+HWY_INLINE void air_cells_of(const AirCells<Real>& r) {
+  over_lanes<Real>(r.count, [&](auto lanes, std::size_t j) __attribute__((always_inline)) { air_cells_at(lanes, r, j); });
+}
+
 // eq (4), first order, on the points of one vector from i.
 template <bool SemiImplicit, class Real, class Lanes>
 HWY_INLINE void update_at(Lanes l, const PointUpdate<Real>& u, std::size_t i) {
