@@ -42,7 +42,8 @@ struct FirstLanes {
 
 // Runs kernel(lanes, i) over [0, count) in whole vectors, then the remainder: as one
 // masked vector where the target's masked loads cannot touch memory beyond the mask
-// (AVX2 and AVX-512), else one lane at a time through the same code. Either way each
+// (AVX2 and AVX-512; half a vector when it fits in half), else one lane at a time through
+// the same code. Either way each
 // element gets the same bits wherever the run starts, so a row split between blocks
 // changes nothing.
 template <class Real, class Kernel>
@@ -53,6 +54,12 @@ HWY_INLINE void over_lanes(std::size_t count, Kernel kernel) {
   for (; i + lanes <= count; i += lanes) kernel(Whole<decltype(d)>{d}, i);
   if (i == count) return;
 #if HWY_ARCH_X86 && HWY_TARGET <= HWY_AVX2
+  // a remainder that fits half a vector runs as a half vector: a short row's tail costs the
+  // divider half as much (AVX-512 on Zen 4 splits each 512-bit operation in two)
+  if constexpr (hn::MaxLanes(d) >= 4) {
+    const hn::Half<decltype(d)> half;
+    if (count - i <= hn::Lanes(half)) return kernel(FirstLanes<decltype(half)>{half, hn::FirstN(half, count - i)}, i);
+  }
   kernel(FirstLanes<decltype(d)>{d, hn::FirstN(d, count - i)}, i);
 #else
   const hn::CappedTag<Real, 1> one;
