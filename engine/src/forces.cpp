@@ -166,17 +166,10 @@ RowWindow<Real, LastRows<Real>> last_rows(const RowWindow<Real, Access>& w, std:
   return {rows, w.read_lo, w.own_lo, w.own_hi, w.scratch};
 }
 
-// A run of springs with the outputs it names (shear's diagonals add to one row and
-// subtract from the other, or only one of the two).
+// A run of springs that adds to one row and subtracts from another (shear's diagonals).
 template <class Real>
 HWY_INLINE void add_springs(const simd::SpringRun<Real>& r) {
-  const bool add = r.add_x != nullptr, sub = r.sub_x != nullptr;
-  if (add && sub)
-    kernels::springs_loop<false, false, true, true>(r);
-  else if (add)
-    kernels::springs_loop<false, false, true, false>(r);
-  else if (sub)
-    kernels::springs_loop<false, false, false, true>(r);
+  kernels::springs_loop<false, false, true, true>(r);
 }
 
 // Terms 2–4 on the rows they read, compiled for this target and once per precision: not

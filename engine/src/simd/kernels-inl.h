@@ -61,8 +61,8 @@ HWY_INLINE void over_tail(D, std::size_t count, std::size_t& i, Kernel& kernel) 
 //   EPYC; the cloth terms read back what the springs just wrote), and no lane of a short
 //   row's tail wasted on the divider. (BM_Scene/rain_torus held to AVX3: 3 % faster than
 //   one masked vector; the 1024-point step unchanged.)
-// - AVX2: one masked vector, half wide when the remainder fits in half (the 1024-point
-//   step held to AVX2 ran 5 % slower with over_tail: its scalar tails spill registers).
+// - AVX2: one masked vector (the 1024-point step held to AVX2 ran 5 % slower with
+//   over_tail: its scalar tails spill registers).
 // - Elsewhere one lane at a time, through the same code.
 // Each element gets the same bits in a vector of any width, masked or not, wherever the
 // run starts, so a row split between blocks changes nothing.
@@ -76,8 +76,6 @@ HWY_INLINE void over_lanes(std::size_t count, Kernel kernel) {
 #if HWY_ARCH_X86 && HWY_TARGET <= HWY_AVX3
   over_tail(d, count, i, kernel);
 #elif HWY_ARCH_X86 && HWY_TARGET <= HWY_AVX2
-  const hn::Half<decltype(d)> half;
-  if (count - i <= hn::Lanes(half)) return kernel(FirstLanes<decltype(half)>{half, hn::FirstN(half, count - i)}, i);
   kernel(FirstLanes<decltype(d)>{d, hn::FirstN(d, count - i)}, i);
 #else
   const hn::CappedTag<Real, 1> one;

@@ -14,26 +14,21 @@ namespace drape::detail::shear {
 // springs of eq (6) (simd/kernels.h) for the sweep's vector kernel (forces.cpp,
 // terms_arrive), in this order: `up` false, "down", joins (q−1, j)–(q, j+1); `up` true
 // joins (q−1, j+1)–(q, j). Each adds s·d to its endpoint in row q−1 and subtracts it from
-// the one in row q, on the rows the window owns only (a run with neither adds nothing);
-// an empty run when the window cannot read row q−1. One run at a time, by value: inlined,
-// it stays in registers.
+// the one in row q; a row the window does not own gets its share in the window's scratch
+// row instead, which nothing reads (a block's edge: one kernel for every case keeps the
+// per-target code, and its compile time, small). An empty run when the window cannot read
+// row q−1 or owns neither row. One run at a time, by value: inlined, it stays in registers.
 template <class Real, class Window>
 DRAPE_ROW_INLINE simd::SpringRun<Real> diagonals(const typename Topology<Real>::Shear& sh, std::uint32_t n,
                                                  const Window& w, std::uint32_t q, bool up) {
-  if (q == 0 || q - 1 < w.read_lo) return {};
+  if (q == 0 || q - 1 < w.read_lo || (!w.owns(q - 1) && !w.owns(q))) return {};
   const std::uint32_t sa = up ? 1 : 0, sb = up ? 0 : 1;  // shifts along rows q−1 and q
   const auto a = w.x(q - 1), b = w.x(q);
-  auto r = simd::SpringRun<Real>::between(n, a.x + sa, a.y + sa, a.z + sa, b.x + sb, b.y + sb, b.z + sb)
-               .same(sh.rest, sh.stiffness);
-  if (w.owns(q - 1)) {
-    const auto fa = w.f(q - 1);
-    r.add(fa.x + sa, fa.y + sa, fa.z + sa);
-  }
-  if (w.owns(q)) {
-    const auto fb = w.f(q);
-    r.sub(fb.x + sb, fb.y + sb, fb.z + sb);
-  }
-  return r;
+  const auto fa = w.owns(q - 1) ? w.f(q - 1) : w.scratch, fb = w.owns(q) ? w.f(q) : w.scratch;
+  return simd::SpringRun<Real>::between(n, a.x + sa, a.y + sa, a.z + sa, b.x + sb, b.y + sb, b.z + sb)
+      .same(sh.rest, sh.stiffness)
+      .add(fa.x + sa, fa.y + sa, fa.z + sa)
+      .sub(fb.x + sb, fb.y + sb, fb.z + sb);
 }
 
 // Calls spring(a, b) for every diagonal spring of the sheet.
