@@ -183,6 +183,70 @@ void expect_cell_boxes_hold_their_corners() {
 TEST(Simd, CellBoxesOfEveryTargetHoldTheirFourCorners) { expect_cell_boxes_hold_their_corners<double>(); }
 TEST(Simd, CellBoxesOfEveryTargetHoldTheirFourCornersInFloat) { expect_cell_boxes_hold_their_corners<float>(); }
 
+// Air on a row of cells (terms/air.h) against the law in long double, written with the
+// cell's unit normal n = c/|c| and area A = |c|/2 of the diagonals' cross product c: the
+// pressure −hp·2A |v·n|(v·n) n and the friction −hf·2A |v_t| v_t, v_t = v − (v·n) n, for
+// v the corners' mean velocity less the wind. A collapsed cell feels exactly nothing.
+template <class Real>
+void expect_air_cells_follow_the_drag_law() {
+  std::mt19937 rng(153);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const std::size_t cells = 19;  // whole vectors of every width and a remainder
+  std::vector<Real> x[2][3], v[2][3];
+  for (int row = 0; row < 2; ++row)
+    for (int c = 0; c < 3; ++c)
+      for (std::size_t j = 0; j <= cells; ++j) {
+        x[row][c].push_back(Real((c == 0 ? double(j) : c == 1 ? double(row) : 0.0) + 0.3 * u(rng)));
+        v[row][c].push_back(Real(u(rng)));
+      }
+  for (int row = 0; row < 2; ++row)  // cell 7 collapsed to a point
+    for (int c = 0; c < 3; ++c) x[row][c][7] = x[row][c][8] = x[0][c][7];
+  const Real hp = Real(0.6), hf = Real(0.05), wind[3] = {Real(0.2), Real(-0.1), Real(0.3)};
+  const double tolerance = std::is_same_v<Real, double> ? 1e-12 : 2e-5;
+  for_each_target([&](std::int64_t) {
+    std::vector<Real> f[3];
+    for (auto& fc : f) fc.assign(cells, Real(7));
+    detail::simd::AirCells<Real> r;
+    r.count = cells;
+    r.ax = x[0][0].data(), r.ay = x[0][1].data(), r.az = x[0][2].data();
+    r.bx = x[1][0].data(), r.by = x[1][1].data(), r.bz = x[1][2].data();
+    r.avx = v[0][0].data(), r.avy = v[0][1].data(), r.avz = v[0][2].data();
+    r.bvx = v[1][0].data(), r.bvy = v[1][1].data(), r.bvz = v[1][2].data();
+    r.fx = f[0].data(), r.fy = f[1].data(), r.fz = f[2].data();
+    r.half_pressure = hp, r.half_friction = hf, r.wx = wind[0], r.wy = wind[1], r.wz = wind[2];
+    detail::simd::air_cells(r);
+    for (std::size_t j = 0; j < cells; ++j) {
+      long double d1[3], d2[3], vel[3];
+      for (int c = 0; c < 3; ++c) {
+        d1[c] = static_cast<long double>(x[1][c][j + 1]) - x[0][c][j];
+        d2[c] = static_cast<long double>(x[1][c][j]) - x[0][c][j + 1];
+        vel[c] = (static_cast<long double>(v[0][c][j]) + v[0][c][j + 1] + v[1][c][j] + v[1][c][j + 1]) / 4 - wind[c];
+      }
+      const long double cr[3] = {d1[1] * d2[2] - d1[2] * d2[1], d1[2] * d2[0] - d1[0] * d2[2],
+                                 d1[0] * d2[1] - d1[1] * d2[0]};
+      const long double two_area = std::sqrt(cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]);
+      if (two_area == 0) {
+        for (int c = 0; c < 3; ++c) EXPECT_EQ(f[c][j], Real(0)) << "collapsed cell " << j;
+        continue;
+      }
+      long double n[3], vn = 0, t[3], tt = 0;
+      for (int c = 0; c < 3; ++c) n[c] = cr[c] / two_area;
+      for (int c = 0; c < 3; ++c) vn += vel[c] * n[c];
+      for (int c = 0; c < 3; ++c) {
+        t[c] = vel[c] - vn * n[c];
+        tt += t[c] * t[c];
+      }
+      for (int c = 0; c < 3; ++c) {
+        const long double expected = -hp * two_area * std::fabs(vn) * vn * n[c] - hf * two_area * std::sqrt(tt) * t[c];
+        EXPECT_NEAR(f[c][j], double(expected), tolerance) << "cell " << j << " axis " << c;
+      }
+    }
+  });
+}
+
+TEST(Simd, AirKernelOfEveryTargetGivesTheDragLaw) { expect_air_cells_follow_the_drag_law<double>(); }
+TEST(Simd, AirKernelOfEveryTargetGivesTheDragLawInFloat) { expect_air_cells_follow_the_drag_law<float>(); }
+
 // One step by hand: forward Euler moves x with the old v, semi-implicit Euler with the new.
 TEST(Simd, PointUpdateOfEveryTargetIsTheEulerStepByHand) {
   const std::size_t count = 21;

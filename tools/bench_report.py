@@ -66,9 +66,18 @@ class Run:
         self.real_time = name.endswith("/real_time")
         unit = {"ns": 1e-9, "us": 1e-6, "ms": 1e-3, "s": 1.0}[entry["time_unit"]]
         self.seconds = (entry["real_time"] if self.real_time else entry["cpu_time"]) * unit
+        self.cpu_seconds = entry["cpu_time"] * unit  # the calling thread's CPU time per iteration
         self.substeps = int(entry.get("substeps") or 1)  # substeps per iteration (a frame, or 1)
         self.counters = entry  # every counter of the run, by name (sim_s_per_wall_s, max_stretch, ...)
         self.cv = cv  # coefficient of variation over repetitions, or None
+
+    @property
+    def cpu_rate(self):
+        """Point-steps per second of the calling thread's CPU time: on one thread, what the run
+        would do on a core of its own, whatever else the machine ran meanwhile."""
+        if not self.points or not self.cpu_seconds:
+            return None
+        return self.points * self.substeps / self.cpu_seconds
 
     @property
     def step_seconds(self):
@@ -702,13 +711,18 @@ class Report:
                  f"`-march={record.get('march', '?')}` (what `-march=native` gives on a CPU with AVX2 and no AVX-512) "
                  f"by `tools/simd_baseline.py` on {record.get('date', '?')} on {record['machine'].get('cpu', '?')} "
                  f"([simd-baseline.json](simd-baseline.json), load average {load} when it started), against this "
-                 f"run's portable build held to AVX2 (`DRAPE_SIMD_TARGET=AVX2`). M point-steps/s.", "",
-                 "| benchmark | baseline | AVX2 now | × |", "|---|---|---|---|")
+                 f"run's portable build held to AVX2 (`DRAPE_SIMD_TARGET=AVX2`). M point-steps/s. The last "
+                 f"column divides CPU-time rates (every row runs on one thread): programs sharing the cores "
+                 f"stretch a run's wall clock but not its CPU time, so where the two × differ the machine was "
+                 f"busy during one of the runs (a virtual machine's host can still slow both alike).", "",
+                 "| benchmark | baseline | AVX2 now | × | × in CPU time |", "|---|---|---|---|---|")
         for what, name in rows:
             b, r = base.get(name), avx2.get(name)
             ratio = r.rate / b.rate if b and r and b.rate and r.rate else None
+            cpu = r.cpu_rate / b.cpu_rate if b and r and b.cpu_rate and r.cpu_rate else None
             self.out(f"| {what} | {mrate(b.rate) if b and b.rate else '–'} | "
-                     f"{f'{mrate(r.rate)}{cv_text(r)}' if r and r.rate else '–'} | {f'{ratio:.2f}×' if ratio else '–'} |")
+                     f"{f'{mrate(r.rate)}{cv_text(r)}' if r and r.rate else '–'} | {f'{ratio:.2f}×' if ratio else '–'} | "
+                     f"{f'{cpu:.2f}×' if cpu else '–'} |")
             if "float32" not in what:
                 self.target(f"{what} on AVX2 ÷ before the vector kernels", f"{ratio:.2f}×" if ratio else "–",
                             f"≥ {TARGET_AVX2_SPEEDUP:.0f}×", ratio >= TARGET_AVX2_SPEEDUP if ratio else None,

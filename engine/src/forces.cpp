@@ -166,14 +166,35 @@ RowWindow<Real, LastRows<Real>> last_rows(const RowWindow<Real, Access>& w, std:
   return {rows, w.read_lo, w.own_lo, w.own_hi, w.scratch};
 }
 
-// Terms 2–4 on the rows they read, compiled for this target (their row kernels are forced
-// inline, DRAPE_ROW_INLINE) and once per precision: not inlined into every kind of sweep,
-// window and spring parameters, which made this file's compile three times as long for
-// the same code. One call per row.
+// A run of springs that adds to one row and subtracts from another (shear's diagonals).
+template <class Real>
+HWY_INLINE void add_springs(const simd::SpringRun<Real>& r) {
+  kernels::springs_loop<false, false, true, true>(r);
+}
+
+// Terms 2–4 on the rows they read, compiled for this target and once per precision: not
+// inlined into every kind of sweep, window and spring parameters, which made this file's
+// compile three times as long for the same code. One call per row. The terms' row code
+// (terms/) is compiled for no target of its own: their row kernels are forced inline here
+// (DRAPE_ROW_INLINE), and those with a square root or a division hand back runs for the
+// vector kernels, which GCC would not force into code of no target (and leaves scalar on
+// AVX2 and SSE4 when written as plain loops: it vectorises a guarded division only with
+// AVX-512's masks).
 template <class Real>
 HWY_NOINLINE void terms_arrive(const RowTerms<Real>& terms, const RowWindow<Real, LastRows<Real>>& w,
                                std::uint32_t q) {
-  terms.arrive(w, q);
+  const std::uint32_t n = terms.n;
+  if (terms.shear) {
+    add_springs(shear::diagonals<Real>(*terms.shear, n, w, q, false));
+    add_springs(shear::diagonals<Real>(*terms.shear, n, w, q, true));
+  }
+  if (terms.bending) bending::arrive<Real>(*terms.bending, n, w, q);
+  if (terms.air) {
+    const simd::AirCells<Real> cells = air::cells(*terms.air, n, w, q);
+    if (cells.count == 0) return;
+    kernels::air_cells_of(cells);
+    air::spread<Real>(n, w, q);
+  }
 }
 
 // Row q arrives in a sweep: every row stencil whose last row is q adds its forces, in the

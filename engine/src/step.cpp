@@ -262,7 +262,15 @@ void BasicWorld<Real>::Impl::integrate_sheets(const detail::StepParams<Real>& pa
   plan_blocks();
   bool any_split = false;
   const bool keep_bounds = contacts_possible() || !active_obstacles.empty();  // someone reads the box next substep
-  parallel(blocks.size(), [&](std::size_t q) {
+  // A first-order explicit integrator spawns no work of its own: with one block or one thread its
+  // tasks run here, in order, without entering the arena. A small sheet's substep takes a
+  // few microseconds, and a parallel_for in the arena costs a sizeable part of that.
+  const bool here = detail::updates_per_point(def.integrator) && (blocks.size() == 1 || def.threads == 1);
+  auto tasks = [&](auto body) {
+    if (!here) return parallel(blocks.size(), body);
+    for (std::size_t q = 0; q < blocks.size(); ++q) body(q);
+  };
+  tasks([&](std::size_t q) {
     const Block& b = blocks[q];
     Slot& slot = slots[active[b.sheet]];
     Sheet<Real>& s = *slot.sheet;
@@ -284,7 +292,7 @@ void BasicWorld<Real>::Impl::integrate_sheets(const detail::StepParams<Real>& pa
   for (const Block& b : blocks) any_split = any_split || b.split;
   if (!any_split) return;
   // Second pass, after every block's forces: a block's springs read its neighbours' rows.
-  parallel(blocks.size(), [&](std::size_t q) {
+  tasks([&](std::size_t q) {
     const Block& b = blocks[q];
     if (!b.split) return;
     Sheet<Real>& s = at(b.sheet);

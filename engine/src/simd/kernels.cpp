@@ -28,6 +28,8 @@ Extent<float> ExtentF32(const float* x, const float* y, const float* z, std::siz
 }
 void CellBoxesF64(const CellRow<double>& r) { cell_boxes_of(r); }
 void CellBoxesF32(const CellRow<float>& r) { cell_boxes_of(r); }
+void AirCellsF64(const AirCells<double>& r) { air_cells_of(r); }
+void AirCellsF32(const AirCells<float>& r) { air_cells_of(r); }
 const char* Name() { return hwy::TargetName(HWY_TARGET); }
 
 }  // namespace HWY_NAMESPACE
@@ -45,6 +47,8 @@ HWY_EXPORT(ExtentF64);
 HWY_EXPORT(ExtentF32);
 HWY_EXPORT(CellBoxesF64);
 HWY_EXPORT(CellBoxesF32);
+HWY_EXPORT(AirCellsF64);
+HWY_EXPORT(AirCellsF32);
 HWY_EXPORT(Name);
 
 void springs(const SpringRun<double>& run) { HWY_DYNAMIC_DISPATCH(SpringsF64)(run); }
@@ -59,6 +63,8 @@ Extent<float> points_extent(const float* x, const float* y, const float* z, std:
 }
 void cell_boxes(const CellRow<double>& row) { HWY_DYNAMIC_DISPATCH(CellBoxesF64)(row); }
 void cell_boxes(const CellRow<float>& row) { HWY_DYNAMIC_DISPATCH(CellBoxesF32)(row); }
+void air_cells(const AirCells<double>& cells) { HWY_DYNAMIC_DISPATCH(AirCellsF64)(cells); }
+void air_cells(const AirCells<float>& cells) { HWY_DYNAMIC_DISPATCH(AirCellsF32)(cells); }
 const char* target_name() { return HWY_DYNAMIC_DISPATCH(Name)(); }
 
 std::vector<std::int64_t> supported_targets() { return hwy::SupportedAndGeneratedTargets(); }

@@ -155,6 +155,21 @@ struct CellRow {
 void cell_boxes(const CellRow<double>& row);
 void cell_boxes(const CellRow<float>& row);
 
+// Air on a row of `count` grid cells (terms/air.h): cell j has corners j, j + 1 of rows a
+// and b, at positions a…, b… and velocities av…, bv…; its force goes to f…[j]. The same
+// operations in the same order as the formula there. The row sweep runs it inline (air.h);
+// this entry point serves the tests.
+template <class Real>
+struct AirCells {
+  std::size_t count = 0;
+  const Real *ax = nullptr, *ay = nullptr, *az = nullptr, *bx = nullptr, *by = nullptr, *bz = nullptr;
+  const Real *avx = nullptr, *avy = nullptr, *avz = nullptr, *bvx = nullptr, *bvy = nullptr, *bvz = nullptr;
+  Real *fx = nullptr, *fy = nullptr, *fz = nullptr;
+  Real half_pressure = 0, half_friction = 0, wx = 0, wy = 0, wz = 0;
+};
+void air_cells(const AirCells<double>& cells);
+void air_cells(const AirCells<float>& cells);
+
 // The instruction set the kernels run with now: "AVX3" (Highway's name for AVX-512),
 // "AVX2", "SSE4" or "SCALAR" (portable, one lane) on x86.
 const char* target_name();

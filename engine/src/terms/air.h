@@ -12,46 +12,33 @@
 
 #include <cmath>
 
+#include "../simd/kernels.h"
 #include "rows.h"
 
 namespace drape::detail::air {
 
-// The force on each cell between rows a and b into f (n values per component). Every
-// pointer is a restrict parameter (GCC ignores restrict on locals here and gives up on the
-// run-time alias checks of so many arrays), so the loop vectorises.
-template <class Real>
-DRAPE_ROW_INLINE void cells(std::uint32_t n, Real half_pressure, Real half_friction, Real wx, Real wy, Real wz,
-                  const Real* __restrict ax, const Real* __restrict ay, const Real* __restrict az,
-                  const Real* __restrict bx, const Real* __restrict by, const Real* __restrict bz,
-                  const Real* __restrict avx, const Real* __restrict avy, const Real* __restrict avz,
-                  const Real* __restrict bvx, const Real* __restrict bvy, const Real* __restrict bvz,
-                  Real* __restrict fx, Real* __restrict fy, Real* __restrict fz) {
-  const Real quarter = Real(0.25);
-  for (std::uint32_t j = 0; j < n; ++j) {
-    const Real d1x = bx[j + 1] - ax[j], d1y = by[j + 1] - ay[j], d1z = bz[j + 1] - az[j];
-    const Real d2x = bx[j] - ax[j + 1], d2y = by[j] - ay[j + 1], d2z = bz[j] - az[j + 1];
-    const Real cx = d1y * d2z - d1z * d2y, cy = d1z * d2x - d1x * d2z, cz = d1x * d2y - d1y * d2x;
-    const Real vx = quarter * (avx[j] + avx[j + 1] + bvx[j] + bvx[j + 1]) - wx;
-    const Real vy = quarter * (avy[j] + avy[j + 1] + bvy[j] + bvy[j + 1]) - wy;
-    const Real vz = quarter * (avz[j] + avz[j + 1] + bvz[j] + bvz[j + 1]) - wz;
-    const Real cc = cx * cx + cy * cy + cz * cz;
-    const Real inv = cc > Real(0) ? Real(1) / cc : Real(0);  // a collapsed cell feels no air
-    const Real vc = vx * cx + vy * cy + vz * cz;
-    const Real normal = -half_pressure * std::abs(vc) * vc * inv;
-    const Real tx = vx - vc * inv * cx, ty = vy - vc * inv * cy, tz = vz - vc * inv * cz;
-    // ½ρC_t A |v_t| with A = |c|/2
-    const Real tangential = -half_friction * std::sqrt(cc * (tx * tx + ty * ty + tz * tz));
-    fx[j] = normal * cx + tangential * tx;
-    fy[j] = normal * cy + tangential * ty;
-    fz[j] = normal * cz + tangential * tz;
-  }
-}
-
-template <class Real>
-DRAPE_ROW_INLINE void cell_forces(std::uint32_t n, const Air<Real>& air, ConstVec3Ptr<Real> xa, ConstVec3Ptr<Real> xb,
-                        ConstVec3Ptr<Real> va, ConstVec3Ptr<Real> vb, Vec3Ptr<Real> cell) {
-  cells(n, Real(0.5) * air.pressure, Real(0.5) * air.friction, air.wind[0], air.wind[1], air.wind[2], xa.x, xa.y,
-        xa.z, xb.x, xb.y, xb.z, va.x, va.y, va.z, vb.x, vb.y, vb.z, cell.x, cell.y, cell.z);
+// Row q has arrived: the cells between rows q−1 and q, as a row of cells for the sweep's
+// vector kernel (forces.cpp, terms_arrive; simd/kernels-inl.h, air_cells_of), which puts
+// each cell's force into the window's scratch row; then spread() adds it to the owned rows.
+// The kernel computes per cell j (corners j, j + 1 of both rows), in this order:
+//   d1 = b[j+1] − a[j],  d2 = b[j] − a[j+1],  c = d1 × d2,  cc = c·c
+//   v  = ¼ (va[j] + va[j+1] + vb[j] + vb[j+1]) − wind,  vc = v·c,  inv = 1/cc (0 for cc = 0)
+//   normal = −½ρC_n |vc| vc inv,  t = v − (vc inv) c,  tangential = −½ρC_t √(cc · t·t)
+//   f = normal c + tangential t
+// No cells (count 0) when the window cannot read row q−1 or owns neither row.
+template <class Real, class Window>
+DRAPE_ROW_INLINE simd::AirCells<Real> cells(const Air<Real>& air, std::uint32_t n, const Window& w, std::uint32_t q) {
+  simd::AirCells<Real> r;
+  if (q == 0 || n == 0 || q - 1 < w.read_lo || (!w.owns(q - 1) && !w.owns(q))) return r;
+  const auto xa = w.x(q - 1), xb = w.x(q), va = w.v(q - 1), vb = w.v(q);
+  r.count = n;
+  r.ax = xa.x, r.ay = xa.y, r.az = xa.z, r.bx = xb.x, r.by = xb.y, r.bz = xb.z;
+  r.avx = va.x, r.avy = va.y, r.avz = va.z, r.bvx = vb.x, r.bvy = vb.y, r.bvz = vb.z;
+  r.fx = w.scratch.x, r.fy = w.scratch.y, r.fz = w.scratch.z;
+  r.half_pressure = Real(0.5) * air.pressure;
+  r.half_friction = Real(0.5) * air.friction;
+  r.wx = air.wind[0], r.wy = air.wind[1], r.wz = air.wind[2];
+  return r;
 }
 
 // A quarter of the force of each cell next to point j of one component of a row (cells
@@ -71,15 +58,12 @@ DRAPE_ROW_INLINE void add_to_row(std::uint32_t n, ConstVec3Ptr<Real> cell, Vec3P
   add_to_line(n, cell.z, f.z);
 }
 
-// Row q has arrived: the cells between rows q−1 and q.
+// The cells' forces in the scratch row (after the kernel ran on cells()), a quarter to
+// each of their corners on the rows the window owns.
 template <class Real, class Window>
-DRAPE_ROW_INLINE void arrive(const Air<Real>& air, std::uint32_t n, const Window& w, std::uint32_t q) {
-  if (q == 0 || n == 0 || q - 1 < w.read_lo) return;
-  const bool to_a = w.owns(q - 1), to_b = w.owns(q);
-  if (!to_a && !to_b) return;
-  cell_forces(n, air, w.x(q - 1), w.x(q), w.v(q - 1), w.v(q), w.scratch);
-  if (to_a) add_to_row<Real>(n, w.scratch, w.f(q - 1));
-  if (to_b) add_to_row<Real>(n, w.scratch, w.f(q));
+DRAPE_ROW_INLINE void spread(std::uint32_t n, const Window& w, std::uint32_t q) {
+  if (w.owns(q - 1)) add_to_row<Real>(n, w.scratch, w.f(q - 1));
+  if (w.owns(q)) add_to_row<Real>(n, w.scratch, w.f(q));
 }
 
 }  // namespace drape::detail::air

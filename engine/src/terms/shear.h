@@ -5,66 +5,30 @@
 
 #include <cmath>
 
+#include "../simd/kernels.h"
 #include "rows.h"
 
 namespace drape::detail::shear {
 
-// The two diagonals of cell (i, j): "down" joins (i, j)–(i+1, j+1), "up" joins
-// (i, j+1)–(i+1, j). Each loop writes two distinct points per iteration and every pointer
-// is restrict, so both vectorise like the grid springs.
-template <bool ToA, bool ToB, class Real>
-DRAPE_ROW_INLINE void diagonals(std::uint32_t n, const Real* __restrict ax, const Real* __restrict ay, const Real* __restrict az,
-                      const Real* __restrict bx, const Real* __restrict by, const Real* __restrict bz, Real k,
-                      Real rest, Real* __restrict fax, Real* __restrict fay, Real* __restrict faz,
-                      Real* __restrict fbx, Real* __restrict fby, Real* __restrict fbz) {
-  for (std::uint32_t j = 0; j < n; ++j) {
-    const Real dx = ax[j] - bx[j + 1], dy = ay[j] - by[j + 1], dz = az[j] - bz[j + 1];
-    const Real s = spring_scale(dx, dy, dz, rest, k);
-    if constexpr (ToA) {
-      fax[j] += s * dx;
-      fay[j] += s * dy;
-      faz[j] += s * dz;
-    }
-    if constexpr (ToB) {
-      fbx[j + 1] -= s * dx;
-      fby[j + 1] -= s * dy;
-      fbz[j + 1] -= s * dz;
-    }
-  }
-  for (std::uint32_t j = 0; j < n; ++j) {
-    const Real dx = ax[j + 1] - bx[j], dy = ay[j + 1] - by[j], dz = az[j + 1] - bz[j];
-    const Real s = spring_scale(dx, dy, dz, rest, k);
-    if constexpr (ToA) {
-      fax[j + 1] += s * dx;
-      fay[j + 1] += s * dy;
-      faz[j + 1] += s * dz;
-    }
-    if constexpr (ToB) {
-      fbx[j] -= s * dx;
-      fby[j] -= s * dy;
-      fbz[j] -= s * dz;
-    }
-  }
-}
-
-template <bool ToA, bool ToB, class Real>
-DRAPE_ROW_INLINE void cell_row(std::uint32_t n, ConstVec3Ptr<Real> a, ConstVec3Ptr<Real> b, Real k, Real rest, Vec3Ptr<Real> fa,
-                     Vec3Ptr<Real> fb) {
-  diagonals<ToA, ToB>(n, a.x, a.y, a.z, b.x, b.y, b.z, k, rest, fa.x, fa.y, fa.z, fb.x, fb.y, fb.z);
-}
-
-// Row q has arrived: the diagonals between rows q−1 and q.
+// Row q has arrived: the diagonals of the cells between rows q−1 and q, as two runs of n
+// springs of eq (6) (simd/kernels.h) for the sweep's vector kernel (forces.cpp,
+// terms_arrive), in this order: `up` false, "down", joins (q−1, j)–(q, j+1); `up` true
+// joins (q−1, j+1)–(q, j). Each adds s·d to its endpoint in row q−1 and subtracts it from
+// the one in row q; a row the window does not own gets its share in the window's scratch
+// row instead, which nothing reads (a block's edge: one kernel for every case keeps the
+// per-target code, and its compile time, small). An empty run when the window cannot read
+// row q−1 or owns neither row. One run at a time, by value: inlined, it stays in registers.
 template <class Real, class Window>
-DRAPE_ROW_INLINE void arrive(const typename Topology<Real>::Shear& sh, std::uint32_t n, const Window& w, std::uint32_t q) {
-  if (q == 0 || q - 1 < w.read_lo) return;
-  const bool to_a = w.owns(q - 1), to_b = w.owns(q);
+DRAPE_ROW_INLINE simd::SpringRun<Real> diagonals(const typename Topology<Real>::Shear& sh, std::uint32_t n,
+                                                 const Window& w, std::uint32_t q, bool up) {
+  if (q == 0 || q - 1 < w.read_lo || (!w.owns(q - 1) && !w.owns(q))) return {};
+  const std::uint32_t sa = up ? 1 : 0, sb = up ? 0 : 1;  // shifts along rows q−1 and q
   const auto a = w.x(q - 1), b = w.x(q);
-  if (to_a && to_b)
-    cell_row<true, true>(n, a, b, sh.stiffness, sh.rest, w.f(q - 1), w.f(q));
-  else if (to_a)
-    cell_row<true, false>(n, a, b, sh.stiffness, sh.rest, w.f(q - 1), w.f(q));
-  else if (to_b)
-    cell_row<false, true>(n, a, b, sh.stiffness, sh.rest, w.f(q - 1), w.f(q));
+  const auto fa = w.owns(q - 1) ? w.f(q - 1) : w.scratch, fb = w.owns(q) ? w.f(q) : w.scratch;
+  return simd::SpringRun<Real>::between(n, a.x + sa, a.y + sa, a.z + sa, b.x + sb, b.y + sb, b.z + sb)
+      .same(sh.rest, sh.stiffness)
+      .add(fa.x + sa, fa.y + sa, fa.z + sa)
+      .sub(fb.x + sb, fb.y + sb, fb.z + sb);
 }
 
 // Calls spring(a, b) for every diagonal spring of the sheet.

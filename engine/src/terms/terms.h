@@ -14,7 +14,8 @@
 //     8. obstacles, eq (9)                 obstacles.cpp (obstacle_forces)
 //
 // A sheet without terms 2–4 runs the sweep with NoRowTerms: the paper's kernel, with no
-// branch or call for them. Each term file gives its force (arrive), its energy (for the
+// branch or call for them. Each term file gives its force (arrive, or runs for the sweep's
+// vector kernels: shear's diagonals, air's cells), its energy (for the
 // guard and diagnostics), its Jacobian for implicit Euler (add_jacobian; air has none: it
 // depends on velocity and is taken explicitly) and its share of the stable-step bound.
 #pragma once
@@ -37,19 +38,14 @@ struct RowTerms {
   // when row q arrives, and a wave lags this many rows per substep.
   std::uint32_t reach() const { return bending ? 2 : 1; }
 
-  template <class Window>
-  DRAPE_ROW_INLINE void arrive(const Window& w, std::uint32_t q) const {
-    if (shear) shear::arrive<Real>(*shear, n, w, q);
-    if (bending) bending::arrive<Real>(*bending, n, w, q);
-    if (air) air::arrive<Real>(*air, n, w, q);
-  }
+  // Their forces as row q arrives are added by the sweep (forces.cpp, terms_arrive), in
+  // this order: shear (shear::diagonals), bending (bending::arrive), air (air::cells, then
+  // air::spread). Shear and air hand it runs for its vector kernels.
 };
 
 // The paper's sheet: the grid springs alone.
 struct NoRowTerms {
   static constexpr std::uint32_t reach() { return 1; }
-  template <class Window>
-  void arrive(const Window&, std::uint32_t) const {}
 };
 
 template <class Real>
