@@ -1,24 +1,53 @@
-#include "contacts.h"
+// The narrow phase (contacts.h): sheet boxes, the search for each point's nearest triangle
+// of the other sheet (or of its own, away from the point), the repulsion and friction it
+// gives, and the lists and kept contact sets that let later substeps skip the search.
+//
+// Highway's foreach_target compiles the per-point part — the search through strip and cell
+// boxes (box_gaps, explicit vectors), the walk of a kept contact set, the triangle tests
+// and the force — once per instruction set (simd/targets.h), and the pair's code dispatches
+// to the widest the CPU has once per direction of a pair. Contraction into FMA is off here
+// (engine/CMakeLists.txt), so every target gives the same bits. The rest (boxes, whether
+// kept lists still hold, the pair's bookkeeping) is compiled once.
+#include "simd/targets.h"
 
-#include "simd/kernels.h"
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "contacts.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+#include <hwy/highway.h>
+
+#include "contacts.h"
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
+#include <type_traits>
 
+#include "simd/kernels.h"
+
+// What every target shares, compiled once.
+#ifndef DRAPE_CONTACTS_SHARED_
+#define DRAPE_CONTACTS_SHARED_
 namespace drape::detail {
+namespace {
 
+// max(a, 0) without a comparison, so a loop of it vectorises even where GCC will not turn
+// a floating-point comparison into a select (AVX2 with -ftrapping-math): exact, as a + |a|
+// is 2a or 0 and halving is exact, and a NaN stays a NaN.
 template <class Real>
-ContactParams<Real> ContactParams<Real>::make(double thickness, double xi, double strength, double range_in_xi) {
-  ContactParams p;
-  p.thickness = static_cast<Real>(thickness);
-  p.xi = static_cast<Real>(xi);
-  p.strength = static_cast<Real>(strength);
-  p.range = static_cast<Real>(thickness + range_in_xi * xi);
-  p.tail = static_cast<Real>(std::exp(-range_in_xi));
-  p.skin = static_cast<Real>(0.25 * (thickness + range_in_xi * xi));
-  return p;
-}
+Real positive_part(Real a) { return (a + std::abs(a)) * Real(0.5); }
+
+constexpr std::uint32_t kNoCell = ~std::uint32_t(0);
+
+}  // namespace
+}  // namespace drape::detail
+#endif  // DRAPE_CONTACTS_SHARED_
+
+HWY_BEFORE_NAMESPACE();
+namespace drape::detail {
+namespace HWY_NAMESPACE {
+
+namespace hn = hwy::HWY_NAMESPACE;
 
 namespace {
 
@@ -31,29 +60,33 @@ V3<Real> sub(V3<Real> a, V3<Real> b) { return {a.x - b.x, a.y - b.y, a.z - b.z};
 template <class Real>
 Real dot(V3<Real> a, V3<Real> b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
 
-// max(a, 0) without a comparison, so the loop below vectorises even where GCC will not
-// turn a floating-point comparison into a select (AVX2 with -ftrapping-math): exact, as
-// a + |a| is 2a or 0 and halving is exact.
-template <class Real>
-Real positive_part(Real a) { return (a + std::abs(a)) * Real(0.5); }
+// max(a, 0) without a comparison, so a loop of it vectorises even where GCC will not turn
+// a floating-point comparison into a select (AVX2 with -ftrapping-math): exact, as a + |a|
+// is 2a or 0 and halving is exact, and a NaN stays a NaN.
 
-// gap2[t] = squared distance from x to box t, for t < count: one vectorised pass. Along
-// each axis the gap is max(lo − x, x − hi, 0) = max(lo − x, 0) + max(x − hi, 0), as
-// lo ≤ hi makes at least one of the two zero. Inlined, so a constant count (a strip's 8)
-// becomes a few vector operations.
-template <class Real>
-[[gnu::always_inline]] inline void box_gaps(V3<Real> x, const Real* const lo[3], const Real* const hi[3],
-                                            std::uint32_t count, Real* __restrict gap2) {
-  const Real* __restrict lx = lo[0];
-  const Real* __restrict ly = lo[1];
-  const Real* __restrict lz = lo[2];
-  const Real* __restrict hx = hi[0];
-  const Real* __restrict hy = hi[1];
-  const Real* __restrict hz = hi[2];
-  for (std::uint32_t t = 0; t < count; ++t) {
-    const Real ex = positive_part(lx[t] - x.x) + positive_part(x.x - hx[t]);
-    const Real ey = positive_part(ly[t] - x.y) + positive_part(x.y - hy[t]);
-    const Real ez = positive_part(lz[t] - x.z) + positive_part(x.z - hz[t]);
+// gap2[t] = squared distance from x to box t, for t < count, a vector of boxes at a time in
+// d's lanes and the tail one box at a time by the same operations, so every box gets the
+// same bits on every target. Along each axis the gap is max(lo − x, 0) + max(x − hi, 0), as
+// lo ≤ hi makes at least one of the two zero; max(a, 0) is positive_part's (a + |a|)/2,
+// which keeps a NaN a NaN (x86's max would turn it into 0 on some targets and not others).
+template <class D, class Real = hn::TFromD<D>>
+HWY_INLINE void box_gaps(D d, V3<Real> x, const Real* const lo[3], const Real* const hi[3], std::uint32_t count,
+                         Real* HWY_RESTRICT gap2) {
+  const std::uint32_t N = static_cast<std::uint32_t>(hn::Lanes(d));
+  const auto half = hn::Set(d, Real(0.5));
+  const auto part = [&](auto a) { return hn::Mul(hn::Add(a, hn::Abs(a)), half); };
+  const auto px = hn::Set(d, x.x), py = hn::Set(d, x.y), pz = hn::Set(d, x.z);
+  std::uint32_t t = 0;
+  for (; t + N <= count; t += N) {
+    const auto ex = hn::Add(part(hn::Sub(hn::LoadU(d, lo[0] + t), px)), part(hn::Sub(px, hn::LoadU(d, hi[0] + t))));
+    const auto ey = hn::Add(part(hn::Sub(hn::LoadU(d, lo[1] + t), py)), part(hn::Sub(py, hn::LoadU(d, hi[1] + t))));
+    const auto ez = hn::Add(part(hn::Sub(hn::LoadU(d, lo[2] + t), pz)), part(hn::Sub(pz, hn::LoadU(d, hi[2] + t))));
+    hn::StoreU(hn::Add(hn::Add(hn::Mul(ex, ex), hn::Mul(ey, ey)), hn::Mul(ez, ez)), d, gap2 + t);
+  }
+  for (; t < count; ++t) {
+    const Real ex = positive_part(lo[0][t] - x.x) + positive_part(x.x - hi[0][t]);
+    const Real ey = positive_part(lo[1][t] - x.y) + positive_part(x.y - hi[1][t]);
+    const Real ez = positive_part(lo[2][t] - x.z) + positive_part(x.z - hi[2][t]);
     gap2[t] = ex * ex + ey * ey + ez * ez;
   }
 }
@@ -180,7 +213,6 @@ void repel(const Sheet<Real>& qs, std::uint32_t q, V3<Real> p, const Sheet<Real>
     if (wt[k] != 0) on_s.push(best.tri[k], -wt[k] * F.x, -wt[k] * F.y, -wt[k] * F.z);
 }
 
-constexpr std::uint32_t kNoCell = ~std::uint32_t(0);
 
 // The cell of s at first corner p00 (its two triangles) against the point x.
 template <class Real>
@@ -249,8 +281,8 @@ template <class Real>
 void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, const Sheet<Real>& s,
                           const SheetBoxes<Real>& bs, int ring, const ContactParams<Real>& prm,
                           ContactForces<Real>& on_q, ContactForces<Real>& on_s, ContactScratch<Real>& sc,
-                          std::uint32_t* last, Candidates* lists = nullptr, Real skin = 0,
-                          KeptContacts* kept = nullptr, KeptContacts* before = nullptr) {
+                          std::uint32_t* last, Candidates* lists, Real skin, KeptContacts* kept,
+                          KeptContacts* before) {
   if (lists) {
     lists->begin.assign(q.size(), 0);
     lists->count.assign(q.size(), 0);
@@ -369,7 +401,7 @@ void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
           if (before && sc.in_set[p]) continue;  // walked above
           const V3<Real> x{Q.x[p], Q.y[p], Q.z[p]};
           // The gathered strips within R, then their cells within R.
-          box_gaps(x, rlo, rhi, count, gap2);
+          box_gaps(hn::ScalableTag<Real>(), x, rlo, rhi, count, gap2);
           std::uint32_t strips_near = 0;
           for (std::uint32_t t = 0; t < count; ++t) {
             pick[strips_near] = t;
@@ -380,7 +412,7 @@ void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
             const std::uint32_t t = pick[e], c0 = rcorner[t], cells = rcount[t];
             const Real* lo[3] = {clo[0] + c0, clo[1] + c0, clo[2] + c0};
             const Real* hi[3] = {chi[0] + c0, chi[1] + c0, chi[2] + c0};
-            box_gaps(x, lo, hi, P, cell_gap2);  // all 8: the arrays are padded
+            box_gaps(hn::CappedTag<Real, P>(), x, lo, hi, P, cell_gap2);  // all 8: the arrays are padded
             if (ring >= 0) {  // self-contact: not the cells of the point's own neighbourhood
               const std::int64_t ci = rrow[t];
               if (ci >= std::int64_t(i) - ring && ci < std::int64_t(i) + ring) {
@@ -476,7 +508,7 @@ void points_against_lists(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
               rhi[k][t] = bs.cell_hi[k][cell[t]];
             }
           const V3<Real> x = at(q, p);
-          box_gaps(x, rlo, rhi, count, gap2);
+          box_gaps(hn::ScalableTag<Real>(), x, rlo, rhi, count, gap2);
           std::uint32_t found = 0;  // kept without a branch, in the list's order
           for (std::uint32_t t = 0; t < count; ++t) {
             near[found] = {cell[t], gap2[t]};
@@ -575,6 +607,94 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
       last[p] = kNoCell;
     }
   }
+}
+
+}  // namespace
+
+// The entry points HWY_EXPORT names, one per precision: a direction of a pair each.
+#define DRAPE_CONTACTS_ENTRIES(Suffix, Real)                                                                         \
+  void PointsAgainstCells##Suffix(const Sheet<Real>& q, const SheetBoxes<Real>& bq, const Sheet<Real>& s,            \
+                                  const SheetBoxes<Real>& bs, int ring, const ContactParams<Real>& prm,              \
+                                  ContactForces<Real>& on_q, ContactForces<Real>& on_s, ContactScratch<Real>& sc,    \
+                                  std::uint32_t* last, Candidates* lists, Real skin, KeptContacts* kept,             \
+                                  KeptContacts* before) {                                                            \
+    points_against_cells(q, bq, s, bs, ring, prm, on_q, on_s, sc, last, lists, skin, kept, before);                  \
+  }                                                                                                                  \
+  void PointsAgainstLists##Suffix(const Sheet<Real>& q, const SheetBoxes<Real>& bq, const Sheet<Real>& s,            \
+                                  const SheetBoxes<Real>& bs, const Candidates& lists,                               \
+                                  const ContactParams<Real>& prm, ContactForces<Real>& on_q,                         \
+                                  ContactForces<Real>& on_s, ContactScratch<Real>& sc, std::uint32_t* last) {        \
+    points_against_lists(q, bq, s, bs, lists, prm, on_q, on_s, sc, last);                                            \
+  }                                                                                                                  \
+  void PointsWalking##Suffix(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptContacts& kept,              \
+                             std::size_t e0, std::size_t e1, const ContactParams<Real>& prm,                         \
+                             ContactForces<Real>& on_q, ContactForces<Real>& on_s, std::uint32_t* last) {            \
+    points_walking(q, s, ring, kept, e0, e1, prm, on_q, on_s, last);                                                 \
+  }
+DRAPE_CONTACTS_ENTRIES(F64, double)
+DRAPE_CONTACTS_ENTRIES(F32, float)
+#undef DRAPE_CONTACTS_ENTRIES
+
+}  // namespace HWY_NAMESPACE
+}  // namespace drape::detail
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace drape::detail {
+
+template <class Real>
+ContactParams<Real> ContactParams<Real>::make(double thickness, double xi, double strength, double range_in_xi) {
+  ContactParams p;
+  p.thickness = static_cast<Real>(thickness);
+  p.xi = static_cast<Real>(xi);
+  p.strength = static_cast<Real>(strength);
+  p.range = static_cast<Real>(thickness + range_in_xi * xi);
+  p.tail = static_cast<Real>(std::exp(-range_in_xi));
+  p.skin = static_cast<Real>(0.25 * (thickness + range_in_xi * xi));
+  return p;
+}
+
+HWY_EXPORT(PointsAgainstCellsF64);
+HWY_EXPORT(PointsAgainstCellsF32);
+HWY_EXPORT(PointsAgainstListsF64);
+HWY_EXPORT(PointsAgainstListsF32);
+HWY_EXPORT(PointsWalkingF64);
+HWY_EXPORT(PointsWalkingF32);
+
+namespace {
+
+// The per-target search (above) on the widest target the CPU has: see its definitions.
+template <class Real>
+void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, const Sheet<Real>& s,
+                          const SheetBoxes<Real>& bs, int ring, const ContactParams<Real>& prm,
+                          ContactForces<Real>& on_q, ContactForces<Real>& on_s, ContactScratch<Real>& sc,
+                          std::uint32_t* last, Candidates* lists = nullptr, Real skin = 0,
+                          KeptContacts* kept = nullptr, KeptContacts* before = nullptr) {
+  if constexpr (std::is_same_v<Real, double>)
+    HWY_DYNAMIC_DISPATCH(PointsAgainstCellsF64)(q, bq, s, bs, ring, prm, on_q, on_s, sc, last, lists, skin, kept, before);
+  else
+    HWY_DYNAMIC_DISPATCH(PointsAgainstCellsF32)(q, bq, s, bs, ring, prm, on_q, on_s, sc, last, lists, skin, kept, before);
+}
+
+template <class Real>
+void points_against_lists(const Sheet<Real>& q, const SheetBoxes<Real>& bq, const Sheet<Real>& s,
+                          const SheetBoxes<Real>& bs, const Candidates& lists, const ContactParams<Real>& prm,
+                          ContactForces<Real>& on_q, ContactForces<Real>& on_s, ContactScratch<Real>& sc,
+                          std::uint32_t* last) {
+  if constexpr (std::is_same_v<Real, double>)
+    HWY_DYNAMIC_DISPATCH(PointsAgainstListsF64)(q, bq, s, bs, lists, prm, on_q, on_s, sc, last);
+  else
+    HWY_DYNAMIC_DISPATCH(PointsAgainstListsF32)(q, bq, s, bs, lists, prm, on_q, on_s, sc, last);
+}
+
+template <class Real>
+void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptContacts& kept, std::size_t e0,
+                    std::size_t e1, const ContactParams<Real>& prm, ContactForces<Real>& on_q,
+                    ContactForces<Real>& on_s, std::uint32_t* last) {
+  if constexpr (std::is_same_v<Real, double>)
+    HWY_DYNAMIC_DISPATCH(PointsWalkingF64)(q, s, ring, kept, e0, e1, prm, on_q, on_s, last);
+  else
+    HWY_DYNAMIC_DISPATCH(PointsWalkingF32)(q, s, ring, kept, e0, e1, prm, on_q, on_s, last);
 }
 
 // Whether no point of s has moved farther than √limit2 from `then`: blocks of points, each
@@ -1035,3 +1155,4 @@ DRAPE_CONTACTS(float)
 #undef DRAPE_CONTACTS
 
 }  // namespace drape::detail
+#endif  // HWY_ONCE
