@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cstring>
 #include <cmath>
 #include <random>
 #include <string>
@@ -12,6 +13,7 @@
 
 #include "bounds.h"
 #include "contacts.h"
+#include "each_target.h"
 #include "sheet_data.h"
 #include "surface_distance.h"
 
@@ -278,14 +280,15 @@ TEST(Contacts, FlatSheetDoesNotRepelItself) {
 
 // A flat sheet of d's cells whose rows above the middle are folded back over the lower
 // half, `above` metres above it (row i onto row m − i).
-Sheet<double> folded_sheet(const SheetDef& d, double above) {
-  auto s = build_sheet<double>(d);
+template <class Real = double>
+Sheet<Real> folded_sheet(const SheetDef& d, double above) {
+  auto s = build_sheet<Real>(d);
   const std::uint32_t cols = d.n + 1;
   for (std::uint32_t i = d.m / 2 + 1; i <= d.m; ++i)
     for (std::uint32_t j = 0; j < cols; ++j) {
       const std::uint32_t p = i * cols + j, mirror = (d.m - i) * cols + j;
       s.position.y[p] = s.position.y[mirror];
-      s.position.z[p] = above;
+      s.position.z[p] = static_cast<Real>(above);
     }
   return s;
 }
@@ -352,12 +355,13 @@ void expect_same_forces(const ContactForces<double>& kept, const ContactForces<d
   }
 }
 
-void jostle(Sheet<double>& s, std::mt19937& rng) {
+template <class Real>
+void jostle(Sheet<Real>& s, std::mt19937& rng) {
   std::uniform_real_distribution<double> u(-0.0003, 0.0003);
   for (std::size_t p = 0; p < s.size(); ++p) {
-    s.position.x[p] += u(rng);
-    s.position.y[p] += u(rng);
-    s.position.z[p] += u(rng);
+    s.position.x[p] += static_cast<Real>(u(rng));
+    s.position.y[p] += static_cast<Real>(u(rng));
+    s.position.z[p] += static_cast<Real>(u(rng));
   }
 }
 
@@ -555,7 +559,8 @@ void expect_same_forces(const std::vector<P3>& got, const std::vector<P3>& want,
 // Two crumpled sheets of different resolutions, tilted against each other, each point
 // jittered in every axis by up to a third of the smaller spacing: within range of each
 // other almost everywhere, at every angle, with stretched and sheared cells.
-std::pair<Sheet<double>, Sheet<double>> crumpled_pair(unsigned seed) {
+template <class Real = double>
+std::pair<Sheet<Real>, Sheet<Real>> crumpled_pair(unsigned seed) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
   SheetDef da;
@@ -571,14 +576,14 @@ std::pair<Sheet<double>, Sheet<double>> crumpled_pair(unsigned seed) {
   db.height = 0.12;
   db.center = {0.01 * unit(rng), 0.01 * unit(rng), 0.007};
   db.orientation = quat_from_axis_angle({0.3, 0.2, 1}, 1.0 + unit(rng));
-  auto a = build_sheet<double>(da), b = build_sheet<double>(db);
+  auto a = build_sheet<Real>(da), b = build_sheet<Real>(db);
   const double jitter = 0.002;
   for (auto* s : {&a, &b})
     for (std::uint32_t p = 0; p < s->size(); ++p) {
       const double x = s->position.x[p], y = s->position.y[p];
-      s->position.x[p] += jitter * unit(rng);
-      s->position.y[p] += jitter * unit(rng);
-      s->position.z[p] += jitter * unit(rng) + 0.006 * std::sin(40 * x + seed) * std::cos(30 * y);
+      s->position.x[p] += static_cast<Real>(jitter * unit(rng));
+      s->position.y[p] += static_cast<Real>(jitter * unit(rng));
+      s->position.z[p] += static_cast<Real>(jitter * unit(rng) + 0.006 * std::sin(40 * x + seed) * std::cos(30 * y));
     }
   return {std::move(a), std::move(b)};
 }
@@ -639,6 +644,75 @@ TEST(Contacts, SelfContactMatchesEveryPointAgainstEveryTriangleOutsideTheRing) {
     expect_same_forces(dense(work.on_a, s.size()), total, "seed " + std::to_string(seed));
     EXPECT_EQ(work.on_a.size(), want.entries_q + want.entries_s) << "seed " << seed;
   }
+}
+
+// The search, the walk and the force run on every instruction set the CPU has (contacts.cpp
+// is compiled per target, contraction off), and each gives the same forces, entry for entry
+// and bit for bit, as the first (the widest): a crumpled pair with friction and a jostled
+// fold against itself, over steps that search, keep lists (exact) or walk a kept set, in
+// both precisions. It fails if a target's vector gap test or tail rounds differently, or
+// finds a different set of cells.
+template <class Real>
+std::vector<double> contact_forces_over_steps() {
+  ContactParams<Real> walked = ContactParams<Real>::make(0.005, 0.002, 1e-4, 6.0), exact = walked;
+  walked.dt = exact.dt = Real(1e-3);
+  exact.exact = true;
+  std::vector<double> out;
+  auto record = [&](const ContactForces<Real>& f) {
+    out.push_back(double(f.size()));
+    for (std::size_t e = 0; e < f.size(); ++e)
+      out.insert(out.end(), {double(f.point[e]), double(f.fx[e]), double(f.fy[e]), double(f.fz[e])});
+  };
+  auto boxes_of = [](const Sheet<Real>& s) {
+    SheetBoxes<Real> out;
+    build_boxes(s, out);
+    return out;
+  };
+  std::mt19937 rng(5);
+  auto [a, b] = crumpled_pair<Real>(3);
+  a.friction = Real(0.4);
+  for (std::size_t p = 0; p < a.size(); ++p) a.velocity.x[p] = Real(0.01 * std::sin(double(p)));
+  auto s = folded_sheet<Real>(fold_def(), 0.008);
+  ContactScratch<Real> scratch;
+  PairContacts<Real> pair_walked, pair_exact, fold_walked, fold_exact;
+  for (int step = 0; step < 6; ++step) {
+    for (Sheet<Real>* sheet : {&a, &b, &s}) jostle(*sheet, rng);
+    pair_contacts(a, boxes_of(a), b, boxes_of(b), walked, pair_walked, scratch);
+    pair_contacts(a, boxes_of(a), b, boxes_of(b), exact, pair_exact, scratch);
+    self_contacts(s, boxes_of(s), walked, fold_walked, scratch);
+    self_contacts(s, boxes_of(s), exact, fold_exact, scratch);
+    for (const auto* w : {&pair_walked, &pair_exact}) {
+      record(w->on_a);
+      record(w->on_b);
+    }
+    record(fold_walked.on_a);
+    record(fold_exact.on_a);
+  }
+  return out;
+}
+
+template <class Real>
+void expect_every_target_gives_the_same_contact_forces() {
+  std::vector<double> first;
+  test::for_each_target([&](std::int64_t) {
+    const std::vector<double> got = contact_forces_over_steps<Real>();
+    if (first.empty()) {
+      first = got;
+      ASSERT_GT(first.size(), 1000u);  // many contacts, not a vacuous comparison
+      return;
+    }
+    ASSERT_EQ(got.size(), first.size());
+    for (std::size_t k = 0; k < got.size(); ++k)  // bits, so −0 and NaN count too
+      ASSERT_EQ(std::memcmp(&got[k], &first[k], sizeof(double)), 0) << "value " << k << ": " << got[k] << " vs "
+                                                                     << first[k];
+  });
+}
+
+TEST(Contacts, EveryInstructionSetGivesTheSameForcesBitForBit) {
+  expect_every_target_gives_the_same_contact_forces<double>();
+}
+TEST(Contacts, EveryInstructionSetGivesTheSameForcesBitForBitInFloat) {
+  expect_every_target_gives_the_same_contact_forces<float>();
 }
 
 TEST(Contacts, GatherAddsSourcesInOrderWithinTheRange) {

@@ -19,29 +19,13 @@
 #include <vector>
 
 #include "bounds.h"
+#include "each_target.h"
 #include "simd/kernels.h"
 
 namespace drape {
 namespace {
 
-using detail::simd::supported_targets;
-using detail::simd::use_target;
-
-// Runs body once per instruction set, with the kernels dispatched to it; the widest
-// is back in use afterwards, whatever body did.
-template <class Body>
-void for_each_target(Body body) {
-  const std::vector<std::int64_t> targets = supported_targets();
-  ASSERT_FALSE(targets.empty());
-  struct Restore {
-    ~Restore() { use_target(0); }
-  } restore;
-  for (std::int64_t t : targets) {
-    use_target(t);
-    SCOPED_TRACE(detail::simd::target_name());
-    body(t);
-  }
-}
+using test::for_each_target;
 
 TEST(Simd, EveryTargetTheCpuSupportsIsRunAndNamed) {
   const std::string widest = detail::simd::target_name();
