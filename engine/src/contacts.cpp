@@ -60,9 +60,12 @@ V3<Real> sub(V3<Real> a, V3<Real> b) { return {a.x - b.x, a.y - b.y, a.z - b.z};
 template <class Real>
 Real dot(V3<Real> a, V3<Real> b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
 
-// max(a, 0) without a comparison, so a loop of it vectorises even where GCC will not turn
-// a floating-point comparison into a select (AVX2 with -ftrapping-math): exact, as a + |a|
-// is 2a or 0 and halving is exact, and a NaN stays a NaN.
+// positive_part of each lane (a function, not a lambda: clang gives a lambda in target code
+// no target of its own).
+template <class V>
+HWY_INLINE V positive_lanes(V a, V half) {
+  return hn::Mul(hn::Add(a, hn::Abs(a)), half);
+}
 
 // gap2[t] = squared distance from x to box t, for t < count, a vector of boxes at a time in
 // d's lanes and the tail one box at a time by the same operations, so every box gets the
@@ -74,13 +77,15 @@ HWY_INLINE void box_gaps(D d, V3<Real> x, const Real* const lo[3], const Real* c
                          Real* HWY_RESTRICT gap2) {
   const std::uint32_t N = static_cast<std::uint32_t>(hn::Lanes(d));
   const auto half = hn::Set(d, Real(0.5));
-  const auto part = [&](auto a) { return hn::Mul(hn::Add(a, hn::Abs(a)), half); };
   const auto px = hn::Set(d, x.x), py = hn::Set(d, x.y), pz = hn::Set(d, x.z);
   std::uint32_t t = 0;
   for (; t + N <= count; t += N) {
-    const auto ex = hn::Add(part(hn::Sub(hn::LoadU(d, lo[0] + t), px)), part(hn::Sub(px, hn::LoadU(d, hi[0] + t))));
-    const auto ey = hn::Add(part(hn::Sub(hn::LoadU(d, lo[1] + t), py)), part(hn::Sub(py, hn::LoadU(d, hi[1] + t))));
-    const auto ez = hn::Add(part(hn::Sub(hn::LoadU(d, lo[2] + t), pz)), part(hn::Sub(pz, hn::LoadU(d, hi[2] + t))));
+    const auto ex = hn::Add(positive_lanes(hn::Sub(hn::LoadU(d, lo[0] + t), px), half),
+                            positive_lanes(hn::Sub(px, hn::LoadU(d, hi[0] + t)), half));
+    const auto ey = hn::Add(positive_lanes(hn::Sub(hn::LoadU(d, lo[1] + t), py), half),
+                            positive_lanes(hn::Sub(py, hn::LoadU(d, hi[1] + t)), half));
+    const auto ez = hn::Add(positive_lanes(hn::Sub(hn::LoadU(d, lo[2] + t), pz), half),
+                            positive_lanes(hn::Sub(pz, hn::LoadU(d, hi[2] + t)), half));
     hn::StoreU(hn::Add(hn::Add(hn::Mul(ex, ex), hn::Mul(ey, ey)), hn::Mul(ez, ez)), d, gap2 + t);
   }
   for (; t < count; ++t) {
