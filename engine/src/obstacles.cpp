@@ -250,9 +250,12 @@ void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near,
       if (!(lowest < scale.reach)) continue;  // the whole chunk is beyond reach
 #pragma omp simd
       for (std::uint32_t k = 0; k < count; ++k) c.s[k] = scale(c.f[k]);
-      // the force on point j0 + k, written back into f (and projected first, for eq (9))
-      auto apply = [&](std::uint32_t k, std::uint32_t l, std::uint32_t r) DRAPE_POINT_INLINE {
-        const std::size_t p = p0 + k, j = j0 + k;
+      // The force on point j0 + k, written back into f (and projected first, for eq (9)); its
+      // neighbours along the row are l and r. Every index is 64-bit and affine in k: a 32-bit
+      // j0 + k may wrap as far as the compiler knows, and it reads the neighbours with
+      // gathers instead of plain vector loads.
+      auto apply = [&](std::uint32_t k, std::size_t l, std::size_t r) DRAPE_POINT_INLINE {
+        const std::size_t p = p0 + k, j = std::size_t(j0) + k;
         double F[3] = {c.s[k] * c.gx[k], c.s[k] * c.gy[k], c.s[k] * c.gz[k]};
         if constexpr (project)
           project_on_normal(double(x.x[row + r]) - x.x[row + l], double(x.y[row + r]) - x.y[row + l],
@@ -279,7 +282,7 @@ void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near,
       const std::uint32_t first = j0 == 0 ? 1 : 0, last = j0 + count > n ? count - 1 : count;
       if (first > 0) apply(0, 0, std::min(1u, n));
 #pragma omp simd
-      for (std::uint32_t k = first; k < last; ++k) apply(k, j0 + k - 1, j0 + k + 1);
+      for (std::uint32_t k = first; k < last; ++k) apply(k, std::size_t(j0) + k - 1, std::size_t(j0) + k + 1);
       if (last < count && (first == 0 || count > 1)) apply(count - 1, n > 0 ? n - 1 : 0, n);
     }
   }
