@@ -102,7 +102,8 @@ TEST(Simd, SpringKernelOfEveryTargetGivesEquationSixInFloat) { expect_springs_ma
 
 // The bounds pass (bounds.h, include_points) on every target, against the smallest and
 // largest value found by a plain search: equal, as min and max round nothing. Lengths from
-// 1 to 40 cover runs shorter than a vector, whole vectors and every remainder; a NaN first
+// 1 to 40 cover runs shorter than a vector, whole vectors and every remainder; the longer
+// ones reach the four running vectors of 16 floats and what follows them; a NaN first
 // coordinate gives a NaN box, a NaN later one is skipped.
 template <class Real>
 void expect_bounds_are_the_smallest_and_largest() {
@@ -110,12 +111,17 @@ void expect_bounds_are_the_smallest_and_largest() {
   std::uniform_real_distribution<double> u(-5.0, 5.0);
   const Real nan = std::numeric_limits<Real>::quiet_NaN();
   for_each_target([&](std::int64_t) {
-    for (std::size_t count = 1; count <= 40; ++count)
-      for (int nan_at : {-1, 0, int(count) - 1, int(count) / 2}) {
+    std::vector<std::size_t> counts;
+    for (std::size_t count = 1; count <= 40; ++count) counts.push_back(count);
+    for (std::size_t count : {63, 64, 65, 79, 80, 127, 128, 129, 150}) counts.push_back(count);
+    for (std::size_t count : counts)
+      for (int nan_at : {-1, 0, int(count) - 1, int(count) / 2, int(count) - 17}) {
         std::vector<Real> a[3];
         for (int c = 0; c < 3; ++c)
           for (std::size_t i = 0; i < count; ++i) a[c].push_back(Real(u(rng)));
         if (nan_at >= 0) a[1][std::size_t(nan_at)] = nan;
+        // the extremes anywhere, not only where a uniform draw puts them
+        a[2][std::size_t(nan_at >= 0 ? nan_at : 0)] = Real(-7);
         detail::Aabb box = detail::empty_box();
         detail::include_points(box, a[0].data(), a[1].data(), a[2].data(), count);
         for (int c = 0; c < 3; ++c) {

@@ -157,20 +157,21 @@ struct Chunk {
   alignas(64) double s[chunk_points];
 };
 
-// f and ∇f per shape, local → world as in sample(); the plane's is one dot product.
+// A plane's ∇f is its unit normal everywhere: the chunk holds only f, and the loops below
+// read the normal from the obstacle.
+template <LocalFn fn>
+inline constexpr bool constant_gradient = fn == &plane_f;
+
+// f and ∇f per shape, local → world as in sample(); the plane's f is one dot product.
 template <LocalFn fn, class Real>
 inline void implicit_chunk(const Obstacle& o, const Real* x, const Real* y, const Real* z, std::uint32_t count,
                            Chunk& c) {
-  if constexpr (fn == &plane_f) {
+  if constexpr (constant_gradient<fn>) {
     const double nx = o.rot[0][2], ny = o.rot[1][2], nz = o.rot[2][2];
     const double cx = o.center[0], cy = o.center[1], cz = o.center[2];
 #pragma omp simd
-    for (std::uint32_t k = 0; k < count; ++k) {
+    for (std::uint32_t k = 0; k < count; ++k)
       c.f[k] = nx * (double(x[k]) - cx) + ny * (double(y[k]) - cy) + nz * (double(z[k]) - cz);
-      c.gx[k] = nx;
-      c.gy[k] = ny;
-      c.gz[k] = nz;
-    }
   } else {
     for (std::uint32_t k = 0; k < count; ++k) {
       const double p[3] = {double(x[k]), double(y[k]), double(z[k])};
@@ -236,6 +237,7 @@ void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near,
   const std::uint32_t m = t.m, n = t.n, cols = t.cols();
   const ForceScale scale = force_scale_of(o.def, near.exponent_cap);
   const Rub friction{near.friction, near.dt, {near.gravity[0], near.gravity[1], near.gravity[2]}};
+  const double normal[3] = {o.rot[0][2], o.rot[1][2], o.rot[2][2]};  // ∇f where constant_gradient
   Chunk c;
   for (std::uint32_t i = 0; i <= m; ++i) {
     const std::size_t row = std::size_t(i) * cols;
@@ -250,17 +252,21 @@ void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near,
       if (!(lowest < scale.reach)) continue;  // the whole chunk is beyond reach
 #pragma omp simd
       for (std::uint32_t k = 0; k < count; ++k) c.s[k] = scale(c.f[k]);
-      // the force on point j0 + k, written back into f (and projected first, for eq (9))
-      auto apply = [&](std::uint32_t k, std::uint32_t l, std::uint32_t r) DRAPE_POINT_INLINE {
-        const std::size_t p = p0 + k, j = j0 + k;
-        double F[3] = {c.s[k] * c.gx[k], c.s[k] * c.gy[k], c.s[k] * c.gz[k]};
+      // The force on point j0 + k, written back into f (and projected first, for eq (9)); its
+      // neighbours along the row are l and r. Every index is 64-bit and affine in k: a 32-bit
+      // j0 + k may wrap as far as the compiler knows, and it reads the neighbours with
+      // gathers instead of plain vector loads.
+      auto apply = [&](std::uint32_t k, std::size_t l, std::size_t r) DRAPE_POINT_INLINE {
+        const std::size_t p = p0 + k, j = std::size_t(j0) + k;
+        const double g[3] = {constant_gradient<fn> ? normal[0] : c.gx[k], constant_gradient<fn> ? normal[1] : c.gy[k],
+                             constant_gradient<fn> ? normal[2] : c.gz[k]};
+        double F[3] = {c.s[k] * g[0], c.s[k] * g[1], c.s[k] * g[2]};
         if constexpr (project)
           project_on_normal(double(x.x[row + r]) - x.x[row + l], double(x.y[row + r]) - x.y[row + l],
                             double(x.z[row + r]) - x.z[row + l], double(x.x[up + j]) - x.x[down + j],
                             double(x.y[up + j]) - x.y[down + j], double(x.z[up + j]) - x.z[down + j], F[0], F[1],
                             F[2]);
         if constexpr (rub) {
-          const double g[3] = {c.gx[k], c.gy[k], c.gz[k]};
           const double total[3] = {f.x[p] + F[0], f.y[p] + F[1], f.z[p] + F[2]};
           // the slip relative to the obstacle's surface here: v − (linear + angular × (x − center))
           const double* w = near.angular;
@@ -279,7 +285,7 @@ void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near,
       const std::uint32_t first = j0 == 0 ? 1 : 0, last = j0 + count > n ? count - 1 : count;
       if (first > 0) apply(0, 0, std::min(1u, n));
 #pragma omp simd
-      for (std::uint32_t k = first; k < last; ++k) apply(k, j0 + k - 1, j0 + k + 1);
+      for (std::uint32_t k = first; k < last; ++k) apply(k, std::size_t(j0) + k - 1, std::size_t(j0) + k + 1);
       if (last < count && (first == 0 || count > 1)) apply(count - 1, n > 0 ? n - 1 : 0, n);
     }
   }
