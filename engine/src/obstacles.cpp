@@ -2,11 +2,15 @@
 // with analytic gradients, and the repulsion c·exp(−f/ξ) around them.
 //
 // Highway's foreach_target compiles the eq (9) term once per instruction set
-// (simd/targets.h), like the row sweep (forces.cpp): its omp simd loops vectorise for each,
-// and obstacle_forces dispatches to the widest the CPU has once per sheet and obstacle.
-// Contraction into FMA is off here (engine/CMakeLists.txt), so every target gives the same
-// bits. The rest (validation, placement, energies) is compiled once and uses the build's
-// own target's copy of the shapes.
+// (simd/targets.h), like the row sweep (forces.cpp), and obstacle_forces dispatches to the
+// widest the CPU has once per sheet and obstacle. The term is written in Highway vectors of
+// doubles (a float sheet's values promoted on load, rounded back on store): the shapes' f and
+// ∇f with masks for their degenerate points, the force scale through a polynomial exp, the
+// projection on the sheet normal and friction, each lane doing the scalar formula's
+// operations in its order. Contraction into FMA is off here (engine/CMakeLists.txt) and no
+// op fuses, so every target, and a one-lane vector, gives the same bits. The rest
+// (validation, placement, energies) is compiled once and runs the build's own target's
+// copy of the same shapes and force scale one lane at a time.
 #include "simd/targets.h"
 
 #undef HWY_TARGET_INCLUDE
@@ -15,9 +19,9 @@
 #include <hwy/highway.h>
 
 #include "obstacles.h"
+#include "simd/kernels-inl.h"
 
 #include <algorithm>
-#include <bit>
 #include <cstdint>
 #include <cmath>
 #include <limits>
@@ -28,116 +32,180 @@ HWY_BEFORE_NAMESPACE();
 namespace drape::detail {
 namespace HWY_NAMESPACE {
 
-// Local implicit functions: f and ∇f of a point p in the obstacle's own frame. Where the
-// gradient has no direction (a sphere's centre, a torus's axis or core circle) a fixed unit
-// direction is used, so a point there is still pushed out and never gets 0/0.
-struct Local {
-  double f;
-  double g[3];
+namespace hn = hwy::HWY_NAMESPACE;
+namespace lanes = simd::HWY_NAMESPACE;  // over_lanes, Whole, FirstLanes, first_min, first_max
+
+// Local implicit functions: f and ∇f at points p of the obstacle's own frame, a vector of
+// them at a time. Where the gradient has no direction (a sphere's centre, a torus's axis or
+// core circle) a fixed unit direction is used, so a point there is still pushed out and
+// never gets 0/0: such a lane's 0/0 is computed and dropped by its mask.
+struct PlaneF {
+  static constexpr bool constant_gradient = true;  // ∇f is the plane's unit normal everywhere
+  template <class D, class V>
+  static HWY_INLINE void at(D d, V, V, V z, const Vec3&, V& f, V& gx, V& gy, V& gz) {
+    f = z;
+    gx = hn::Zero(d);
+    gy = hn::Zero(d);
+    gz = hn::Set(d, 1.0);
+  }
 };
 
-Local plane_f(const double p[3], const Vec3&) { return {p[2], {0, 0, 1}}; }
-
-Local sphere_f(const double p[3], const Vec3& s) {
-  const double r = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
-  if (r == 0) return {-s.x, {0, 0, 1}};
-  return {r - s.x, {p[0] / r, p[1] / r, p[2] / r}};
-}
+struct SphereF {
+  static constexpr bool constant_gradient = false;
+  template <class D, class V>
+  static HWY_INLINE void at(D d, V x, V y, V z, const Vec3& s, V& f, V& gx, V& gy, V& gz) {
+    const V r = hn::Sqrt(hn::Add(hn::Add(hn::Mul(x, x), hn::Mul(y, y)), hn::Mul(z, z)));
+    const auto centre = hn::Eq(r, hn::Zero(d));
+    f = hn::IfThenElse(centre, hn::Set(d, -s.x), hn::Sub(r, hn::Set(d, s.x)));
+    gx = hn::IfThenElse(centre, hn::Zero(d), hn::Div(x, r));
+    gy = hn::IfThenElse(centre, hn::Zero(d), hn::Div(y, r));
+    gz = hn::IfThenElse(centre, hn::Set(d, 1.0), hn::Div(z, r));
+  }
+};
 
 // Not the exact distance (which has no closed form): k·(q − 1), q the point's radius in the
 // unit-sphere coordinates (x/a, y/b, z/c), scaled by k = the smallest semi-axis so f is
 // measured in metres, matches the distance on the smallest axis and never exceeds it
 // elsewhere, and ξ keeps its meaning as a length.
-Local ellipsoid_f(const double p[3], const Vec3& s) {
-  const double k = std::min({s.x, s.y, s.z});
-  const double ux = p[0] / s.x, uy = p[1] / s.y, uz = p[2] / s.z;
-  const double q = std::sqrt(ux * ux + uy * uy + uz * uz);
-  if (q == 0) return {-k, {0, 0, 1}};
-  return {k * (q - 1), {k * ux / (s.x * q), k * uy / (s.y * q), k * uz / (s.z * q)}};
-}
+struct EllipsoidF {
+  static constexpr bool constant_gradient = false;
+  template <class D, class V>
+  static HWY_INLINE void at(D d, V x, V y, V z, const Vec3& s, V& f, V& gx, V& gy, V& gz) {
+    const V k = hn::Set(d, std::min({s.x, s.y, s.z}));
+    const V ax = hn::Set(d, s.x), ay = hn::Set(d, s.y), az = hn::Set(d, s.z);
+    const V ux = hn::Div(x, ax), uy = hn::Div(y, ay), uz = hn::Div(z, az);
+    const V q = hn::Sqrt(hn::Add(hn::Add(hn::Mul(ux, ux), hn::Mul(uy, uy)), hn::Mul(uz, uz)));
+    const auto centre = hn::Eq(q, hn::Zero(d));
+    f = hn::IfThenElse(centre, hn::Neg(k), hn::Mul(k, hn::Sub(q, hn::Set(d, 1.0))));
+    gx = hn::IfThenElse(centre, hn::Zero(d), hn::Div(hn::Mul(k, ux), hn::Mul(ax, q)));
+    gy = hn::IfThenElse(centre, hn::Zero(d), hn::Div(hn::Mul(k, uy), hn::Mul(ay, q)));
+    gz = hn::IfThenElse(centre, hn::Set(d, 1.0), hn::Div(hn::Mul(k, uz), hn::Mul(az, q)));
+  }
+};
 
 // Exact signed distance to a torus around local z: major radius R = s.x, minor r = s.y.
-Local torus_f(const double p[3], const Vec3& s) {
-  const double rho = std::sqrt(p[0] * p[0] + p[1] * p[1]);
-  const double cx = rho > 0 ? p[0] / rho : 1.0, cy = rho > 0 ? p[1] / rho : 0.0;
-  const double d = rho - s.x;
-  const double len = std::sqrt(d * d + p[2] * p[2]);
-  if (len == 0) return {-s.y, {0, 0, 1}};
-  return {len - s.y, {d / len * cx, d / len * cy, p[2] / len}};
+struct TorusF {
+  static constexpr bool constant_gradient = false;
+  template <class D, class V>
+  static HWY_INLINE void at(D d, V x, V y, V z, const Vec3& s, V& f, V& gx, V& gy, V& gz) {
+    const V rho = hn::Sqrt(hn::Add(hn::Mul(x, x), hn::Mul(y, y)));
+    const auto off_axis = hn::Gt(rho, hn::Zero(d));
+    const V cx = hn::IfThenElse(off_axis, hn::Div(x, rho), hn::Set(d, 1.0));
+    const V cy = hn::IfThenElseZero(off_axis, hn::Div(y, rho));
+    const V dr = hn::Sub(rho, hn::Set(d, s.x));
+    const V len = hn::Sqrt(hn::Add(hn::Mul(dr, dr), hn::Mul(z, z)));
+    const auto core = hn::Eq(len, hn::Zero(d));
+    const V along = hn::Div(dr, len);
+    f = hn::IfThenElse(core, hn::Set(d, -s.y), hn::Sub(len, hn::Set(d, s.y)));
+    gx = hn::IfThenElse(core, hn::Zero(d), hn::Mul(along, cx));
+    gy = hn::IfThenElse(core, hn::Zero(d), hn::Mul(along, cy));
+    gz = hn::IfThenElse(core, hn::Set(d, 1.0), hn::Div(z, len));
+  }
+};
+
+// −1 where v < 0, else 1 (a function, not a lambda: clang gives a lambda in target code no
+// target of its own).
+template <class D, class V>
+HWY_INLINE V sign_of(D d, V v) {
+  return hn::IfThenElse(hn::Lt(v, hn::Zero(d)), hn::Set(d, -1.0), hn::Set(d, 1.0));
 }
 
 // Exact signed distance to a box of half extents s. Outside it is continuously
-// differentiable; inside, the gradient points to the nearest face and jumps across the
-// planes where two faces are equally near (documented choice: the force there still
-// pushes out through a nearest face).
-Local box_f(const double p[3], const Vec3& s) {
-  const double h[3] = {s.x, s.y, s.z};
-  double q[3], out2 = 0;
-  for (int k = 0; k < 3; ++k) {
-    q[k] = std::abs(p[k]) - h[k];
-    out2 += q[k] > 0 ? q[k] * q[k] : 0.0;
+// differentiable; inside, the gradient points to the nearest face (the first of x, y, z
+// among equally near ones) and jumps across the planes where two faces are equally near
+// (documented choice: the force there still pushes out through a nearest face).
+struct BoxF {
+  static constexpr bool constant_gradient = false;
+  template <class D, class V>
+  static HWY_INLINE void at(D d, V x, V y, V z, const Vec3& s, V& f, V& gx, V& gy, V& gz) {
+    const V qx = hn::Sub(hn::Abs(x), hn::Set(d, s.x)), qy = hn::Sub(hn::Abs(y), hn::Set(d, s.y)),
+            qz = hn::Sub(hn::Abs(z), hn::Set(d, s.z));
+    const auto px = hn::Gt(qx, hn::Zero(d)), py = hn::Gt(qy, hn::Zero(d)), pz = hn::Gt(qz, hn::Zero(d));
+    // each part is +0 or positive, so the sum is the one from 0 in x, y, z order
+    const V out2 = hn::Add(hn::Add(hn::IfThenElseZero(px, hn::Mul(qx, qx)), hn::IfThenElseZero(py, hn::Mul(qy, qy))),
+                           hn::IfThenElseZero(pz, hn::Mul(qz, qz)));
+    const auto outside = hn::Gt(out2, hn::Zero(d));
+    const V out = hn::Sqrt(out2);
+    const V sx = sign_of(d, x), sy = sign_of(d, y), sz = sign_of(d, z);
+    const auto xy = hn::Ge(qx, qy), xz = hn::Ge(qx, qz), yz = hn::Ge(qy, qz);
+    const auto face_x = hn::And(xy, xz), face_y = hn::AndNot(xy, yz), face_z = hn::Not(hn::Or(face_x, face_y));
+    f = hn::IfThenElse(outside, out, hn::IfThenElse(face_x, qx, hn::IfThenElse(face_y, qy, qz)));
+    gx = hn::IfThenElse(outside, hn::IfThenElseZero(px, hn::Div(hn::Mul(sx, qx), out)), hn::IfThenElseZero(face_x, sx));
+    gy = hn::IfThenElse(outside, hn::IfThenElseZero(py, hn::Div(hn::Mul(sy, qy), out)), hn::IfThenElseZero(face_y, sy));
+    gz = hn::IfThenElse(outside, hn::IfThenElseZero(pz, hn::Div(hn::Mul(sz, qz), out)), hn::IfThenElseZero(face_z, sz));
   }
-  auto sgn = [](double v) { return v < 0 ? -1.0 : 1.0; };
-  if (out2 > 0) {
-    const double out = std::sqrt(out2);
-    Local r{out, {}};
-    for (int k = 0; k < 3; ++k) r.g[k] = q[k] > 0 ? sgn(p[k]) * q[k] / out : 0.0;
-    return r;
-  }
-  const int a = q[0] >= q[1] ? (q[0] >= q[2] ? 0 : 2) : (q[1] >= q[2] ? 1 : 2);
-  Local r{q[a], {0, 0, 0}};
-  r.g[a] = sgn(p[a]);
-  return r;
+};
+
+// Local coordinate l of world points p (d = p − center): the obstacle's axis l dotted with d.
+// For a plane, l = 2 is f.
+template <class D, class V>
+HWY_INLINE V local_axis(D d, const Obstacle& o, int l, V dx, V dy, V dz) {
+  return hn::Add(hn::Add(hn::Mul(hn::Set(d, o.rot[0][l]), dx), hn::Mul(hn::Set(d, o.rot[1][l]), dy)),
+                 hn::Mul(hn::Set(d, o.rot[2][l]), dz));
 }
 
-using LocalFn = Local (*)(const double[3], const Vec3&);
-
-template <LocalFn fn>
-inline ImplicitSample sample(const Obstacle& o, const double p[3]) {
-  const double d[3] = {p[0] - o.center[0], p[1] - o.center[1], p[2] - o.center[2]};
-  double local[3];
-  for (int l = 0; l < 3; ++l) local[l] = o.rot[0][l] * d[0] + o.rot[1][l] * d[1] + o.rot[2][l] * d[2];
-  const Local r = fn(local, o.def.size);
-  ImplicitSample s;
-  s.f = r.f;
-  for (int k = 0; k < 3; ++k) s.grad[k] = o.rot[k][0] * r.g[0] + o.rot[k][1] * r.g[1] + o.rot[k][2] * r.g[2];
-  return s;
+// f and ∇f at world points: to the obstacle's frame, the shape, ∇f back to the world's.
+template <class Shape, class D, class V>
+HWY_INLINE void sample_lanes(D d, const Obstacle& o, V px, V py, V pz, V& f, V& gx, V& gy, V& gz) {
+  const V dx = hn::Sub(px, hn::Set(d, o.center[0])), dy = hn::Sub(py, hn::Set(d, o.center[1])),
+          dz = hn::Sub(pz, hn::Set(d, o.center[2]));
+  V lx, ly, lz;
+  Shape::at(d, local_axis(d, o, 0, dx, dy, dz), local_axis(d, o, 1, dx, dy, dz), local_axis(d, o, 2, dx, dy, dz),
+            o.def.size, f, lx, ly, lz);
+  const auto world = [&](int k) HWY_ATTR {
+    return hn::Add(hn::Add(hn::Mul(hn::Set(d, o.rot[k][0]), lx), hn::Mul(hn::Set(d, o.rot[k][1]), ly)),
+                   hn::Mul(hn::Set(d, o.rot[k][2]), lz));
+  };
+  gx = world(0);
+  gy = world(1);
+  gz = world(2);
 }
 
-// e^x for x ≥ −700 without a call or a branch, so a loop over points vectorises (std::exp
-// does not: GCC has no vector exp without -ffast-math). x = k·ln2 + r with |r| ≤ ln2/2, e^r by
+// One point through the same code, for what runs once (implicit_at, may_touch).
+template <class Shape>
+ImplicitSample sample(const Obstacle& o, const double p[3]) {
+  const hn::CappedTag<double, 1> d;
+  hn::Vec<decltype(d)> f, gx, gy, gz;
+  sample_lanes<Shape>(d, o, hn::Set(d, p[0]), hn::Set(d, p[1]), hn::Set(d, p[2]), f, gx, gy, gz);
+  return {hn::GetLane(f), {hn::GetLane(gx), hn::GetLane(gy), hn::GetLane(gz)}};
+}
+
+// e^x for x ≥ −700 without a call or a branch, lane by lane (Highway has no exp of its own
+// in this version, and std::exp has no vector form): x = k·ln2 + r with |r| ≤ ln2/2, e^r by
 // its Taylor series to r^13 (truncation below 2e-16 relative), 2^k put into the exponent bits.
-inline double exp_lanes(double x) {
-  x = x < -700.0 ? -700.0 : x;
-  constexpr double shifter = 0x1.8p52;  // adding it rounds to an integer held in the low bits
-  const double shifted = x * 0x1.71547652b82fep0 + shifter;
-  const std::uint64_t k = std::bit_cast<std::uint64_t>(shifted);
-  const double kd = shifted - shifter;
-  const double r = (x - kd * 0x1.62e42fefa3800p-1) - kd * 0x1.ef35793c7673p-45;  // ln2 in two parts
-  double p = 1.0 / 6227020800.0;
-  p = p * r + 1.0 / 479001600.0;
-  p = p * r + 1.0 / 39916800.0;
-  p = p * r + 1.0 / 3628800.0;
-  p = p * r + 1.0 / 362880.0;
-  p = p * r + 1.0 / 40320.0;
-  p = p * r + 1.0 / 5040.0;
-  p = p * r + 1.0 / 720.0;
-  p = p * r + 1.0 / 120.0;
-  p = p * r + 1.0 / 24.0;
-  p = p * r + 1.0 / 6.0;
-  p = p * r + 0.5;
-  p = p * r + 1.0;
-  p = p * r + 1.0;
-  return std::bit_cast<double>(std::bit_cast<std::uint64_t>(p) + (k << 52));
+template <class D, class V>
+HWY_INLINE V exp_lanes(D d, V x) {
+  const hn::RebindToUnsigned<D> du;
+  const V low = hn::Set(d, -700.0);
+  x = hn::IfThenElse(hn::Lt(x, low), low, x);
+  const V shifter = hn::Set(d, 0x1.8p52);  // adding it rounds to an integer held in the low bits
+  const V shifted = hn::Add(hn::Mul(x, hn::Set(d, 0x1.71547652b82fep0)), shifter);
+  const auto k = hn::BitCast(du, shifted);
+  const V kd = hn::Sub(shifted, shifter);
+  const V r = hn::Sub(hn::Sub(x, hn::Mul(kd, hn::Set(d, 0x1.62e42fefa3800p-1))),
+                      hn::Mul(kd, hn::Set(d, 0x1.ef35793c7673p-45)));  // ln2 in two parts
+  constexpr double taylor[] = {1.0 / 479001600.0, 1.0 / 39916800.0, 1.0 / 3628800.0, 1.0 / 362880.0,
+                               1.0 / 40320.0,     1.0 / 5040.0,     1.0 / 720.0,     1.0 / 120.0,
+                               1.0 / 24.0,        1.0 / 6.0,        0.5,             1.0,
+                               1.0};
+  V p = hn::Set(d, 1.0 / 6227020800.0);
+  for (double a : taylor) p = hn::Add(hn::Mul(p, r), hn::Set(d, a));
+  return hn::BitCast(d, hn::Add(hn::BitCast(du, p), hn::ShiftLeft<52>(k)));
 }
 
-// The cut-off, shifted eq (9) for whole vectors of points: −dE/df, zero at and beyond the reach.
+// The cut-off, shifted eq (9): −dE/df, zero at and beyond the reach.
 struct ForceScale {
   double c_over_xi, inv_xi, cap, tail, reach;  // tail = e^−reach_exponent
+  template <class D, class V>
+  HWY_INLINE V operator()(D d, V f) const {
+    const V e = lanes::first_min(hn::Mul(hn::Neg(f), hn::Set(d, inv_xi)), hn::Set(d, cap));
+    // ≥ 0 even for a cap below −reach
+    const V s = hn::Mul(hn::Set(d, c_over_xi), lanes::first_max(hn::Sub(exp_lanes(d, e), hn::Set(d, tail)), hn::Zero(d)));
+    return hn::IfThenElseZero(hn::Lt(f, hn::Set(d, reach)), s);
+  }
   double operator()(double f) const {
-    const double e = std::min(-f * inv_xi, cap);
-    const double s = c_over_xi * std::max(exp_lanes(e) - tail, 0.0);  // ≥ 0 even for a cap below −reach
-    return f < reach ? s : 0.0;
+    const hn::CappedTag<double, 1> d;
+    return hn::GetLane((*this)(d, hn::Set(d, f)));
   }
 };
 
@@ -145,148 +213,221 @@ ForceScale force_scale_of(const ObstacleDef& d, double cap) {
   return {d.c / d.xi, 1.0 / d.xi, cap, std::exp(-reach_exponent), reach_exponent * d.xi};
 }
 
-// Points go through in chunks of a row: first f and ∇f of every point (plain loops), then,
-// only if some point of the chunk is within reach, the force scale of every point (exp_lanes,
-// zero beyond reach), then the force along the sheet's normal. Every loop runs the same
-// arithmetic on every point, so they vectorise; a chunk wholly beyond reach costs only f.
-constexpr std::uint32_t chunk_points = 64;
-
-struct Chunk {
-  alignas(64) double f[chunk_points];
-  alignas(64) double gx[chunk_points], gy[chunk_points], gz[chunk_points];
-  alignas(64) double s[chunk_points];
-};
-
-// A plane's ∇f is its unit normal everywhere: the chunk holds only f, and the loops below
-// read the normal from the obstacle.
-template <LocalFn fn>
-inline constexpr bool constant_gradient = fn == &plane_f;
-
-// f and ∇f per shape, local → world as in sample(); the plane's f is one dot product.
-template <LocalFn fn, class Real>
-inline void implicit_chunk(const Obstacle& o, const Real* x, const Real* y, const Real* z, std::uint32_t count,
-                           Chunk& c) {
-  if constexpr (constant_gradient<fn>) {
-    const double nx = o.rot[0][2], ny = o.rot[1][2], nz = o.rot[2][2];
-    const double cx = o.center[0], cy = o.center[1], cz = o.center[2];
-#pragma omp simd
-    for (std::uint32_t k = 0; k < count; ++k)
-      c.f[k] = nx * (double(x[k]) - cx) + ny * (double(y[k]) - cy) + nz * (double(z[k]) - cz);
+// Loads and stores of a sheet's Real through lanes l of doubles: a float sheet's lanes are
+// promoted on the way in and rounded back (as static_cast<float>) on the way out.
+template <class D>
+HWY_INLINE auto floats_of(lanes::Whole<D>) {
+  return lanes::Whole<hn::Rebind<float, D>>{};
+}
+template <class D>
+HWY_INLINE auto floats_of(lanes::FirstLanes<D> l) {
+  const hn::Rebind<float, D> df;
+  return lanes::FirstLanes<hn::Rebind<float, D>>{df, hn::FirstN(df, hn::CountTrue(l.d, l.mask))};
+}
+template <class Real, class Lanes>
+HWY_INLINE auto load_real(Lanes l, const Real* p) {
+  if constexpr (std::is_same_v<Real, double>)
+    return l.load(p);
+  else
+    return floats_of(l).load(p);
+}
+template <class Lanes, class V>
+HWY_INLINE auto widen(Lanes l, V v) {
+  if constexpr (std::is_same_v<hn::TFromV<V>, double>)
+    return v;
+  else
+    return hn::PromoteTo(l.d, v);
+}
+template <class Real, class Lanes>
+HWY_INLINE auto load_wide(Lanes l, const Real* p) {
+  return widen(l, load_real(l, p));
+}
+// f[p] += F as the sheet's Real: a float sheet adds F rounded to float.
+template <class Lanes, class VR, class V, class Real>
+HWY_INLINE void store_sum(Lanes l, VR before, V add, Real* p) {
+  if constexpr (std::is_same_v<Real, double>) {
+    l.store(hn::Add(before, add), p);
   } else {
-    for (std::uint32_t k = 0; k < count; ++k) {
-      const double p[3] = {double(x[k]), double(y[k]), double(z[k])};
-      const ImplicitSample s = sample<fn>(o, p);
-      c.f[k] = s.f;
-      c.gx[k] = s.grad[0];
-      c.gy[k] = s.grad[1];
-      c.gz[k] = s.grad[2];
-    }
+    const auto lf = floats_of(l);
+    lf.store(hn::Add(before, hn::DemoteTo(lf.d, add)), p);
   }
 }
-
-// The per-point pieces of the loops below (the projection, friction, the point's force)
-// must inline into their `#pragma omp simd` loops: a call left in one makes the loop scalar
-// with a call per point. GCC's inliner gave up on them once the moving-obstacle slip made
-// the friction point's body bigger (19b3f0b: friction went from +40-60 % to +600-1000 % of a
-// frictionless floor, BM_Feature_obstacle_friction), so they are forced.
-#define DRAPE_POINT_INLINE __attribute__((always_inline))
+// Lanes where m holds and that l covers (a part vector's masked lanes load zeros).
+template <class D, class M>
+HWY_INLINE M covered(lanes::Whole<D>, M m) {
+  return m;
+}
+template <class D, class M>
+HWY_INLINE M covered(lanes::FirstLanes<D> l, M m) {
+  return hn::And(m, l.mask);
+}
 
 // eq (9)'s projection on the sheet's unit normal n = a × b, a and b the differences across
 // the point along its row and its column: F·n/|n|² n. A lone point or row has no normal
 // (|n| = 0) and keeps the full gradient.
-DRAPE_POINT_INLINE inline void project_on_normal(double ax, double ay, double az, double bx, double by, double bz, double& fx, double& fy,
-                              double& fz) {
-  const double nx = ay * bz - az * by, ny = az * bx - ax * bz, nz = ax * by - ay * bx;
-  const double nn = nx * nx + ny * ny + nz * nz;
-  const double dot = (fx * nx + fy * ny + fz * nz) / (nn > 0 ? nn : 1.0);
-  fx = nn > 0 ? dot * nx : fx;
-  fy = nn > 0 ? dot * ny : fy;
-  fz = nn > 0 ? dot * nz : fz;
+template <class D, class V>
+HWY_INLINE void project_on_normal(D d, V ax, V ay, V az, V bx, V by, V bz, V& fx, V& fy, V& fz) {
+  const V nx = hn::Sub(hn::Mul(ay, bz), hn::Mul(az, by)), ny = hn::Sub(hn::Mul(az, bx), hn::Mul(ax, bz)),
+          nz = hn::Sub(hn::Mul(ax, by), hn::Mul(ay, bx));
+  const V nn = hn::Add(hn::Add(hn::Mul(nx, nx), hn::Mul(ny, ny)), hn::Mul(nz, nz));
+  const auto has = hn::Gt(nn, hn::Zero(d));
+  const V dot = hn::Div(hn::Add(hn::Add(hn::Mul(fx, nx), hn::Mul(fy, ny)), hn::Mul(fz, nz)),
+                        hn::IfThenElse(has, nn, hn::Set(d, 1.0)));
+  fx = hn::IfThenElse(has, hn::Mul(dot, nx), fx);
+  fy = hn::IfThenElse(has, hn::Mul(dot, ny), fy);
+  fz = hn::IfThenElse(has, hn::Mul(dot, nz), fz);
 }
 
-// Coulomb friction on one point (docs/scene-format.md, Friction): N the repulsion F's part
+// Coulomb friction on points (docs/scene-format.md, Friction): N the repulsion F's part
 // along g = ∇f, v* the velocity the substep would leave the point with (its total force
 // so far, F included, and gravity) relative to the obstacle's surface there (v is passed
 // in relative already), and the force against v*'s tangential part, the smaller
 // of μ·N and m·|v*_t|/dt (what stops the slip within the substep). Adds it to F.
 struct Rub {
   double mu, dt, gravity[3];
-  DRAPE_POINT_INLINE void operator()(const double g[3], double F[3], const double total[3], const double v[3],
-                                     double inv_mass) const {
-    const double g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
-    const double inv_g2 = g2 > 0 ? 1.0 / g2 : 0.0;
-    const double along = F[0] * g[0] + F[1] * g[1] + F[2] * g[2];
-    const double load = along > 0 ? along * std::sqrt(inv_g2) : 0.0;  // N
-    double w[3];
-    for (int k = 0; k < 3; ++k) w[k] = v[k] + dt * (inv_mass * total[k] + gravity[k]);
-    const double wn = (w[0] * g[0] + w[1] * g[1] + w[2] * g[2]) * inv_g2;
-    double slip[3];
-    for (int k = 0; k < 3; ++k) slip[k] = w[k] - wn * g[k];
-    const double speed = std::sqrt(slip[0] * slip[0] + slip[1] * slip[1] + slip[2] * slip[2]);
-    const double stop = inv_mass > 0 ? 1.0 / (inv_mass * dt) : std::numeric_limits<double>::infinity();
-    const double k = speed > 0 ? std::min(mu * load / (speed > 0 ? speed : 1.0), stop) : 0.0;
-    for (int c = 0; c < 3; ++c) F[c] -= k * slip[c];
+  template <class D, class V>
+  HWY_INLINE void operator()(D d, V gx, V gy, V gz, V& Fx, V& Fy, V& Fz, V tx, V ty, V tz, V vx, V vy, V vz,
+                             V inv_mass) const {
+    const V zero = hn::Zero(d), one = hn::Set(d, 1.0), step = hn::Set(d, dt);
+    const V g2 = hn::Add(hn::Add(hn::Mul(gx, gx), hn::Mul(gy, gy)), hn::Mul(gz, gz));
+    const V inv_g2 = hn::IfThenElseZero(hn::Gt(g2, zero), hn::Div(one, g2));
+    const V along = hn::Add(hn::Add(hn::Mul(Fx, gx), hn::Mul(Fy, gy)), hn::Mul(Fz, gz));
+    const V load = hn::IfThenElseZero(hn::Gt(along, zero), hn::Mul(along, hn::Sqrt(inv_g2)));  // N
+    const V wx = hn::Add(vx, hn::Mul(step, hn::Add(hn::Mul(inv_mass, tx), hn::Set(d, gravity[0]))));
+    const V wy = hn::Add(vy, hn::Mul(step, hn::Add(hn::Mul(inv_mass, ty), hn::Set(d, gravity[1]))));
+    const V wz = hn::Add(vz, hn::Mul(step, hn::Add(hn::Mul(inv_mass, tz), hn::Set(d, gravity[2]))));
+    const V wn = hn::Mul(hn::Add(hn::Add(hn::Mul(wx, gx), hn::Mul(wy, gy)), hn::Mul(wz, gz)), inv_g2);
+    const V sx = hn::Sub(wx, hn::Mul(wn, gx)), sy = hn::Sub(wy, hn::Mul(wn, gy)), sz = hn::Sub(wz, hn::Mul(wn, gz));
+    const V speed = hn::Sqrt(hn::Add(hn::Add(hn::Mul(sx, sx), hn::Mul(sy, sy)), hn::Mul(sz, sz)));
+    const V stop = hn::IfThenElse(hn::Gt(inv_mass, zero), hn::Div(one, hn::Mul(inv_mass, step)),
+                                  hn::Set(d, std::numeric_limits<double>::infinity()));
+    const auto moving = hn::Gt(speed, zero);
+    const V k = hn::IfThenElseZero(
+        moving, lanes::first_min(hn::Div(hn::Mul(hn::Set(d, mu), load), hn::IfThenElse(moving, speed, one)), stop));
+    Fx = hn::Sub(Fx, hn::Mul(k, sx));
+    Fy = hn::Sub(Fy, hn::Mul(k, sy));
+    Fz = hn::Sub(Fz, hn::Mul(k, sz));
+  }
+};
+
+// Points go through in chunks of a row: first f (and ∇f) of every point, stored, and whether
+// any is within reach; then, only if one is, the force on every point of the chunk (zero
+// beyond reach). A chunk wholly beyond reach costs only f.
+constexpr std::uint32_t chunk_points = 64;
+
+struct Chunk {
+  alignas(64) double f[chunk_points];
+  alignas(64) double gx[chunk_points], gy[chunk_points], gz[chunk_points];  // unused where ∇f is constant
+};
+
+// The eq (9) term of one obstacle on one row's chunk, lanes at a time.
+template <class Shape, bool project, bool rub, class Real>
+struct RowChunk {
+  const Obstacle& o;
+  const NearObstacle& near;
+  const ForceScale& scale;
+  const Rub& friction;
+  ConstVec3Ptr<Real> x, v;
+  const Real* inv_mass;
+  Vec3Ptr<Real> f;
+  std::size_t row, up, down;  // first points of the row and of the rows above and below it
+  std::uint32_t j0;
+  Chunk& c;
+
+  // f (and ∇f) of the chunk's points k, k + 1, ...; whether any is within reach.
+  template <class Lanes>
+  HWY_INLINE bool implicit_at(Lanes l, std::size_t k) const {
+    const auto d = l.d;
+    const std::size_t p = row + j0 + k;
+    const auto px = load_wide(l, x.x + p), py = load_wide(l, x.y + p), pz = load_wide(l, x.z + p);
+    hn::Vec<decltype(d)> fv;
+    if constexpr (Shape::constant_gradient) {
+      fv = local_axis(d, o, 2, hn::Sub(px, hn::Set(d, o.center[0])), hn::Sub(py, hn::Set(d, o.center[1])),
+                      hn::Sub(pz, hn::Set(d, o.center[2])));
+    } else {
+      hn::Vec<decltype(d)> gx, gy, gz;
+      sample_lanes<Shape>(d, o, px, py, pz, fv, gx, gy, gz);
+      l.store(gx, c.gx + k);
+      l.store(gy, c.gy + k);
+      l.store(gz, c.gz + k);
+    }
+    l.store(fv, c.f + k);
+    return !hn::AllFalse(d, covered(l, hn::Lt(fv, hn::Set(d, scale.reach))));
+  }
+
+  // The force on the chunk's points k, k + 1, ..., added to f (and projected first, for
+  // eq (9)); their neighbours along the row start at columns left and right.
+  template <class Lanes>
+  HWY_INLINE void force_at(Lanes l, std::size_t k, std::size_t left, std::size_t right) const {
+    const auto d = l.d;
+    using V = hn::Vec<decltype(d)>;
+    const std::size_t p = row + j0 + k, j = j0 + k;
+    const V gx = Shape::constant_gradient ? hn::Set(d, o.rot[0][2]) : l.load(c.gx + k);
+    const V gy = Shape::constant_gradient ? hn::Set(d, o.rot[1][2]) : l.load(c.gy + k);
+    const V gz = Shape::constant_gradient ? hn::Set(d, o.rot[2][2]) : l.load(c.gz + k);
+    const V s = scale(d, l.load(c.f + k));
+    V Fx = hn::Mul(s, gx), Fy = hn::Mul(s, gy), Fz = hn::Mul(s, gz);
+    if constexpr (project) {
+      const auto across = [&](const Real* a, std::size_t to, std::size_t from) HWY_ATTR {
+        return hn::Sub(load_wide(l, a + to), load_wide(l, a + from));
+      };
+      project_on_normal(d, across(x.x, row + right, row + left), across(x.y, row + right, row + left),
+                        across(x.z, row + right, row + left), across(x.x, up + j, down + j),
+                        across(x.y, up + j, down + j), across(x.z, up + j, down + j), Fx, Fy, Fz);
+    }
+    const auto before_x = load_real(l, f.x + p), before_y = load_real(l, f.y + p), before_z = load_real(l, f.z + p);
+    if constexpr (rub) {
+      // the slip relative to the obstacle's surface here: v − (linear + angular × (x − center))
+      const double* w = near.angular;
+      const V rx = hn::Sub(load_wide(l, x.x + p), hn::Set(d, near.center[0]));
+      const V ry = hn::Sub(load_wide(l, x.y + p), hn::Set(d, near.center[1]));
+      const V rz = hn::Sub(load_wide(l, x.z + p), hn::Set(d, near.center[2]));
+      const auto cross = [&](double a, V b, double e, V g) HWY_ATTR {
+        return hn::Sub(hn::Mul(hn::Set(d, a), b), hn::Mul(hn::Set(d, e), g));
+      };
+      const V vx = hn::Sub(load_wide(l, v.x + p), hn::Add(hn::Set(d, near.linear[0]), cross(w[1], rz, w[2], ry)));
+      const V vy = hn::Sub(load_wide(l, v.y + p), hn::Add(hn::Set(d, near.linear[1]), cross(w[2], rx, w[0], rz)));
+      const V vz = hn::Sub(load_wide(l, v.z + p), hn::Add(hn::Set(d, near.linear[2]), cross(w[0], ry, w[1], rx)));
+      friction(d, gx, gy, gz, Fx, Fy, Fz, hn::Add(widen(l, before_x), Fx), hn::Add(widen(l, before_y), Fy),
+               hn::Add(widen(l, before_z), Fz), vx, vy, vz, load_wide(l, inv_mass + p));
+    }
+    store_sum(l, before_x, Fx, f.x + p);
+    store_sum(l, before_y, Fy, f.y + p);
+    store_sum(l, before_z, Fz, f.z + p);
   }
 };
 
 // One loop per shape, force mode and friction, chosen once per obstacle: no feature branch
 // per point.
-template <LocalFn fn, bool project, bool rub, class Real>
+template <class Shape, bool project, bool rub, class Real>
 void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near, ConstVec3Ptr<Real> x,
            ConstVec3Ptr<Real> v, const Real* inv_mass, Vec3Ptr<Real> f) {
   const std::uint32_t m = t.m, n = t.n, cols = t.cols();
   const ForceScale scale = force_scale_of(o.def, near.exponent_cap);
   const Rub friction{near.friction, near.dt, {near.gravity[0], near.gravity[1], near.gravity[2]}};
-  const double normal[3] = {o.rot[0][2], o.rot[1][2], o.rot[2][2]};  // ∇f where constant_gradient
+  const hn::CappedTag<double, 1> one;
   Chunk c;
   for (std::uint32_t i = 0; i <= m; ++i) {
     const std::size_t row = std::size_t(i) * cols;
     const std::size_t up = std::size_t(std::min(i + 1, m)) * cols, down = std::size_t(i > 0 ? i - 1 : 0) * cols;
     for (std::uint32_t j0 = 0; j0 < cols; j0 += chunk_points) {
       const std::uint32_t count = std::min(chunk_points, cols - j0);
-      const std::size_t p0 = row + j0;
-      implicit_chunk<fn>(o, x.x + p0, x.y + p0, x.z + p0, count, c);
-      double lowest = c.f[0];
-#pragma omp simd reduction(min : lowest)
-      for (std::uint32_t k = 0; k < count; ++k) lowest = std::min(lowest, c.f[k]);
-      if (!(lowest < scale.reach)) continue;  // the whole chunk is beyond reach
-#pragma omp simd
-      for (std::uint32_t k = 0; k < count; ++k) c.s[k] = scale(c.f[k]);
-      // The force on point j0 + k, written back into f (and projected first, for eq (9)); its
-      // neighbours along the row are l and r. Every index is 64-bit and affine in k: a 32-bit
-      // j0 + k may wrap as far as the compiler knows, and it reads the neighbours with
-      // gathers instead of plain vector loads.
-      auto apply = [&](std::uint32_t k, std::size_t l, std::size_t r) DRAPE_POINT_INLINE {
-        const std::size_t p = p0 + k, j = std::size_t(j0) + k;
-        const double g[3] = {constant_gradient<fn> ? normal[0] : c.gx[k], constant_gradient<fn> ? normal[1] : c.gy[k],
-                             constant_gradient<fn> ? normal[2] : c.gz[k]};
-        double F[3] = {c.s[k] * g[0], c.s[k] * g[1], c.s[k] * g[2]};
-        if constexpr (project)
-          project_on_normal(double(x.x[row + r]) - x.x[row + l], double(x.y[row + r]) - x.y[row + l],
-                            double(x.z[row + r]) - x.z[row + l], double(x.x[up + j]) - x.x[down + j],
-                            double(x.y[up + j]) - x.y[down + j], double(x.z[up + j]) - x.z[down + j], F[0], F[1],
-                            F[2]);
-        if constexpr (rub) {
-          const double total[3] = {f.x[p] + F[0], f.y[p] + F[1], f.z[p] + F[2]};
-          // the slip relative to the obstacle's surface here: v − (linear + angular × (x − center))
-          const double* w = near.angular;
-          const double r[3] = {double(x.x[p]) - near.center[0], double(x.y[p]) - near.center[1],
-                               double(x.z[p]) - near.center[2]};
-          const double vel[3] = {double(v.x[p]) - (near.linear[0] + (w[1] * r[2] - w[2] * r[1])),
-                                 double(v.y[p]) - (near.linear[1] + (w[2] * r[0] - w[0] * r[2])),
-                                 double(v.z[p]) - (near.linear[2] + (w[0] * r[1] - w[1] * r[0]))};
-          friction(g, F, total, vel, double(inv_mass[p]));
-        }
-        f.x[p] += static_cast<Real>(F[0]);
-        f.y[p] += static_cast<Real>(F[1]);
-        f.z[p] += static_cast<Real>(F[2]);
-      };
+      const RowChunk<Shape, project, rub, Real> at{o, near, scale, friction, x, v, inv_mass, f, row, up, down, j0, c};
+      bool within = false;
+      lanes::over_lanes<double>(count, [&](auto l, std::size_t k) __attribute__((always_inline)) {
+        within |= at.implicit_at(l, k);
+      });
+      if (!within) continue;  // the whole chunk is beyond reach
       // Central differences along the row inside it, one-sided at its two ends.
       const std::uint32_t first = j0 == 0 ? 1 : 0, last = j0 + count > n ? count - 1 : count;
-      if (first > 0) apply(0, 0, std::min(1u, n));
-#pragma omp simd
-      for (std::uint32_t k = first; k < last; ++k) apply(k, std::size_t(j0) + k - 1, std::size_t(j0) + k + 1);
-      if (last < count && (first == 0 || count > 1)) apply(count - 1, n > 0 ? n - 1 : 0, n);
+      if (first > 0) at.force_at(lanes::Whole<decltype(one)>{one}, 0, 0, std::min(1u, n));
+      if (last > first)
+        lanes::over_lanes<double>(last - first, [&](auto l, std::size_t e) __attribute__((always_inline)) {
+          const std::size_t k = first + e;
+          at.force_at(l, k, j0 + k - 1, j0 + k + 1);
+        });
+      if (last < count && (first == 0 || count > 1))
+        at.force_at(lanes::Whole<decltype(one)>{one}, count - 1, n > 0 ? n - 1 : 0, n);
     }
   }
 }
@@ -296,11 +437,11 @@ void repel_shape(const Topology<Real>& t, const NearObstacle& near, ConstVec3Ptr
                  const Real* inv_mass, Vec3Ptr<Real> f) {
   const Obstacle& o = *near.obstacle;
   switch (o.def.shape) {
-    case ObstacleShape::Plane: repel<plane_f, project, rub>(t, o, near, x, v, inv_mass, f); break;
-    case ObstacleShape::Sphere: repel<sphere_f, project, rub>(t, o, near, x, v, inv_mass, f); break;
-    case ObstacleShape::Ellipsoid: repel<ellipsoid_f, project, rub>(t, o, near, x, v, inv_mass, f); break;
-    case ObstacleShape::Torus: repel<torus_f, project, rub>(t, o, near, x, v, inv_mass, f); break;
-    case ObstacleShape::Box: repel<box_f, project, rub>(t, o, near, x, v, inv_mass, f); break;
+    case ObstacleShape::Plane: repel<PlaneF, project, rub>(t, o, near, x, v, inv_mass, f); break;
+    case ObstacleShape::Sphere: repel<SphereF, project, rub>(t, o, near, x, v, inv_mass, f); break;
+    case ObstacleShape::Ellipsoid: repel<EllipsoidF, project, rub>(t, o, near, x, v, inv_mass, f); break;
+    case ObstacleShape::Torus: repel<TorusF, project, rub>(t, o, near, x, v, inv_mass, f); break;
+    case ObstacleShape::Box: repel<BoxF, project, rub>(t, o, near, x, v, inv_mass, f); break;
   }
 }
 
@@ -419,11 +560,11 @@ Obstacle make_obstacle(const ObstacleDef& def) {
 
 ImplicitSample implicit_at(const Obstacle& o, const double p[3]) {
   switch (o.def.shape) {
-    case ObstacleShape::Plane: return here::sample<here::plane_f>(o, p);
-    case ObstacleShape::Sphere: return here::sample<here::sphere_f>(o, p);
-    case ObstacleShape::Ellipsoid: return here::sample<here::ellipsoid_f>(o, p);
-    case ObstacleShape::Torus: return here::sample<here::torus_f>(o, p);
-    case ObstacleShape::Box: return here::sample<here::box_f>(o, p);
+    case ObstacleShape::Plane: return here::sample<here::PlaneF>(o, p);
+    case ObstacleShape::Sphere: return here::sample<here::SphereF>(o, p);
+    case ObstacleShape::Ellipsoid: return here::sample<here::EllipsoidF>(o, p);
+    case ObstacleShape::Torus: return here::sample<here::TorusF>(o, p);
+    case ObstacleShape::Box: return here::sample<here::BoxF>(o, p);
   }
   return {};
 }
@@ -449,7 +590,7 @@ bool may_touch(const Obstacle& o, const Aabb& box) {
   double lowest = std::numeric_limits<double>::infinity();
   for (int c = 0; c < 8; ++c) {
     const double p[3] = {c & 1 ? box.hi[0] : box.lo[0], c & 2 ? box.hi[1] : box.lo[1], c & 4 ? box.hi[2] : box.lo[2]};
-    lowest = std::min(lowest, here::sample<here::plane_f>(o, p).f);
+    lowest = std::min(lowest, here::sample<here::PlaneF>(o, p).f);
   }
   return lowest < o.reach_distance;
 }
