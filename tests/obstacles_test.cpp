@@ -4,10 +4,12 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <functional>
 #include <numbers>
 #include <random>
 
+#include "each_target.h"
 #include "obstacles.h"
 
 namespace {
@@ -29,6 +31,23 @@ ObstacleDef shape_def(ObstacleShape shape) {
     case ObstacleShape::Box: d.size = {0.4, 0.3, 0.2}; break;
   }
   return d;
+}
+
+// shape_def's obstacle for the kernel tests: reach 0.64 m, so on the crumpled sheets around
+// it most points are in reach, some beyond it, some past the cap.
+ObstacleDef kernel_def(ObstacleShape shape, bool full_gradient) {
+  ObstacleDef d = shape_def(shape);
+  d.c = 0.01;
+  d.xi = 0.04;
+  d.full_gradient = full_gradient;
+  return d;
+}
+
+drape::SheetDef grid_def(std::uint32_t m, std::uint32_t n) {
+  drape::SheetDef sd;
+  sd.m = m;
+  sd.n = n;
+  return sd;
 }
 
 const ObstacleShape all_shapes[] = {ObstacleShape::Plane, ObstacleShape::Sphere, ObstacleShape::Ellipsoid,
@@ -189,15 +208,9 @@ TEST(Obstacles, KernelMatchesEq9PointByPointOnCrumpledSheets) {
   for (ObstacleShape shape : all_shapes)
     for (bool full : {false, true})
       for (auto [m, n] : sizes) {
-        ObstacleDef d = shape_def(shape);
-        d.c = 0.01;
-        d.xi = 0.04;  // reach 0.64 m: most points in reach, some beyond it, some past the cap
-        d.full_gradient = full;
+        const ObstacleDef d = kernel_def(shape, full);
         const auto o = drape::detail::make_obstacle(d);
-        drape::SheetDef sd;
-        sd.m = m;
-        sd.n = n;
-        auto sheet = drape::detail::build_sheet<double>(sd);
+        auto sheet = drape::detail::build_sheet<double>(grid_def(m, n));
         const std::size_t count = sheet.size();
         for (std::size_t p = 0; p < count; ++p) {
           sheet.position.x[p] = d.center.x + u(rng);
@@ -250,6 +263,180 @@ TEST(Obstacles, KernelMatchesEq9PointByPointOnCrumpledSheets) {
         }
       }
 }
+
+// Eq (9) written out once more, point by point in plain double arithmetic with std::exp,
+// for the per-target test below: the cut-off force scale c/ξ·max(e^min(−f/ξ, cap) − e^−16, 0)
+// below the reach 16ξ, along ∇f, projected on the sheet normal from the neighbouring points
+// (one-sided at the ends), then Coulomb friction against the slip relative to the moving
+// obstacle's surface. f and ∇f of the plane and the torus are written here from the local
+// frame (o.rot's columns are the obstacle's axes), not taken from the engine.
+struct Eq9Reference {
+  const drape::detail::Obstacle& o;
+  const drape::detail::NearObstacle& near;
+
+  void implicit(const double p[3], double& f, double g[3]) const {
+    double d[3], q[3];
+    for (int k = 0; k < 3; ++k) d[k] = p[k] - o.center[k];
+    for (int l = 0; l < 3; ++l) q[l] = o.rot[0][l] * d[0] + o.rot[1][l] * d[1] + o.rot[2][l] * d[2];
+    double local[3] = {0, 0, 1};
+    if (o.def.shape == ObstacleShape::Plane) {
+      f = q[2];
+    } else {  // torus around local z, major radius size.x, minor size.y
+      const double rho = std::hypot(q[0], q[1]), ring = rho - o.def.size.x, len = std::hypot(ring, q[2]);
+      f = len - o.def.size.y;
+      local[0] = ring / len * q[0] / rho;
+      local[1] = ring / len * q[1] / rho;
+      local[2] = q[2] / len;
+    }
+    for (int k = 0; k < 3; ++k) g[k] = o.rot[k][0] * local[0] + o.rot[k][1] * local[1] + o.rot[k][2] * local[2];
+  }
+
+  // The force eq (9) adds at point p = (i, j), given the force `before` on it so far.
+  void force(const drape::detail::Sheet<double>& s, std::uint32_t i, std::uint32_t j, const double before[3],
+             double F[3], double& size) const {
+    const std::uint32_t m = s.topology->m, n = s.topology->n;
+    const auto at = [&](std::uint32_t a, std::uint32_t b, double q[3]) {
+      const std::size_t k = drape::point_index(n, a, b);
+      q[0] = s.position.x[k], q[1] = s.position.y[k], q[2] = s.position.z[k];
+    };
+    const std::size_t p = drape::point_index(n, i, j);
+    double x[3], f, g[3];
+    at(i, j, x);
+    implicit(x, f, g);
+    const ObstacleDef& d = o.def;
+    const double scale =
+        f < 16 * d.xi ? d.c / d.xi * std::max(std::exp(std::min(-f / d.xi, near.exponent_cap)) - std::exp(-16.0), 0.0)
+                      : 0.0;
+    for (int k = 0; k < 3; ++k) F[k] = scale * g[k];
+    if (!d.full_gradient) {
+      double l[3], r[3], u[3], w[3];
+      at(i, j > 0 ? j - 1 : 0, l);
+      at(i, std::min(j + 1, n), r);
+      at(i > 0 ? i - 1 : 0, j, w);
+      at(std::min(i + 1, m), j, u);
+      const double a[3] = {r[0] - l[0], r[1] - l[1], r[2] - l[2]}, b[3] = {u[0] - w[0], u[1] - w[1], u[2] - w[2]};
+      const double nv[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+      const double nn = nv[0] * nv[0] + nv[1] * nv[1] + nv[2] * nv[2];
+      if (nn > 0) {
+        const double along = (F[0] * nv[0] + F[1] * nv[1] + F[2] * nv[2]) / nn;
+        for (int k = 0; k < 3; ++k) F[k] = along * nv[k];
+      }
+    }
+    size = std::hypot(F[0], F[1], F[2]);
+    if (near.friction > 0) {
+      const double gg = std::hypot(g[0], g[1], g[2]);
+      const double normal_load = std::max(F[0] * g[0] + F[1] * g[1] + F[2] * g[2], 0.0) / gg;
+      const double inv_mass = s.inv_mass[p], v[3] = {s.velocity.x[p], s.velocity.y[p], s.velocity.z[p]};
+      const double* w = near.angular;
+      const double r[3] = {x[0] - near.center[0], x[1] - near.center[1], x[2] - near.center[2]};
+      const double surface[3] = {near.linear[0] + w[1] * r[2] - w[2] * r[1], near.linear[1] + w[2] * r[0] - w[0] * r[2],
+                                 near.linear[2] + w[0] * r[1] - w[1] * r[0]};
+      double slip[3], wn = 0;
+      for (int k = 0; k < 3; ++k) {
+        slip[k] = v[k] - surface[k] + near.dt * (inv_mass * (before[k] + F[k]) + near.gravity[k]);
+        wn += slip[k] * g[k] / (gg * gg);
+      }
+      for (int k = 0; k < 3; ++k) slip[k] -= wn * g[k];
+      const double speed = std::hypot(slip[0], slip[1], slip[2]);
+      const double stop = inv_mass > 0 ? speed / (inv_mass * near.dt) : std::numeric_limits<double>::infinity();
+      const double rub = speed > 0 ? std::min(near.friction * normal_load, stop) : 0.0;
+      for (int k = 0; k < 3; ++k) F[k] -= speed > 0 ? rub * slip[k] / speed : 0.0;
+      size += rub;
+    }
+  }
+};
+
+// The obstacle term of each instruction set on sheets of rows shorter than a vector, one
+// chunk long and past it, a row wholly beyond reach and points past the cap, projected or
+// not, with and without friction against a moving obstacle: the same bits on every target,
+// and within rounding of Eq9Reference (1e-12 of the force's size in double; in float, the
+// sum rounded to float, 2⁻²³ of it).
+template <class Real>
+std::vector<Real> obstacle_term_on_each_config(std::mt19937& rng) {
+  const std::pair<std::uint32_t, std::uint32_t> sizes[] = {{0, 0}, {3, 0}, {2, 1}, {4, 2}, {2, 63}, {3, 70}};
+  std::uniform_real_distribution<double> u(-0.8, 0.8), unit(-1, 1), mass(0, 100);
+  std::vector<Real> out;
+  for (ObstacleShape shape : {ObstacleShape::Plane, ObstacleShape::Torus})
+    for (bool full : {false, true})
+      for (double mu : {0.0, 0.4})
+        for (auto [m, n] : sizes) {
+          const ObstacleDef d = kernel_def(shape, full);
+          const auto o = drape::detail::make_obstacle(d);
+          auto sheet = drape::detail::build_sheet<Real>(grid_def(m, n));
+          auto exact = drape::detail::build_sheet<double>(grid_def(m, n));  // the same values, for the reference
+          const std::size_t count = sheet.size();
+          std::vector<Real> fx(count), fy(count), fz(count);
+          for (std::size_t p = 0; p < count; ++p) {
+            const double away = p <= n && m > 1 ? 3.0 : 0.0;  // the first row beyond reach
+            const double at[3] = {d.center.x + u(rng) + away * o.rot[0][2], d.center.y + u(rng) + away * o.rot[1][2],
+                                  d.center.z + u(rng) + away * o.rot[2][2]};
+            sheet.position.x[p] = Real(at[0]), sheet.position.y[p] = Real(at[1]), sheet.position.z[p] = Real(at[2]);
+            sheet.velocity.x[p] = Real(unit(rng)), sheet.velocity.y[p] = Real(unit(rng)), sheet.velocity.z[p] = Real(unit(rng));
+            sheet.inv_mass[p] = p % 7 == 3 ? Real(0) : Real(mass(rng));  // some pinned
+            fx[p] = Real(unit(rng)), fy[p] = Real(unit(rng)), fz[p] = Real(unit(rng));
+            exact.position.x[p] = sheet.position.x[p], exact.position.y[p] = sheet.position.y[p];
+            exact.position.z[p] = sheet.position.z[p];
+            exact.velocity.x[p] = sheet.velocity.x[p], exact.velocity.y[p] = sheet.velocity.y[p];
+            exact.velocity.z[p] = sheet.velocity.z[p];
+            exact.inv_mass[p] = sheet.inv_mass[p];
+          }
+          const std::vector<Real> bx = fx, by = fy, bz = fz;
+          const drape::detail::NearObstacle near{.obstacle = &o,
+                                                 .exponent_cap = 5.0,
+                                                 .friction = mu,
+                                                 .dt = 1e-3,
+                                                 .gravity = {0, 0, -9.81},
+                                                 .linear = {0.1, -0.2, 0.05},
+                                                 .angular = {0.3, 0.1, -0.2},
+                                                 .center = {o.center[0], o.center[1], o.center[2]}};
+          drape::detail::obstacle_forces<Real>(*sheet.topology, near, drape::detail::cptr(sheet.position),
+                                               drape::detail::cptr(sheet.velocity), sheet.inv_mass.data(),
+                                               {fx.data(), fy.data(), fz.data()});
+          const Eq9Reference reference{o, near};
+          int within = 0, beyond = 0;
+          for (std::uint32_t i = 0; i <= m; ++i)
+            for (std::uint32_t j = 0; j <= n; ++j) {
+              const std::size_t p = drape::point_index(n, i, j);
+              const double before[3] = {double(bx[p]), double(by[p]), double(bz[p])};
+              double F[3], size;
+              reference.force(exact, i, j, before, F, size);
+              (size > 0 ? within : beyond) += 1;
+              const double got[3] = {double(fx[p]), double(fy[p]), double(fz[p])};
+              for (int k = 0; k < 3; ++k) {
+                const double tol = std::is_same_v<Real, float> ? 0x1p-23 * (std::abs(before[k]) + size) : 1e-12 * size;
+                EXPECT_NEAR(got[k], before[k] + F[k], tol) << "shape " << int(shape) << " full " << full << " mu " << mu
+                                                           << " sheet " << m << "x" << n << " point " << i << "," << j;
+              }
+            }
+          if (count > 100) {
+            EXPECT_GT(within, 0);
+            EXPECT_GT(beyond, int(n));
+          }
+          out.insert(out.end(), fx.begin(), fx.end());
+          out.insert(out.end(), fy.begin(), fy.end());
+          out.insert(out.end(), fz.begin(), fz.end());
+        }
+  return out;
+}
+
+template <class Real>
+void expect_every_target_gives_eq9_bit_for_bit() {
+  std::vector<Real> first;
+  drape::test::for_each_target([&](std::int64_t) {
+    std::mt19937 rng(23);  // the same sheets on every target
+    const std::vector<Real> got = obstacle_term_on_each_config<Real>(rng);
+    if (first.empty()) {
+      first = got;
+      return;
+    }
+    ASSERT_EQ(got.size(), first.size());
+    for (std::size_t k = 0; k < got.size(); ++k)  // bits, so −0 and NaN count too
+      ASSERT_EQ(std::memcmp(&got[k], &first[k], sizeof(Real)), 0) << "value " << k << ": " << got[k] << " vs " << first[k];
+  });
+}
+
+TEST(Obstacles, EveryInstructionSetGivesEq9BitForBit) { expect_every_target_gives_eq9_bit_for_bit<double>(); }
+TEST(Obstacles, EveryInstructionSetGivesEq9BitForBitInFloat) { expect_every_target_gives_eq9_bit_for_bit<float>(); }
 
 drape::SheetDef point_def(Vec3 at, double mass = 0.01) {
   drape::SheetDef s;
