@@ -320,13 +320,16 @@ struct Chunk {
   alignas(64) double gx[chunk_points], gy[chunk_points], gz[chunk_points];  // unused where ∇f is constant
 };
 
-// The eq (9) term of one obstacle on one row's chunk, lanes at a time.
+// The eq (9) term of one obstacle on one row's chunk, lanes at a time. What the loops read
+// of the obstacle is held by value: the stores into f could alias an Obstacle as far as the
+// compiler knows, and it would load it again for every vector.
 template <class Shape, bool project, bool rub, class Real>
 struct RowChunk {
-  const Obstacle& o;
-  const NearObstacle& near;
-  const ForceScale& scale;
-  const Rub& friction;
+  const Obstacle& o;  // for f and ∇f, whose loop stores only into the chunk
+  NearObstacle near;
+  ForceScale scale;
+  Rub friction;
+  double normal[3];  // ∇f where Shape::constant_gradient
   ConstVec3Ptr<Real> x, v;
   const Real* inv_mass;
   Vec3Ptr<Real> f;
@@ -362,9 +365,9 @@ struct RowChunk {
     const auto d = l.d;
     using V = hn::Vec<decltype(d)>;
     const std::size_t p = row + j0 + k, j = j0 + k;
-    const V gx = Shape::constant_gradient ? hn::Set(d, o.rot[0][2]) : l.load(c.gx + k);
-    const V gy = Shape::constant_gradient ? hn::Set(d, o.rot[1][2]) : l.load(c.gy + k);
-    const V gz = Shape::constant_gradient ? hn::Set(d, o.rot[2][2]) : l.load(c.gz + k);
+    const V gx = Shape::constant_gradient ? hn::Set(d, normal[0]) : l.load(c.gx + k);
+    const V gy = Shape::constant_gradient ? hn::Set(d, normal[1]) : l.load(c.gy + k);
+    const V gz = Shape::constant_gradient ? hn::Set(d, normal[2]) : l.load(c.gz + k);
     const V s = scale(d, l.load(c.f + k));
     V Fx = hn::Mul(s, gx), Fy = hn::Mul(s, gy), Fz = hn::Mul(s, gz);
     if constexpr (project) {
@@ -412,7 +415,8 @@ void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near,
     const std::size_t up = std::size_t(std::min(i + 1, m)) * cols, down = std::size_t(i > 0 ? i - 1 : 0) * cols;
     for (std::uint32_t j0 = 0; j0 < cols; j0 += chunk_points) {
       const std::uint32_t count = std::min(chunk_points, cols - j0);
-      const RowChunk<Shape, project, rub, Real> at{o, near, scale, friction, x, v, inv_mass, f, row, up, down, j0, c};
+      const RowChunk<Shape, project, rub, Real> at{
+          o, near, scale, friction, {o.rot[0][2], o.rot[1][2], o.rot[2][2]}, x, v, inv_mass, f, row, up, down, j0, c};
       bool within = false;
       lanes::over_lanes<double>(count, [&](auto l, std::size_t k) __attribute__((always_inline)) {
         within |= at.implicit_at(l, k);
