@@ -31,7 +31,8 @@ ctest --test-dir "$build" --output-on-failure -j"$jobs"
 stamp "release build and tests passed"
 
 if [[ "${DRAPE_SKIP_SANITIZE:-0}" != 1 ]]; then
-  # -O1 keeps sanitized tests quick while the stack traces stay readable; the tests, programs
+  # -O1 keeps sanitized tests quick while the stack traces stay readable (-g1: line tables, all
+  # a trace needs; full debug info made the vector kernels compile 1.8 times longer); the tests, programs
   # and benchmarks themselves are compiled at -O0 there (CMakeLists.txt, drape_keep_optimization),
   # which halves their compile time and leaves the run time as it was. The benchmarks are
   # built (not run) so that their optional sources are proved gated too.
@@ -39,7 +40,7 @@ if [[ "${DRAPE_SKIP_SANITIZE:-0}" != 1 ]]; then
   # (HWY_DISABLED_TARGETS = AVX3 | SSE4 on top of engine/src/simd/targets.h's AVX3_DL | SSSE3,
   # bits 8, 11, 7, 12): each target compiles the whole row sweep again, and stage 1 already
   # runs every target this CPU has; dispatch itself is still what runs here.
-  cmake -S . -B build-asan $(generator build-asan) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g" \
+  cmake -S . -B build-asan $(generator build-asan) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" \
     -DCMAKE_CXX_FLAGS="-DHWY_DISABLED_TARGETS=6528" \
     -DDRAPE_SANITIZE=ON -DDRAPE_WERROR=ON -DDRAPE_OPTIONAL_PACKAGES=OFF -DDRAPE_NATIVE=OFF | grep "optional packages"
   cmake --build build-asan -j"$jobs"
@@ -53,7 +54,7 @@ if [[ "${DRAPE_SKIP_FUZZ:-0}" != 1 ]]; then
   # The readers are what is fuzzed: the row sweep is compiled for the baseline target only
   # (HWY_DISABLED_TARGETS = AVX3_DL | AVX3 | AVX2 | SSE4 | SSSE3), once instead of four times.
   cmake -S . -B build-fuzz $(generator build-fuzz) -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-    -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g" -DDRAPE_FUZZ=ON -DDRAPE_WERROR=ON \
+    -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" -DDRAPE_FUZZ=ON -DDRAPE_WERROR=ON \
     -DDRAPE_NATIVE=OFF -DCMAKE_CXX_FLAGS="-DHWY_DISABLED_TARGETS=7040" \
     -DDRAPE_BUILD_TESTS=OFF -DDRAPE_BUILD_BENCH=OFF >/dev/null
   # One line per reader: fuzz target, then its seed directories (see tests/fuzz/README.md).
