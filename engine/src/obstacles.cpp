@@ -323,7 +323,7 @@ struct Chunk {
 // The eq (9) term of one obstacle on one row's chunk, lanes at a time. What the loops read
 // of the obstacle is held by value: the stores into f could alias an Obstacle as far as the
 // compiler knows, and it would load it again for every vector.
-template <class Shape, bool project, bool rub, class Real>
+template <class Shape, class Real>
 struct RowChunk {
   const Obstacle& o;  // for f and ∇f, whose loop stores only into the chunk
   NearObstacle near;
@@ -336,6 +336,7 @@ struct RowChunk {
   std::size_t row, up, down;  // first points of the row and of the rows above and below it
   std::uint32_t j0;
   Chunk& c;
+  bool project, rub;  // eq (9)'s projection on the sheet normal; friction
 
   // f (and ∇f) of the chunk's points k, k + 1, ...; whether any is within reach.
   template <class Lanes>
@@ -370,7 +371,7 @@ struct RowChunk {
     const V gz = Shape::constant_gradient ? hn::Set(d, normal[2]) : l.load(c.gz + k);
     const V s = scale(d, l.load(c.f + k));
     V Fx = hn::Mul(s, gx), Fy = hn::Mul(s, gy), Fz = hn::Mul(s, gz);
-    if constexpr (project) {
+    if (project) {
       const auto across = [&](const Real* a, std::size_t to, std::size_t from) HWY_ATTR {
         return hn::Sub(load_wide(l, a + to), load_wide(l, a + from));
       };
@@ -379,7 +380,7 @@ struct RowChunk {
                         across(x.y, up + j, down + j), across(x.z, up + j, down + j), Fx, Fy, Fz);
     }
     const auto before_x = load_real(l, f.x + p), before_y = load_real(l, f.y + p), before_z = load_real(l, f.z + p);
-    if constexpr (rub) {
+    if (rub) {
       // the slip relative to the obstacle's surface here: v − (linear + angular × (x − center))
       const double* w = near.angular;
       const V rx = hn::Sub(load_wide(l, x.x + p), hn::Set(d, near.center[0]));
@@ -400,9 +401,10 @@ struct RowChunk {
   }
 };
 
-// One loop per shape, force mode and friction, chosen once per obstacle: no feature branch
-// per point.
-template <class Shape, bool project, bool rub, class Real>
+// One loop per shape, chosen once per obstacle. The projection and friction are branches on
+// a flag that holds for the whole call: predicted every time, and a quarter of the code a
+// loop per mode took (compiled under the sanitizers, that code took GCC minutes).
+template <class Shape, class Real>
 void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near, ConstVec3Ptr<Real> x,
            ConstVec3Ptr<Real> v, const Real* inv_mass, Vec3Ptr<Real> f) {
   const std::uint32_t m = t.m, n = t.n, cols = t.cols();
@@ -415,8 +417,9 @@ void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near,
     const std::size_t up = std::size_t(std::min(i + 1, m)) * cols, down = std::size_t(i > 0 ? i - 1 : 0) * cols;
     for (std::uint32_t j0 = 0; j0 < cols; j0 += chunk_points) {
       const std::uint32_t count = std::min(chunk_points, cols - j0);
-      const RowChunk<Shape, project, rub, Real> at{
-          o, near, scale, friction, {o.rot[0][2], o.rot[1][2], o.rot[2][2]}, x, v, inv_mass, f, row, up, down, j0, c};
+      const RowChunk<Shape, Real> at{
+          o,   near, scale, friction, {o.rot[0][2], o.rot[1][2], o.rot[2][2]}, x, v, inv_mass, f, row, up, down, j0, c,
+          !o.def.full_gradient, near.friction > 0};
       bool within = false;
       lanes::over_lanes<double>(count, [&](auto l, std::size_t k) __attribute__((always_inline)) {
         within |= at.implicit_at(l, k);
@@ -436,28 +439,19 @@ void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near,
   }
 }
 
-template <bool project, bool rub, class Real>
-void repel_shape(const Topology<Real>& t, const NearObstacle& near, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v,
-                 const Real* inv_mass, Vec3Ptr<Real> f) {
+template <class Real>
+void obstacle_forces_of(const Topology<Real>& t, const NearObstacle& near, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v,
+                        const Real* inv_mass, Vec3Ptr<Real> f) {
   const Obstacle& o = *near.obstacle;
   switch (o.def.shape) {
-    case ObstacleShape::Plane: repel<PlaneF, project, rub>(t, o, near, x, v, inv_mass, f); break;
-    case ObstacleShape::Sphere: repel<SphereF, project, rub>(t, o, near, x, v, inv_mass, f); break;
-    case ObstacleShape::Ellipsoid: repel<EllipsoidF, project, rub>(t, o, near, x, v, inv_mass, f); break;
-    case ObstacleShape::Torus: repel<TorusF, project, rub>(t, o, near, x, v, inv_mass, f); break;
-    case ObstacleShape::Box: repel<BoxF, project, rub>(t, o, near, x, v, inv_mass, f); break;
+    case ObstacleShape::Plane: repel<PlaneF>(t, o, near, x, v, inv_mass, f); break;
+    case ObstacleShape::Sphere: repel<SphereF>(t, o, near, x, v, inv_mass, f); break;
+    case ObstacleShape::Ellipsoid: repel<EllipsoidF>(t, o, near, x, v, inv_mass, f); break;
+    case ObstacleShape::Torus: repel<TorusF>(t, o, near, x, v, inv_mass, f); break;
+    case ObstacleShape::Box: repel<BoxF>(t, o, near, x, v, inv_mass, f); break;
   }
 }
 
-template <class Real>
-void obstacle_forces_of(const Topology<Real>& t, const NearObstacle& near, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v,
-                     const Real* inv_mass, Vec3Ptr<Real> f) {
-  const bool project = !near.obstacle->def.full_gradient, rub = near.friction > 0;
-  if (project && rub) repel_shape<true, true>(t, near, x, v, inv_mass, f);
-  if (project && !rub) repel_shape<true, false>(t, near, x, v, inv_mass, f);
-  if (!project && rub) repel_shape<false, true>(t, near, x, v, inv_mass, f);
-  if (!project && !rub) repel_shape<false, false>(t, near, x, v, inv_mass, f);
-}
 
 
 void ObstacleForcesF64(const Topology<double>& t, const NearObstacle& near, ConstVec3Ptr<double> x,
