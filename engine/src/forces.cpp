@@ -62,6 +62,50 @@ Vec3Ptr<Real> at(Vec3Array<Real>& a, std::size_t offset) {
   return {a.x.data() + offset, a.y.data() + offset, a.z.data() + offset};
 }
 
+// The rows a sweep reads (RowWindow's access): plain pointer arithmetic, compiled for no
+// target, so that RowWindow (terms/rows.h, no target either) inlines them and every target's
+// sweep inlines both; defined per target, GCC could not inline them into RowWindow and left a
+// call per row in the portable build.
+
+// Rows of one sheet's arrays (a whole sheet, or a block of it that reads all rows).
+template <class Real>
+struct ArrayRows {
+  ConstVec3Ptr<Real> xs, vs;
+  Vec3Ptr<Real> fs;
+  std::size_t cols;
+  ConstVec3Ptr<Real> x(std::uint32_t i) const {
+    const std::size_t p = i * cols;
+    return {xs.x + p, xs.y + p, xs.z + p};
+  }
+  ConstVec3Ptr<Real> v(std::uint32_t i) const {
+    const std::size_t p = i * cols;
+    return {vs.x + p, vs.y + p, vs.z + p};
+  }
+  Vec3Ptr<Real> f(std::uint32_t i) const {
+    const std::size_t p = i * cols;
+    return {fs.x + p, fs.y + p, fs.z + p};
+  }
+};
+
+// A wave's rows: the block's own from the sheet, halo rows from the copies, forces from
+// the ring.
+template <class Real>
+struct WaveRows {
+  Sheet<Real>* s;
+  WaveScratch<Real>* w;
+  WaveRange range;
+  std::uint32_t row_begin, row_end, cols, mask;
+  Vec3Ptr<Real> state(Vec3Array<Real>& own, Vec3Array<Real>& halo, std::uint32_t i) const {
+    if (i >= row_begin && i < row_end) return at(own, std::size_t(i) * cols);
+    return at(halo, halo_slot(range, row_begin, row_end, i) * cols);
+  }
+  Vec3Ptr<Real> xm(std::uint32_t i) const { return state(s->position, w->halo_x, i); }
+  Vec3Ptr<Real> vm(std::uint32_t i) const { return state(s->velocity, w->halo_v, i); }
+  ConstVec3Ptr<Real> x(std::uint32_t i) const { return xm(i); }
+  ConstVec3Ptr<Real> v(std::uint32_t i) const { return vm(i); }
+  Vec3Ptr<Real> f(std::uint32_t i) const { return at(w->forces, std::size_t((i - range.lo) & mask) * cols); }
+};
+
 }  // namespace
 }  // namespace drape::detail
 #endif  // DRAPE_FORCES_SHARED_
@@ -239,26 +283,6 @@ HWY_NOINLINE void arrive(const Topology<Real>& t, Springs horizontal_springs, Sp
   else
     arrive_with<false>(t, horizontal_springs, vertical_springs, terms, w, q);
 }
-
-// Rows of one sheet's arrays (a whole sheet, or a block of it that reads all rows).
-template <class Real>
-struct ArrayRows {
-  ConstVec3Ptr<Real> xs, vs;
-  Vec3Ptr<Real> fs;
-  std::size_t cols;
-  ConstVec3Ptr<Real> x(std::uint32_t i) const {
-    const std::size_t p = i * cols;
-    return {xs.x + p, xs.y + p, xs.z + p};
-  }
-  ConstVec3Ptr<Real> v(std::uint32_t i) const {
-    const std::size_t p = i * cols;
-    return {vs.x + p, vs.y + p, vs.z + p};
-  }
-  Vec3Ptr<Real> f(std::uint32_t i) const {
-    const std::size_t p = i * cols;
-    return {fs.x + p, fs.y + p, fs.z + p};
-  }
-};
 
 // The row sweep of a sheet's arrays for rows [begin, end): rows arrive in order, reading
 // up to `reach` rows beyond the range, and done(i) is called as soon as row i's stencil
@@ -445,25 +469,6 @@ void sheet_forces_by_rows_of(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<
                              const simd::EulerStep<Real>* step) {
   with_update(step, [&](auto update) { sheet_forces_by_rows_with(s, x, v, f, update); });
 }
-
-// A wave's rows: the block's own from the sheet, halo rows from the copies, forces from
-// the ring.
-template <class Real>
-struct WaveRows {
-  Sheet<Real>* s;
-  WaveScratch<Real>* w;
-  WaveRange range;
-  std::uint32_t row_begin, row_end, cols, mask;
-  Vec3Ptr<Real> state(Vec3Array<Real>& own, Vec3Array<Real>& halo, std::uint32_t i) const {
-    if (i >= row_begin && i < row_end) return at(own, std::size_t(i) * cols);
-    return at(halo, halo_slot(range, row_begin, row_end, i) * cols);
-  }
-  Vec3Ptr<Real> xm(std::uint32_t i) const { return state(s->position, w->halo_x, i); }
-  Vec3Ptr<Real> vm(std::uint32_t i) const { return state(s->velocity, w->halo_v, i); }
-  ConstVec3Ptr<Real> x(std::uint32_t i) const { return xm(i); }
-  ConstVec3Ptr<Real> v(std::uint32_t i) const { return vm(i); }
-  Vec3Ptr<Real> f(std::uint32_t i) const { return at(w->forces, std::size_t((i - range.lo) & mask) * cols); }
-};
 
 template <class Real, class Springs, class Terms, class Update>
 void wave_rows(Sheet<Real>& s, Springs horizontal_springs, Springs vertical_springs, const Terms& terms,

@@ -62,10 +62,10 @@ struct RowWindow {
   std::uint32_t read_lo, own_lo, own_hi;
   Vec3Ptr<Real> scratch;  // one row of scratch per component, free for any term's use
 
-  bool owns(std::uint32_t i) const { return i >= own_lo && i < own_hi; }
-  ConstVec3Ptr<Real> x(std::uint32_t i) const { return access.x(i); }
-  ConstVec3Ptr<Real> v(std::uint32_t i) const { return access.v(i); }
-  Vec3Ptr<Real> f(std::uint32_t i) const { return access.f(i); }
+  DRAPE_ROW_INLINE bool owns(std::uint32_t i) const { return i >= own_lo && i < own_hi; }
+  DRAPE_ROW_INLINE ConstVec3Ptr<Real> x(std::uint32_t i) const { return access.x(i); }
+  DRAPE_ROW_INLINE ConstVec3Ptr<Real> v(std::uint32_t i) const { return access.v(i); }
+  DRAPE_ROW_INLINE Vec3Ptr<Real> f(std::uint32_t i) const { return access.f(i); }
 };
 
 // Jacobians: a term's add_jacobian(…, add) calls add(p, q, J) for 3×3 blocks with
