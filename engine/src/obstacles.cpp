@@ -418,7 +418,7 @@ void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near,
     for (std::uint32_t j0 = 0; j0 < cols; j0 += chunk_points) {
       const std::uint32_t count = std::min(chunk_points, cols - j0);
       const RowChunk<Shape, Real> at{
-          o,   near, scale, friction, {o.rot[0][2], o.rot[1][2], o.rot[2][2]}, x, v, inv_mass, f, row, up, down, j0, c,
+          o, near, scale, friction, {o.rot[0][2], o.rot[1][2], o.rot[2][2]}, x, v, inv_mass, f, row, up, down, j0, c,
           !o.def.full_gradient, near.friction > 0};
       bool within = false;
       lanes::over_lanes<double>(count, [&](auto l, std::size_t k) __attribute__((always_inline)) {
@@ -451,8 +451,6 @@ void obstacle_forces_of(const Topology<Real>& t, const NearObstacle& near, Const
     case ObstacleShape::Box: repel<BoxF>(t, o, near, x, v, inv_mass, f); break;
   }
 }
-
-
 
 void ObstacleForcesF64(const Topology<double>& t, const NearObstacle& near, ConstVec3Ptr<double> x,
                        ConstVec3Ptr<double> v, const double* inv_mass, Vec3Ptr<double> f) {
