@@ -12,6 +12,7 @@
 #   DRAPE_BENCH_BUILD_DIR   build directory              (build-bench)
 #   DRAPE_BENCH_MIN_TIME    seconds per repetition        (0.2)
 #   DRAPE_BENCH_REPETITIONS repetitions per benchmark     (3)
+#   DRAPE_BENCH_SETTLE      most seconds to wait for a quiet machine before each run (300)
 #   PYTHON                  interpreter with matplotlib   (/usr/bin/python3, Debian's)
 # Extra arguments go to drape_bench, e.g. --benchmark_filter=Fig13 for a partial report.
 set -euo pipefail
@@ -30,23 +31,40 @@ json=docs/benchmarks.json
 cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release -DDRAPE_NATIVE=ON -DDRAPE_WERROR=ON \
   -DDRAPE_BUILD_TESTS=OFF -DDRAPE_BUILD_APPS=ON -DDRAPE_BUILD_PYTHON=OFF >/dev/null
 cmake --build "$build" --target drape_bench drape -j"$(nproc)"
+# The portable build (issue 15): no -march=native, as a distribution ships drape; its kernels
+# pick their instruction set at run time. Built now, before anything is measured, so that no
+# compile shares the CPU with a benchmark (the report compares it with the native run).
+cmake -S . -B "$build-portable" -DCMAKE_BUILD_TYPE=Release -DDRAPE_NATIVE=OFF -DDRAPE_WERROR=ON \
+  -DDRAPE_BUILD_TESTS=OFF -DDRAPE_BUILD_APPS=OFF -DDRAPE_BUILD_PYTHON=OFF -DDRAPE_BUILD_TOOLS=OFF >/dev/null
+cmake --build "$build-portable" --target drape_bench -j"$(nproc)"
+
+# Waits (at most DRAPE_BENCH_SETTLE seconds, default 300) until the 1-minute load average is
+# below 0.5: the builds above, or anything else running, would otherwise share the cores
+# with the first benchmarks. The report prints the load each run started at.
+settle() {
+  local waited=0 limit=${DRAPE_BENCH_SETTLE:-300}
+  while awk '{exit !($1 >= 0.5)}' /proc/loadavg && (( waited < limit )); do
+    sleep 10
+    waited=$(( waited + 10 ))
+  done
+  echo "bench: starting $1 at load $(cut -d' ' -f1-3 /proc/loadavg) (waited ${waited} s)"
+}
 
 mkdir -p docs/img
 command=("$build/bench/drape_bench" "--benchmark_min_time=$min_time" "--benchmark_repetitions=$repetitions"
   --benchmark_enable_random_interleaving=true --benchmark_report_aggregates_only=true "$@")
 # Written next to the report only when the run completes, so a failed run leaves the old one.
+settle "the native run"
 "${command[@]}" --benchmark_out="$json.tmp" --benchmark_out_format=json
 mv "$json.tmp" "$json"
 # drape sweep at 1 and 2 MPI ranks × 1 and 2 threads: mpirun cannot run inside Google Benchmark,
 # so a script times the program (docs/sweep_ranks.json, read by the report).
+settle "the MPI sweep"
 "$python" tools/bench_ranks.py --drape "$build/apps/drape" --out docs/sweep_ranks.json
-# The portable build (issue 15): no -march=native, as a distribution ships drape; its kernels
-# pick their instruction set at run time. Only the figures the report compares with the
-# native run (docs/benchmarks-portable.json).
+# The portable build: only the figures the report compares with the native run
+# (docs/benchmarks-portable.json).
 portable_json=docs/benchmarks-portable.json
-cmake -S . -B "$build-portable" -DCMAKE_BUILD_TYPE=Release -DDRAPE_NATIVE=OFF -DDRAPE_WERROR=ON \
-  -DDRAPE_BUILD_TESTS=OFF -DDRAPE_BUILD_APPS=OFF -DDRAPE_BUILD_PYTHON=OFF -DDRAPE_BUILD_TOOLS=OFF >/dev/null
-cmake --build "$build-portable" --target drape_bench -j"$(nproc)"
+settle "the portable run"
 "$build-portable/bench/drape_bench" "--benchmark_min_time=$min_time" "--benchmark_repetitions=$repetitions" \
   --benchmark_enable_random_interleaving=true --benchmark_report_aggregates_only=true \
   "--benchmark_filter=^BM_(Sheets48_f|Fig13/semi_implicit_euler/f64/|Paper1000Points|CeilingSheets48|ArithmeticBound)" \
@@ -57,6 +75,7 @@ mv "$portable_json.tmp" "$portable_json"
 forced_json=()
 for set in AVX2 SSE4; do
   out="docs/benchmarks-$set.json"
+  settle "the portable run held to $set"
   DRAPE_SIMD_TARGET=$set "$build-portable/bench/drape_bench" "--benchmark_min_time=$min_time" \
     "--benchmark_repetitions=$repetitions" --benchmark_enable_random_interleaving=true \
     --benchmark_report_aggregates_only=true \
