@@ -205,8 +205,10 @@ void repel(const Sheet<Real>& qs, std::uint32_t q, V3<Real> p, const Sheet<Real>
     if (!(len > 0)) return;
     d = {nrm.x / len, nrm.y / len, nrm.z / len};
   }
-  // −dE/dd, shifted to reach 0 at the cut-off; d ≥ 0 bounds it by (c/ξ)·exp(h/ξ)
-  const Real f = prm.strength / prm.xi * (std::exp((prm.thickness - dist) / prm.xi) - prm.tail);
+  // −dE/dd, shifted to reach 0 at the cut-off; d ≥ 0 bounds it by (c/ξ)·exp(h/ξ), and the
+  // exponent cap by what the substep resolves (min(e, +∞) is e: uncapped, the same bits)
+  const Real f =
+      prm.strength / prm.xi * (std::exp(std::min((prm.thickness - dist) / prm.xi, prm.exponent_cap)) - prm.tail);
   V3<Real> F{f * d.x, f * d.y, f * d.z};
   if (prm.friction > 0) {
     const V3<Real> t = rub(qs, q, ss, best, d, f, prm);

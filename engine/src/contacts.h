@@ -10,7 +10,8 @@
 // triangles, over a face one or two) and let resting sheets creep. The force −dE/dd = (c/ξ)·exp(−(d − h)/ξ) is
 // cut off at d = R = h + range_in_xi·ξ and shifted so it falls continuously to 0 there;
 // since d ≥ 0 it never exceeds (c/ξ)·exp(h/ξ): a fast or deep penetration meets a large
-// but finite force, never an overflow. The force on p acts along p − q (q the closest point
+// but finite force, never an overflow. Where the substep cannot resolve its stiffness for
+// the pair's lightest point, the exponent is capped lower (ContactParams::exponent_cap). The force on p acts along p − q (q the closest point
 // of the nearest T; T's normal when p lies on T), and the opposite force is shared by T's three
 // vertices with q's barycentric weights, so every contact conserves momentum to rounding.
 // With friction (μ = the larger of the two sheets' SheetDef::friction), the force on p also
@@ -41,6 +42,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <vector>
 
@@ -59,6 +61,15 @@ struct ContactParams {
   Real dt = 0;        // s, the substep (friction stops at most the slip of one)
   Real friction = 0;  // μ of the pair, max of the two sheets' (pair_contacts sets it)
   Real skin;          // m, the first skin of kept candidate lists (PairContacts): R/4
+  // The largest exponent (h − d)/ξ the force uses: nearer than h − exponent_cap·ξ the force
+  // stops growing, so its stiffness (c/ξ²)·e^((h − d)/ξ) stays at or below m/dt² for the
+  // pair's lightest point m, as the obstacles' cap does (the world sets it per pair from
+  // the substep). Never below 0: at a substep so long that even the force at d = h is too
+  // stiff, a contact keeps that force, and a barrier of about c·(1 + h/ξ), rather than
+  // vanish. Unbounded: the model above. Where it binds, a point released deep in the
+  // potential leaves with about the energy the capped potential held, not several times it
+  // (an explicit step through a stiffness beyond 4m/dt² throws points out).
+  Real exponent_cap = std::numeric_limits<Real>::infinity();
   // Between searches: true, every point tests every cell of its kept candidate list (exact,
   // the reference); false, every point of the kept contact set walks from its cell
   // (KeptContacts: an approximation, the default).

@@ -565,8 +565,12 @@ ImplicitSample implicit_at(const Obstacle& o, const double p[3]) {
   return {};
 }
 
+double stiffness_exponent_cap(double strength, double xi, double lightest_mass, double dt) {
+  return std::log(lightest_mass * xi * xi / (strength * dt * dt));
+}
+
 double exponent_cap(const ObstacleDef& d, double lightest_mass, double dt) {
-  return std::min(d.max_exponent, std::log(lightest_mass * d.xi * d.xi / (d.c * dt * dt)));
+  return std::min(d.max_exponent, stiffness_exponent_cap(d.c, d.xi, lightest_mass, dt));
 }
 
 double potential_energy(const ObstacleDef& d, double f, double cap) {

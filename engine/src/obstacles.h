@@ -45,6 +45,11 @@ ImplicitSample implicit_at(const Obstacle& o, const double p[3]);
 // throws it out with more energy than it brought.
 double exponent_cap(const ObstacleDef& def, double lightest_mass, double dt);
 
+// The exponent at which a potential c·e^e with e = −(distance)/ξ reaches the stiffness
+// d²E/d(distance)² = (c/ξ²)·e^e = m/dt² for a point of mass m: ln(m·ξ²/(c·dt²)). The obstacles'
+// cap above and the contacts' (ContactParams::exponent_cap) both come from here.
+double stiffness_exponent_cap(double strength, double xi, double lightest_mass, double dt);
+
 // E(f) = c·exp(−f/ξ), cut off and shifted at reach_exponent·ξ (above), continued linearly past
 // the exponent cap, and −dE/df, the factor that multiplies ∇f in the force (the kernel's own
 // arithmetic, a vectorisable exp within 2 ulp of std::exp).

@@ -180,10 +180,15 @@ void BasicWorld<Real>::Impl::narrow_phase(double h) {
   parallel(pairs.size(), [&](std::size_t q) {
     auto& w = pair_work[q];
     auto& scratch = contact_scratch.local();
+    // The exponent cap for the pair's lightest point (contacts.h), from the substep h.
+    auto pair = params;
+    const double lightest = std::min(slots[active[w.a]].lightest_point, slots[active[w.b]].lightest_point);
+    pair.exponent_cap = static_cast<Real>(
+        std::max(0.0, detail::stiffness_exponent_cap(def.contact_strength, def.contact_xi, lightest, h)));
     if (w.a == w.b)
-      detail::self_contacts(at(w.a), sheet_boxes[w.a], params, w, scratch);
+      detail::self_contacts(at(w.a), sheet_boxes[w.a], pair, w, scratch);
     else
-      detail::pair_contacts(at(w.a), sheet_boxes[w.a], at(w.b), sheet_boxes[w.b], params, w, scratch);
+      detail::pair_contacts(at(w.a), sheet_boxes[w.a], at(w.b), sheet_boxes[w.b], pair, w, scratch);
   });
 }
 

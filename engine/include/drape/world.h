@@ -57,8 +57,11 @@ struct WorldDef {
 
   // Contacts between sheets (engine/src/contacts.h): a point at distance d from another
   // sheet's surface feels E = c·exp(−(d − h)/ξ), cut off (continuously) at
-  // d = h + contact_range·ξ; the force never exceeds (c/ξ)·exp(h/ξ). Sheets whose boxes
-  // are farther apart than that distance cost nothing. contact_strength = 0: no contacts.
+  // d = h + contact_range·ξ; the force never exceeds (c/ξ)·exp(h/ξ), nor, for a pair whose
+  // lightest point m the substep dt cannot hold against that stiffness, the force at the
+  // exponent ln(m·ξ²/(c·dt²)) (at least the force at d = h), like the obstacles' cap. Sheets
+  // whose boxes are farther apart than that distance cost nothing. contact_strength = 0: no
+  // contacts.
   double contact_thickness = 0.005;  // h, m: the gap contacts keep between surfaces
   double contact_xi = 0.002;         // ξ, m: how fast the repulsion decays with distance
   double contact_strength = 1e-3;    // c, J: the barrier at d = 0 is c·exp(h/ξ) ≈ 0.012 J
