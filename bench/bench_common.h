@@ -94,8 +94,10 @@ struct Stack {
 // however far they sag and swing); 0.01 m puts each layer in contact with the next (the
 // contact range is 0.017 m by default). `exact_contacts`: WorldDef::contact_exact, the exact
 // nearest triangle every substep instead of the walk (the reference, priced beside it).
-inline World stack_world(int threads, double layer_gap, bool exact_contacts = false) {
+// `guard`: the stability guard after every step() call, for runs long enough to blow up.
+inline World stack_world(int threads, double layer_gap, bool exact_contacts = false, bool guard = false) {
   WorldDef wd = world_def();
+  wd.guard = guard;
   wd.dt = Stack::dt;
   wd.threads = threads;
   wd.contact_exact = exact_contacts;
