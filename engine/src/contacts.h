@@ -11,9 +11,10 @@
 // cut off at d = R = h + range_in_xi·ξ and shifted so it falls continuously to 0 there;
 // since d ≥ 0 it never exceeds (c/ξ)·exp(h/ξ): a fast or deep penetration meets a large
 // but finite force, never an overflow. Where the substep cannot resolve its stiffness for
-// the pair's lightest point, the exponent is capped lower (ContactParams::exponent_cap). The force on p acts along p − q (q the closest point
-// of the nearest T; T's normal when p lies on T), and the opposite force is shared by T's three
-// vertices with q's barycentric weights, so every contact conserves momentum to rounding.
+// the pair's lightest point, the exponent is capped lower (ContactParams::exponent_cap).
+// The force on p acts along p − q (q the closest point of the nearest T; T's normal when p
+// lies on T), and the opposite force is shared by T's three vertices with q's barycentric
+// weights, so every contact conserves momentum to rounding.
 // With friction (μ = the larger of the two sheets' SheetDef::friction), the force on p also
 // opposes p's velocity relative to q (the corners' velocities with the same weights),
 // tangential to p − q: the smaller of μ·|F| and the force that stops that slip within dt
