@@ -84,7 +84,7 @@ void BM_World48SheetsSettling(benchmark::State& state) {
   const bool contact = state.range(0) != 0;
   for (auto _ : state) {
     state.PauseTiming();
-    drape::World world = stack_world(int(state.range(1)), contact ? 0.01 : 2.0, false, true);
+    drape::World world = stack_world(int(state.range(1)), contact ? 0.01 : 2.0, /*exact_contacts=*/false, /*guard=*/true);
     state.ResumeTiming();
     for (int frame = 0; frame < 100; ++frame) {
       const drape::StabilityReport report = world.step(10);
