@@ -13,6 +13,8 @@
 #   DRAPE_BENCH_MIN_TIME    seconds per repetition        (0.2)
 #   DRAPE_BENCH_REPETITIONS repetitions per benchmark     (3)
 #   DRAPE_BENCH_SETTLE      most seconds to wait for a quiet machine before each run (300)
+#   DRAPE_BENCH_BASELINES   1: record the two baselines again in this run (default); 0: use
+#                           docs/simd-baseline.json and docs/scenes-baseline.json as they are
 #   PYTHON                  interpreter with matplotlib   (/usr/bin/python3, Debian's)
 # Extra arguments go to drape_bench, e.g. --benchmark_filter=Fig13 for a partial report.
 set -euo pipefail
@@ -49,6 +51,16 @@ settle() {
   done
   echo "bench: starting $1 at load $(cut -d' ' -f1-3 /proc/loadavg) (waited ${waited} s)"
 }
+
+# The baselines the report divides by (issue 13's scenes before the contact work, issue 15's
+# engine before the vector kernels on AVX2), recorded again here so that the ratios come from
+# one run on one machine: recorded at another time, a virtual machine's slow spell (10-15 %
+# on this one, quiet or not) moves a ratio as much as a change does. Each script builds its
+# old commit in a scratch folder and waits for a quiet machine before it measures.
+if [[ "${DRAPE_BENCH_BASELINES:-1}" != 0 ]]; then
+  "$python" tools/simd_baseline.py --repetitions "$repetitions" --out docs/simd-baseline.json
+  "$python" tools/scenes_baseline.py --commit 0598513 --repetitions "$repetitions" --out docs/scenes-baseline.json
+fi
 
 mkdir -p docs/img
 command=("$build/bench/drape_bench" "--benchmark_min_time=$min_time" "--benchmark_repetitions=$repetitions"

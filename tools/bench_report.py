@@ -21,12 +21,12 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from machine import cpu_model  # noqa: E402
 from collections import defaultdict
 
-# Issue 6's targets, in one place.
+# Issue 6's targets (and issue 15's stricter thread speedup), in one place.
 TARGET_SLOPE = 1.00
 TARGET_SLOPE_TOL = 0.05
 TARGET_1000_POINTS_US = 10.0
 TARGET_CEILING_FRACTION = 0.50
-TARGET_SPEEDUP_SHEETS = 1.85
+TARGET_SPEEDUP_SHEETS = 1.9  # issue 6 asked 1.85; issue 15 asks that it stays at or above 1.9
 TARGET_SPEEDUP_HUGE = 1.7
 TARGET_OVERHEAD = 0.05  # world with no obstacles/contacts vs the bare kernel
 TARGET_BROADPHASE_SHARE = 0.05
@@ -1283,7 +1283,7 @@ class Report:
                  + (" — other jobs were sharing the CPU, so these numbers are noisy; rerun on a quiet machine"
                     if load and load[0] > 0.5 else ""),
                  "- Each figure is the median of the repetitions; ± is their coefficient of variation.", "")
-        self.out("## Targets (issues 6 and 13)", "", "| target | measured | goal | verdict | by how much |", "|---|---|---|---|---|")
+        self.out("## Targets (issues 6, 13 and 15)", "", "| target | measured | goal | verdict | by how much |", "|---|---|---|---|---|")
         for what, value, goal, v, by in self.targets:
             self.out(f"| {what} | {value} | {goal} | {v} | {by} |")
         self.out("")

@@ -82,7 +82,7 @@ def main():
         command = [os.path.join(build, "bench", "drape_bench"), "--benchmark_filter=^BM_Scene/",
                    f"--benchmark_repetitions={args.repetitions}", "--benchmark_enable_random_interleaving=true",
                    "--benchmark_report_aggregates_only=true"]
-        load_before = list(os.getloadavg())
+        load_before = recorder.settle()
         run([*command, f"--benchmark_out={raw}", "--benchmark_out_format=json"],
             env={**os.environ, "DRAPE_SCENES_DIR": scenes_dir}, stdout=subprocess.DEVNULL)
         load_after = list(os.getloadavg())

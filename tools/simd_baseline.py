@@ -88,7 +88,7 @@ def main():
         command = [os.path.join(build, "bench", "drape_bench"), f"--benchmark_filter={FILTER}",
                    f"--benchmark_repetitions={args.repetitions}", "--benchmark_enable_random_interleaving=true",
                    "--benchmark_report_aggregates_only=true"]
-        load_before = list(os.getloadavg())
+        load_before = recorder.settle()
         run([*command, f"--benchmark_out={raw}", "--benchmark_out_format=json"], stdout=subprocess.DEVNULL)
         load_after = list(os.getloadavg())
         with open(raw) as f:
