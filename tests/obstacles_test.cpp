@@ -197,6 +197,29 @@ TEST(Obstacles, CutOffForceStaysWithinItsBoundOfTheExactOne) {
   EXPECT_NEAR(drape::detail::potential_force_scale(d, r - h, cap), 0.0, 1e-4 * bound);
 }
 
+// The kernel's exp against std::exp (correctly rounded in glibc to within 1 ulp, 2.2·10⁻¹⁶):
+// its polynomial is 3·10⁻¹⁶ from e^r (tools/exp_polynomial.py), the evaluation and the
+// reduction x − k·ln2 add a few ulp, and the bound, 10⁻¹⁵ of e^x, is what obstacles.h
+// promises (the degree-9 polynomial misses it twentyfold). Exact at 0, and e^−700 below −700.
+TEST(Obstacles, VectorExpStaysWithinItsBoundOfStdExp) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> wide(-700.0, 700.0), used(-17.0, 12.0);  // used: the force's exponents
+  double worst = 0, worst_at = 0;
+  for (int k = 0; k < 400000; ++k) {
+    const double x = k % 4 == 0 ? wide(rng) : used(rng);
+    const double want = std::exp(x), error = std::abs(drape::detail::vector_exp(x) - want) / want;
+    if (error > worst) worst = error, worst_at = x;
+  }
+  for (double x = -2.0; x <= 2.0; x += 1.0 / 1024) {  // around the reduction's steps k·ln2/2
+    const double want = std::exp(x), error = std::abs(drape::detail::vector_exp(x) - want) / want;
+    if (error > worst) worst = error, worst_at = x;
+  }
+  EXPECT_LE(worst, 1e-15) << "at x = " << worst_at;
+  EXPECT_EQ(drape::detail::vector_exp(0.0), 1.0);
+  EXPECT_EQ(drape::detail::vector_exp(-800.0), drape::detail::vector_exp(-700.0));
+  EXPECT_NEAR(drape::detail::vector_exp(-700.0), std::exp(-700.0), 1e-15 * std::exp(-700.0));
+}
+
 // The vectorised kernel against eq (9) point by point, written out here with std::exp, the
 // analytic gradient and the normal from the neighbouring points: crumpled sheets of rows
 // shorter than, equal to and longer than the kernel's chunks, single rows and columns, and

@@ -172,7 +172,12 @@ ImplicitSample sample(const Obstacle& o, const double p[3]) {
 
 // e^x for x ≥ −700 without a call or a branch, lane by lane (Highway has no exp of its own
 // in this version, and std::exp has no vector form): x = k·ln2 + r with |r| ≤ ln2/2, e^r by
-// its Taylor series to r^13 (truncation below 2e-16 relative), 2^k put into the exponent bits.
+// a polynomial of degree 10, 2^k put into the exponent bits. The polynomial interpolates e^r
+// at the 11 Chebyshev nodes of [−ln2/2, ln2/2] (tools/exp_polynomial.py prints its
+// coefficients), about 3·10⁻¹⁶ from e^r there, so e^x stays within 10⁻¹⁵ of std::exp
+// (Obstacles.VectorExpStaysWithinItsBoundOfStdExp); Taylor's series needed degree 13 for
+// that. It is evaluated in Estrin's scheme, whose longest chain is 4 multiplications and 3
+// additions where Horner's has 10 of each, for 3 more multiplications.
 template <class D, class V>
 HWY_INLINE V exp_lanes(D d, V x) {
   const hn::RebindToUnsigned<D> du;
@@ -184,24 +189,30 @@ HWY_INLINE V exp_lanes(D d, V x) {
   const V kd = hn::Sub(shifted, shifter);
   const V r = hn::Sub(hn::Sub(x, hn::Mul(kd, hn::Set(d, 0x1.62e42fefa3800p-1))),
                       hn::Mul(kd, hn::Set(d, 0x1.ef35793c7673p-45)));  // ln2 in two parts
-  constexpr double taylor[] = {1.0 / 479001600.0, 1.0 / 39916800.0, 1.0 / 3628800.0, 1.0 / 362880.0,
-                               1.0 / 40320.0,     1.0 / 5040.0,     1.0 / 720.0,     1.0 / 120.0,
-                               1.0 / 24.0,        1.0 / 6.0,        0.5,             1.0,
-                               1.0};
-  V p = hn::Set(d, 1.0 / 6227020800.0);
-  for (double a : taylor) p = hn::Add(hn::Mul(p, r), hn::Set(d, a));
+  const auto pair = [&](double a, double b, V t) HWY_ATTR { return hn::Add(hn::Set(d, a), hn::Mul(hn::Set(d, b), t)); };
+  const auto join = [&](V a, V b, V t) HWY_ATTR { return hn::Add(a, hn::Mul(b, t)); };
+  const V r2 = hn::Mul(r, r), r4 = hn::Mul(r2, r2), r8 = hn::Mul(r4, r4);
+  const V p01 = pair(0x1.0000000000000p+0, 0x1.000000000001ep+0, r), p23 = pair(0x1.0000000000005p-1, 0x1.555555554b757p-3, r),
+          p45 = pair(0x1.55555555520afp-5, 0x1.1111112dd67c5p-7, r), p67 = pair(0x1.6c16c17f43a58p-10, 0x1.a01978c6baf81p-13, r),
+          p89 = pair(0x1.a019a66a75dd4p-16, 0x1.72faf024b693bp-19, r);
+  const V p8_10 = join(p89, hn::Set(d, 0x1.28a2c0a7209fbp-22), r2);
+  const V p = join(join(join(p01, p23, r2), join(p45, p67, r2), r4), p8_10, r8);
   return hn::BitCast(d, hn::Add(hn::BitCast(du, p), hn::ShiftLeft<52>(k)));
 }
 
 // The cut-off, shifted eq (9): −dE/df, zero at and beyond the reach.
 struct ForceScale {
-  double c_over_xi, inv_xi, cap, tail, reach;  // tail = e^−reach_exponent
+  double c_over_xi, minus_inv_xi, cap, tail, reach;  // tail = e^−reach_exponent
+  // The scale where f < reach; the caller drops the lanes beyond.
+  template <class D, class V>
+  HWY_INLINE V within(D d, V f) const {
+    const V e = lanes::first_min(hn::Mul(f, hn::Set(d, minus_inv_xi)), hn::Set(d, cap));
+    // ≥ 0 even for a cap below −reach
+    return hn::Mul(hn::Set(d, c_over_xi), lanes::first_max(hn::Sub(exp_lanes(d, e), hn::Set(d, tail)), hn::Zero(d)));
+  }
   template <class D, class V>
   HWY_INLINE V operator()(D d, V f) const {
-    const V e = lanes::first_min(hn::Mul(hn::Neg(f), hn::Set(d, inv_xi)), hn::Set(d, cap));
-    // ≥ 0 even for a cap below −reach
-    const V s = hn::Mul(hn::Set(d, c_over_xi), lanes::first_max(hn::Sub(exp_lanes(d, e), hn::Set(d, tail)), hn::Zero(d)));
-    return hn::IfThenElseZero(hn::Lt(f, hn::Set(d, reach)), s);
+    return hn::IfThenElseZero(hn::Lt(f, hn::Set(d, reach)), within(d, f));
   }
   double operator()(double f) const {
     const hn::CappedTag<double, 1> d;
@@ -209,8 +220,13 @@ struct ForceScale {
   }
 };
 
+double exp_one(double x) {
+  const hn::CappedTag<double, 1> d;
+  return hn::GetLane(exp_lanes(d, hn::Set(d, x)));
+}
+
 ForceScale force_scale_of(const ObstacleDef& d, double cap) {
-  return {d.c / d.xi, 1.0 / d.xi, cap, std::exp(-reach_exponent), reach_exponent * d.xi};
+  return {d.c / d.xi, -(1.0 / d.xi), cap, std::exp(-reach_exponent), reach_exponent * d.xi};
 }
 
 // Loads and stores of a sheet's Real through lanes l of doubles: a float sheet's lanes are
@@ -242,14 +258,17 @@ template <class Real, class Lanes>
 HWY_INLINE auto load_wide(Lanes l, const Real* p) {
   return widen(l, load_real(l, p));
 }
-// f[p] += F as the sheet's Real: a float sheet adds F rounded to float.
-template <class Lanes, class VR, class V, class Real>
-HWY_INLINE void store_sum(Lanes l, VR before, V add, Real* p) {
+// f[p] += F as the sheet's Real where `add` holds, f[p] unchanged elsewhere: a float sheet
+// adds F rounded to float.
+template <class Lanes, class M, class VR, class V, class Real>
+HWY_INLINE void store_sum(Lanes l, M add, VR before, V F, Real* p) {
   if constexpr (std::is_same_v<Real, double>) {
-    l.store(hn::Add(before, add), p);
+    l.store(hn::IfThenElse(add, hn::Add(before, F), before), p);
   } else {
     const auto lf = floats_of(l);
-    lf.store(hn::Add(before, hn::DemoteTo(lf.d, add)), p);
+    // the mask carried over as a value: Highway 1.0 rebinds masks only between lanes of one size
+    const auto keep = hn::Gt(hn::DemoteTo(lf.d, hn::IfThenElseZero(add, hn::Set(l.d, 1.0))), hn::Zero(lf.d));
+    lf.store(hn::IfThenElse(keep, hn::Add(before, hn::DemoteTo(lf.d, F)), before), p);
   }
 }
 // Lanes where m holds and that l covers (a part vector's masked lanes load zeros).
@@ -310,82 +329,72 @@ struct Rub {
   }
 };
 
-// Points go through in chunks of a row: first f (and ∇f) of every point, stored, and whether
-// any is within reach; then, only if one is, the force on every point of the chunk (zero
-// beyond reach). A chunk wholly beyond reach costs only f.
-constexpr std::uint32_t chunk_points = 64;
-
-struct Chunk {
-  alignas(64) double f[chunk_points];
-  alignas(64) double gx[chunk_points], gy[chunk_points], gz[chunk_points];  // unused where ∇f is constant
-};
-
-// The eq (9) term of one obstacle on one row's chunk, lanes at a time. What the loops read
-// of the obstacle is held by value: the stores into f could alias an Obstacle as far as the
+// The eq (9) term of one obstacle on one row, lanes at a time, in one pass: f (and ∇f) of
+// the lanes' points, and only if one of them is within reach, the force, added to f where
+// the point is within reach (a point beyond keeps its force bit for bit, whichever lanes
+// share its vector, so every width gives the same bits). What the loops read of the
+// obstacle is held by value: the stores into f could alias an Obstacle as far as the
 // compiler knows, and it would load it again for every vector.
 template <class Shape, class Real>
-struct RowChunk {
-  const Obstacle& o;  // for f and ∇f, whose loop stores only into the chunk
+struct RowForce {
+  const Obstacle& o;  // for f and ∇f of curved shapes
   NearObstacle near;
   ForceScale scale;
   Rub friction;
-  double normal[3];  // ∇f where Shape::constant_gradient
+  double center[3], normal[3];  // the obstacle's centre; ∇f where Shape::constant_gradient
   ConstVec3Ptr<Real> x, v;
   const Real* inv_mass;
   Vec3Ptr<Real> f;
   std::size_t row, up, down;  // first points of the row and of the rows above and below it
-  std::uint32_t j0;
-  Chunk& c;
-  bool project, rub;  // eq (9)'s projection on the sheet normal; friction
+  std::uint32_t n;            // the row's last column
+  bool project, rub;          // eq (9)'s projection on the sheet normal; friction
 
-  // f (and ∇f) of the chunk's points k, k + 1, ...; whether any is within reach.
-  template <class Lanes>
-  HWY_INLINE bool implicit_at(Lanes l, std::size_t k) const {
-    const auto d = l.d;
-    const std::size_t p = row + j0 + k;
-    const auto px = load_wide(l, x.x + p), py = load_wide(l, x.y + p), pz = load_wide(l, x.z + p);
-    hn::Vec<decltype(d)> fv;
-    if constexpr (Shape::constant_gradient) {
-      fv = local_axis(d, o, 2, hn::Sub(px, hn::Set(d, o.center[0])), hn::Sub(py, hn::Set(d, o.center[1])),
-                      hn::Sub(pz, hn::Set(d, o.center[2])));
-    } else {
-      hn::Vec<decltype(d)> gx, gy, gz;
-      sample_lanes<Shape>(d, o, px, py, pz, fv, gx, gy, gz);
-      l.store(gx, c.gx + k);
-      l.store(gy, c.gy + k);
-      l.store(gz, c.gz + k);
-    }
-    l.store(fv, c.f + k);
-    return !hn::AllFalse(d, covered(l, hn::Lt(fv, hn::Set(d, scale.reach))));
-  }
-
-  // The force on the chunk's points k, k + 1, ..., added to f (and projected first, for
-  // eq (9)); their neighbours along the row start at columns left and right.
-  template <class Lanes>
-  HWY_INLINE void force_at(Lanes l, std::size_t k, std::size_t left, std::size_t right) const {
+  // Points j, j + 1, ... of the row; their neighbours along it start at columns j − 1 and
+  // j + 1 (the caller makes sure both exist in memory). Ends: a lane may be column 0 or n,
+  // whose missing neighbour is the point itself (one-sided differences at the row's ends).
+  template <bool Ends, class Lanes>
+  HWY_INLINE void at(Lanes l, std::size_t j, std::size_t left, std::size_t right) const {
     const auto d = l.d;
     using V = hn::Vec<decltype(d)>;
-    const std::size_t p = row + j0 + k, j = j0 + k;
-    const V gx = Shape::constant_gradient ? hn::Set(d, normal[0]) : l.load(c.gx + k);
-    const V gy = Shape::constant_gradient ? hn::Set(d, normal[1]) : l.load(c.gy + k);
-    const V gz = Shape::constant_gradient ? hn::Set(d, normal[2]) : l.load(c.gz + k);
-    const V s = scale(d, l.load(c.f + k));
+    const std::size_t p = row + j;
+    const V px = load_wide(l, x.x + p), py = load_wide(l, x.y + p), pz = load_wide(l, x.z + p);
+    const V dx = hn::Sub(px, hn::Set(d, center[0])), dy = hn::Sub(py, hn::Set(d, center[1])),
+            dz = hn::Sub(pz, hn::Set(d, center[2]));
+    V fv, gx, gy, gz;
+    if constexpr (Shape::constant_gradient) {
+      fv = hn::Add(hn::Add(hn::Mul(hn::Set(d, normal[0]), dx), hn::Mul(hn::Set(d, normal[1]), dy)),
+                   hn::Mul(hn::Set(d, normal[2]), dz));  // local_axis(2): the same operations
+      gx = hn::Set(d, normal[0]), gy = hn::Set(d, normal[1]), gz = hn::Set(d, normal[2]);
+    } else {
+      sample_lanes<Shape>(d, o, px, py, pz, fv, gx, gy, gz);
+    }
+    const auto within = hn::Lt(fv, hn::Set(d, scale.reach));
+    if (hn::AllFalse(d, covered(l, within))) return;  // all beyond reach: f is all they cost
+    const V s = scale.within(d, fv);
     V Fx = hn::Mul(s, gx), Fy = hn::Mul(s, gy), Fz = hn::Mul(s, gz);
     if (project) {
-      const auto across = [&](const Real* a, std::size_t to, std::size_t from) HWY_ATTR {
-        return hn::Sub(load_wide(l, a + to), load_wide(l, a + from));
+      const std::size_t pl = row + left, pr = row + right;  // (row − 1 for left = −1, wrapped)
+      V lx = load_wide(l, x.x + pl), ly = load_wide(l, x.y + pl), lz = load_wide(l, x.z + pl);
+      V rx = load_wide(l, x.x + pr), ry = load_wide(l, x.y + pr), rz = load_wide(l, x.z + pr);
+      if constexpr (Ends) {
+        const V column = hn::Iota(d, double(j));
+        const auto first = hn::Eq(column, hn::Zero(d)), last = hn::Eq(column, hn::Set(d, double(n)));
+        lx = hn::IfThenElse(first, px, lx), ly = hn::IfThenElse(first, py, ly), lz = hn::IfThenElse(first, pz, lz);
+        rx = hn::IfThenElse(last, px, rx), ry = hn::IfThenElse(last, py, ry), rz = hn::IfThenElse(last, pz, rz);
+      }
+      const auto across = [&](const Real* a) HWY_ATTR {
+        return hn::Sub(load_wide(l, a + up + j), load_wide(l, a + down + j));
       };
-      project_on_normal(d, across(x.x, row + right, row + left), across(x.y, row + right, row + left),
-                        across(x.z, row + right, row + left), across(x.x, up + j, down + j),
-                        across(x.y, up + j, down + j), across(x.z, up + j, down + j), Fx, Fy, Fz);
+      project_on_normal(d, hn::Sub(rx, lx), hn::Sub(ry, ly), hn::Sub(rz, lz), across(x.x), across(x.y), across(x.z),
+                        Fx, Fy, Fz);
     }
     const auto before_x = load_real(l, f.x + p), before_y = load_real(l, f.y + p), before_z = load_real(l, f.z + p);
     if (rub) {
       // the slip relative to the obstacle's surface here: v − (linear + angular × (x − center))
       const double* w = near.angular;
-      const V rx = hn::Sub(load_wide(l, x.x + p), hn::Set(d, near.center[0]));
-      const V ry = hn::Sub(load_wide(l, x.y + p), hn::Set(d, near.center[1]));
-      const V rz = hn::Sub(load_wide(l, x.z + p), hn::Set(d, near.center[2]));
+      const V rx = hn::Sub(px, hn::Set(d, near.center[0]));
+      const V ry = hn::Sub(py, hn::Set(d, near.center[1]));
+      const V rz = hn::Sub(pz, hn::Set(d, near.center[2]));
       const auto cross = [&](double a, V b, double e, V g) HWY_ATTR {
         return hn::Sub(hn::Mul(hn::Set(d, a), b), hn::Mul(hn::Set(d, e), g));
       };
@@ -395,15 +404,18 @@ struct RowChunk {
       friction(d, gx, gy, gz, Fx, Fy, Fz, hn::Add(widen(l, before_x), Fx), hn::Add(widen(l, before_y), Fy),
                hn::Add(widen(l, before_z), Fz), vx, vy, vz, load_wide(l, inv_mass + p));
     }
-    store_sum(l, before_x, Fx, f.x + p);
-    store_sum(l, before_y, Fy, f.y + p);
-    store_sum(l, before_z, Fz, f.z + p);
+    store_sum(l, within, before_x, Fx, f.x + p);
+    store_sum(l, within, before_y, Fy, f.y + p);
+    store_sum(l, within, before_z, Fz, f.z + p);
   }
 };
 
 // One loop per shape, chosen once per obstacle. The projection and friction are branches on
 // a flag that holds for the whole call: predicted every time, and a quarter of the code a
-// loop per mode took (compiled under the sanitizers, that code took GCC minutes).
+// loop per mode took (compiled under the sanitizers, that code took GCC minutes). A row runs
+// in whole vectors from column 0 to n, the vectors holding its ends fixing their one-sided
+// differences lane by lane; only the sheet's first point (no point before it in memory) and
+// its last (none after) go one lane at a time.
 template <class Shape, class Real>
 void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near, ConstVec3Ptr<Real> x,
            ConstVec3Ptr<Real> v, const Real* inv_mass, Vec3Ptr<Real> f) {
@@ -411,31 +423,37 @@ void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near,
   const ForceScale scale = force_scale_of(o.def, near.exponent_cap);
   const Rub friction{near.friction, near.dt, {near.gravity[0], near.gravity[1], near.gravity[2]}};
   const hn::CappedTag<double, 1> one;
-  Chunk c;
+  const hn::ScalableTag<double> full;
   for (std::uint32_t i = 0; i <= m; ++i) {
     const std::size_t row = std::size_t(i) * cols;
     const std::size_t up = std::size_t(std::min(i + 1, m)) * cols, down = std::size_t(i > 0 ? i - 1 : 0) * cols;
-    for (std::uint32_t j0 = 0; j0 < cols; j0 += chunk_points) {
-      const std::uint32_t count = std::min(chunk_points, cols - j0);
-      const RowChunk<Shape, Real> at{
-          o, near, scale, friction, {o.rot[0][2], o.rot[1][2], o.rot[2][2]}, x, v, inv_mass, f, row, up, down, j0, c,
-          !o.def.full_gradient, near.friction > 0};
-      bool within = false;
-      lanes::over_lanes<double>(count, [&](auto l, std::size_t k) __attribute__((always_inline)) {
-        within |= at.implicit_at(l, k);
+    const RowForce<Shape, Real> at{o,
+                                   near,
+                                   scale,
+                                   friction,
+                                   {o.center[0], o.center[1], o.center[2]},
+                                   {o.rot[0][2], o.rot[1][2], o.rot[2][2]},
+                                   x,
+                                   v,
+                                   inv_mass,
+                                   f,
+                                   row,
+                                   up,
+                                   down,
+                                   n,
+                                   !o.def.full_gradient,
+                                   near.friction > 0};
+    const std::uint32_t begin = i == 0 ? 1 : 0, end = i == m ? n : cols;
+    if (i == 0) at.template at<false>(lanes::Whole<decltype(one)>{one}, 0, 0, std::min(1u, n));
+    if (end > begin)
+      lanes::over_lanes<double>(end - begin, [&](auto l, std::size_t e) __attribute__((always_inline)) {
+        const std::size_t j = begin + e;
+        if (j == 0 || j + hn::Lanes(full) > n)
+          at.template at<true>(l, j, j - 1, j + 1);  // at j = 0, row + j − 1 is the row before's last point
+        else
+          at.template at<false>(l, j, j - 1, j + 1);
       });
-      if (!within) continue;  // the whole chunk is beyond reach
-      // Central differences along the row inside it, one-sided at its two ends.
-      const std::uint32_t first = j0 == 0 ? 1 : 0, last = j0 + count > n ? count - 1 : count;
-      if (first > 0) at.force_at(lanes::Whole<decltype(one)>{one}, 0, 0, std::min(1u, n));
-      if (last > first)
-        lanes::over_lanes<double>(last - first, [&](auto l, std::size_t e) __attribute__((always_inline)) {
-          const std::size_t k = first + e;
-          at.force_at(l, k, j0 + k - 1, j0 + k + 1);
-        });
-      if (last < count && (first == 0 || count > 1))
-        at.force_at(lanes::Whole<decltype(one)>{one}, count - 1, n > 0 ? n - 1 : 0, n);
-    }
+    if (i == m && n >= begin) at.template at<false>(lanes::Whole<decltype(one)>{one}, n, n > 0 ? n - 1 : 0, n);
   }
 }
 
@@ -583,6 +601,8 @@ double potential_energy(const ObstacleDef& d, double f, double cap) {
 }
 
 double potential_force_scale(const ObstacleDef& d, double f, double cap) { return here::force_scale_of(d, cap)(f); }
+
+double vector_exp(double x) { return here::exp_one(x); }
 
 bool may_touch(const Obstacle& o, const Aabb& box) {
   if (o.bounded) return overlaps(o.reach, box);
