@@ -35,14 +35,31 @@ namespace HWY_NAMESPACE {
 namespace hn = hwy::HWY_NAMESPACE;
 namespace lanes = simd::HWY_NAMESPACE;  // over_lanes, Whole, FirstLanes, first_min, first_max
 
+// What f and ∇f read of an obstacle: its pose, its size and the size's reciprocals. The row
+// loop holds a copy (RowForce): it stores into the sheet's forces, which could alias the
+// Obstacle as far as the compiler knows, so it would load the obstacle again for every vector.
+struct Frame {
+  double center[3], rot[3][3];  // as in Obstacle
+  Vec3 size, inv;               // inv = (1/size.x, 1/size.y, 1/size.z), where the shape divides by them
+};
+
+Frame frame_of(const Obstacle& o) {
+  Frame r{{o.center[0], o.center[1], o.center[2]}, {}, o.def.size, {}};
+  for (int k = 0; k < 3; ++k)
+    for (int l = 0; l < 3; ++l) r.rot[k][l] = o.rot[k][l];
+  if (o.def.shape == ObstacleShape::Ellipsoid) r.inv = {1.0 / r.size.x, 1.0 / r.size.y, 1.0 / r.size.z};
+  return r;
+}
+
 // Local implicit functions: f and ∇f at points p of the obstacle's own frame, a vector of
-// them at a time. Where the gradient has no direction (a sphere's centre, a torus's axis or
-// core circle) a fixed unit direction is used, so a point there is still pushed out and
-// never gets 0/0: such a lane's 0/0 is computed and dropped by its mask.
+// them at a time, with one division per point (a reciprocal, then products). Where the
+// gradient has no direction (a sphere's centre, a torus's axis or core circle) a fixed unit
+// direction is used, so a point there is still pushed out and never gets 0/0 or 0·∞: such a
+// lane's value is computed and dropped by its mask.
 struct PlaneF {
   static constexpr bool constant_gradient = true;  // ∇f is the plane's unit normal everywhere
   template <class D, class V>
-  static HWY_INLINE void at(D d, V, V, V z, const Vec3&, V& f, V& gx, V& gy, V& gz) {
+  static HWY_INLINE void at(D d, V, V, V z, const Frame&, V& f, V& gx, V& gy, V& gz) {
     f = z;
     gx = hn::Zero(d);
     gy = hn::Zero(d);
@@ -53,13 +70,15 @@ struct PlaneF {
 struct SphereF {
   static constexpr bool constant_gradient = false;
   template <class D, class V>
-  static HWY_INLINE void at(D d, V x, V y, V z, const Vec3& s, V& f, V& gx, V& gy, V& gz) {
+  static HWY_INLINE void at(D d, V x, V y, V z, const Frame& o, V& f, V& gx, V& gy, V& gz) {
+    const Vec3& s = o.size;
     const V r = hn::Sqrt(hn::Add(hn::Add(hn::Mul(x, x), hn::Mul(y, y)), hn::Mul(z, z)));
     const auto centre = hn::Eq(r, hn::Zero(d));
+    const V inv = hn::Div(hn::Set(d, 1.0), r);
     f = hn::IfThenElse(centre, hn::Set(d, -s.x), hn::Sub(r, hn::Set(d, s.x)));
-    gx = hn::IfThenElse(centre, hn::Zero(d), hn::Div(x, r));
-    gy = hn::IfThenElse(centre, hn::Zero(d), hn::Div(y, r));
-    gz = hn::IfThenElse(centre, hn::Set(d, 1.0), hn::Div(z, r));
+    gx = hn::IfThenElse(centre, hn::Zero(d), hn::Mul(x, inv));
+    gy = hn::IfThenElse(centre, hn::Zero(d), hn::Mul(y, inv));
+    gz = hn::IfThenElse(centre, hn::Set(d, 1.0), hn::Mul(z, inv));
   }
 };
 
@@ -70,16 +89,17 @@ struct SphereF {
 struct EllipsoidF {
   static constexpr bool constant_gradient = false;
   template <class D, class V>
-  static HWY_INLINE void at(D d, V x, V y, V z, const Vec3& s, V& f, V& gx, V& gy, V& gz) {
-    const V k = hn::Set(d, std::min({s.x, s.y, s.z}));
-    const V ax = hn::Set(d, s.x), ay = hn::Set(d, s.y), az = hn::Set(d, s.z);
-    const V ux = hn::Div(x, ax), uy = hn::Div(y, ay), uz = hn::Div(z, az);
+  static HWY_INLINE void at(D d, V x, V y, V z, const Frame& o, V& f, V& gx, V& gy, V& gz) {
+    const Vec3 &s = o.size, &a = o.inv;
+    const double k = std::min({s.x, s.y, s.z});
+    const V ux = hn::Mul(x, hn::Set(d, a.x)), uy = hn::Mul(y, hn::Set(d, a.y)), uz = hn::Mul(z, hn::Set(d, a.z));
     const V q = hn::Sqrt(hn::Add(hn::Add(hn::Mul(ux, ux), hn::Mul(uy, uy)), hn::Mul(uz, uz)));
     const auto centre = hn::Eq(q, hn::Zero(d));
-    f = hn::IfThenElse(centre, hn::Neg(k), hn::Mul(k, hn::Sub(q, hn::Set(d, 1.0))));
-    gx = hn::IfThenElse(centre, hn::Zero(d), hn::Div(hn::Mul(k, ux), hn::Mul(ax, q)));
-    gy = hn::IfThenElse(centre, hn::Zero(d), hn::Div(hn::Mul(k, uy), hn::Mul(ay, q)));
-    gz = hn::IfThenElse(centre, hn::Set(d, 1.0), hn::Div(hn::Mul(k, uz), hn::Mul(az, q)));
+    const V inv = hn::Div(hn::Set(d, 1.0), q);
+    f = hn::IfThenElse(centre, hn::Set(d, -k), hn::Mul(hn::Set(d, k), hn::Sub(q, hn::Set(d, 1.0))));
+    gx = hn::IfThenElse(centre, hn::Zero(d), hn::Mul(hn::Mul(hn::Set(d, k * a.x), ux), inv));
+    gy = hn::IfThenElse(centre, hn::Zero(d), hn::Mul(hn::Mul(hn::Set(d, k * a.y), uy), inv));
+    gz = hn::IfThenElse(centre, hn::Set(d, 1.0), hn::Mul(hn::Mul(hn::Set(d, k * a.z), uz), inv));
   }
 };
 
@@ -87,19 +107,23 @@ struct EllipsoidF {
 struct TorusF {
   static constexpr bool constant_gradient = false;
   template <class D, class V>
-  static HWY_INLINE void at(D d, V x, V y, V z, const Vec3& s, V& f, V& gx, V& gy, V& gz) {
+  static HWY_INLINE void at(D d, V x, V y, V z, const Frame& o, V& f, V& gx, V& gy, V& gz) {
+    const Vec3& s = o.size;
+    const V one = hn::Set(d, 1.0);
     const V rho = hn::Sqrt(hn::Add(hn::Mul(x, x), hn::Mul(y, y)));
     const auto off_axis = hn::Gt(rho, hn::Zero(d));
-    const V cx = hn::IfThenElse(off_axis, hn::Div(x, rho), hn::Set(d, 1.0));
-    const V cy = hn::IfThenElseZero(off_axis, hn::Div(y, rho));
+    const V inv_rho = hn::Div(one, rho);
+    const V cx = hn::IfThenElse(off_axis, hn::Mul(x, inv_rho), one);
+    const V cy = hn::IfThenElseZero(off_axis, hn::Mul(y, inv_rho));
     const V dr = hn::Sub(rho, hn::Set(d, s.x));
     const V len = hn::Sqrt(hn::Add(hn::Mul(dr, dr), hn::Mul(z, z)));
     const auto core = hn::Eq(len, hn::Zero(d));
-    const V along = hn::Div(dr, len);
+    const V inv_len = hn::Div(one, len);
+    const V along = hn::Mul(dr, inv_len);
     f = hn::IfThenElse(core, hn::Set(d, -s.y), hn::Sub(len, hn::Set(d, s.y)));
     gx = hn::IfThenElse(core, hn::Zero(d), hn::Mul(along, cx));
     gy = hn::IfThenElse(core, hn::Zero(d), hn::Mul(along, cy));
-    gz = hn::IfThenElse(core, hn::Set(d, 1.0), hn::Div(z, len));
+    gz = hn::IfThenElse(core, one, hn::Mul(z, inv_len));
   }
 };
 
@@ -117,7 +141,8 @@ HWY_INLINE V sign_of(D d, V v) {
 struct BoxF {
   static constexpr bool constant_gradient = false;
   template <class D, class V>
-  static HWY_INLINE void at(D d, V x, V y, V z, const Vec3& s, V& f, V& gx, V& gy, V& gz) {
+  static HWY_INLINE void at(D d, V x, V y, V z, const Frame& o, V& f, V& gx, V& gy, V& gz) {
+    const Vec3& s = o.size;
     const V qx = hn::Sub(hn::Abs(x), hn::Set(d, s.x)), qy = hn::Sub(hn::Abs(y), hn::Set(d, s.y)),
             qz = hn::Sub(hn::Abs(z), hn::Set(d, s.z));
     const auto px = hn::Gt(qx, hn::Zero(d)), py = hn::Gt(qy, hn::Zero(d)), pz = hn::Gt(qz, hn::Zero(d));
@@ -125,33 +150,33 @@ struct BoxF {
     const V out2 = hn::Add(hn::Add(hn::IfThenElseZero(px, hn::Mul(qx, qx)), hn::IfThenElseZero(py, hn::Mul(qy, qy))),
                            hn::IfThenElseZero(pz, hn::Mul(qz, qz)));
     const auto outside = hn::Gt(out2, hn::Zero(d));
-    const V out = hn::Sqrt(out2);
+    const V out = hn::Sqrt(out2), inv_out = hn::Div(hn::Set(d, 1.0), out);
     const V sx = sign_of(d, x), sy = sign_of(d, y), sz = sign_of(d, z);
     const auto xy = hn::Ge(qx, qy), xz = hn::Ge(qx, qz), yz = hn::Ge(qy, qz);
     const auto face_x = hn::And(xy, xz), face_y = hn::AndNot(xy, yz), face_z = hn::Not(hn::Or(face_x, face_y));
     f = hn::IfThenElse(outside, out, hn::IfThenElse(face_x, qx, hn::IfThenElse(face_y, qy, qz)));
-    gx = hn::IfThenElse(outside, hn::IfThenElseZero(px, hn::Div(hn::Mul(sx, qx), out)), hn::IfThenElseZero(face_x, sx));
-    gy = hn::IfThenElse(outside, hn::IfThenElseZero(py, hn::Div(hn::Mul(sy, qy), out)), hn::IfThenElseZero(face_y, sy));
-    gz = hn::IfThenElse(outside, hn::IfThenElseZero(pz, hn::Div(hn::Mul(sz, qz), out)), hn::IfThenElseZero(face_z, sz));
+    gx = hn::IfThenElse(outside, hn::IfThenElseZero(px, hn::Mul(hn::Mul(sx, qx), inv_out)), hn::IfThenElseZero(face_x, sx));
+    gy = hn::IfThenElse(outside, hn::IfThenElseZero(py, hn::Mul(hn::Mul(sy, qy), inv_out)), hn::IfThenElseZero(face_y, sy));
+    gz = hn::IfThenElse(outside, hn::IfThenElseZero(pz, hn::Mul(hn::Mul(sz, qz), inv_out)), hn::IfThenElseZero(face_z, sz));
   }
 };
 
 // Local coordinate l of world points p (d = p − center): the obstacle's axis l dotted with d.
 // For a plane, l = 2 is f.
 template <class D, class V>
-HWY_INLINE V local_axis(D d, const Obstacle& o, int l, V dx, V dy, V dz) {
+HWY_INLINE V local_axis(D d, const Frame& o, int l, V dx, V dy, V dz) {
   return hn::Add(hn::Add(hn::Mul(hn::Set(d, o.rot[0][l]), dx), hn::Mul(hn::Set(d, o.rot[1][l]), dy)),
                  hn::Mul(hn::Set(d, o.rot[2][l]), dz));
 }
 
 // f and ∇f at world points: to the obstacle's frame, the shape, ∇f back to the world's.
 template <class Shape, class D, class V>
-HWY_INLINE void sample_lanes(D d, const Obstacle& o, V px, V py, V pz, V& f, V& gx, V& gy, V& gz) {
+HWY_INLINE void sample_lanes(D d, const Frame& o, V px, V py, V pz, V& f, V& gx, V& gy, V& gz) {
   const V dx = hn::Sub(px, hn::Set(d, o.center[0])), dy = hn::Sub(py, hn::Set(d, o.center[1])),
           dz = hn::Sub(pz, hn::Set(d, o.center[2]));
   V lx, ly, lz;
   Shape::at(d, local_axis(d, o, 0, dx, dy, dz), local_axis(d, o, 1, dx, dy, dz), local_axis(d, o, 2, dx, dy, dz),
-            o.def.size, f, lx, ly, lz);
+            o, f, lx, ly, lz);
   const auto world = [&](int k) HWY_ATTR {
     return hn::Add(hn::Add(hn::Mul(hn::Set(d, o.rot[k][0]), lx), hn::Mul(hn::Set(d, o.rot[k][1]), ly)),
                    hn::Mul(hn::Set(d, o.rot[k][2]), lz));
@@ -166,7 +191,7 @@ template <class Shape>
 ImplicitSample sample(const Obstacle& o, const double p[3]) {
   const hn::CappedTag<double, 1> d;
   hn::Vec<decltype(d)> f, gx, gy, gz;
-  sample_lanes<Shape>(d, o, hn::Set(d, p[0]), hn::Set(d, p[1]), hn::Set(d, p[2]), f, gx, gy, gz);
+  sample_lanes<Shape>(d, frame_of(o), hn::Set(d, p[0]), hn::Set(d, p[1]), hn::Set(d, p[2]), f, gx, gy, gz);
   return {hn::GetLane(f), {hn::GetLane(gx), hn::GetLane(gy), hn::GetLane(gz)}};
 }
 
@@ -337,11 +362,10 @@ struct Rub {
 // compiler knows, and it would load it again for every vector.
 template <class Shape, class Real>
 struct RowForce {
-  const Obstacle& o;  // for f and ∇f of curved shapes
+  Frame o;
   NearObstacle near;
   ForceScale scale;
   Rub friction;
-  double center[3], normal[3];  // the obstacle's centre; ∇f where Shape::constant_gradient
   ConstVec3Ptr<Real> x, v;
   const Real* inv_mass;
   Vec3Ptr<Real> f;
@@ -358,13 +382,11 @@ struct RowForce {
     using V = hn::Vec<decltype(d)>;
     const std::size_t p = row + j;
     const V px = load_wide(l, x.x + p), py = load_wide(l, x.y + p), pz = load_wide(l, x.z + p);
-    const V dx = hn::Sub(px, hn::Set(d, center[0])), dy = hn::Sub(py, hn::Set(d, center[1])),
-            dz = hn::Sub(pz, hn::Set(d, center[2]));
     V fv, gx, gy, gz;
-    if constexpr (Shape::constant_gradient) {
-      fv = hn::Add(hn::Add(hn::Mul(hn::Set(d, normal[0]), dx), hn::Mul(hn::Set(d, normal[1]), dy)),
-                   hn::Mul(hn::Set(d, normal[2]), dz));  // local_axis(2): the same operations
-      gx = hn::Set(d, normal[0]), gy = hn::Set(d, normal[1]), gz = hn::Set(d, normal[2]);
+    if constexpr (Shape::constant_gradient) {  // f is local z, ∇f the local z axis
+      fv = local_axis(d, o, 2, hn::Sub(px, hn::Set(d, o.center[0])), hn::Sub(py, hn::Set(d, o.center[1])),
+                      hn::Sub(pz, hn::Set(d, o.center[2])));
+      gx = hn::Set(d, o.rot[0][2]), gy = hn::Set(d, o.rot[1][2]), gz = hn::Set(d, o.rot[2][2]);
     } else {
       sample_lanes<Shape>(d, o, px, py, pz, fv, gx, gy, gz);
     }
@@ -421,18 +443,17 @@ void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near,
            ConstVec3Ptr<Real> v, const Real* inv_mass, Vec3Ptr<Real> f) {
   const std::uint32_t m = t.m, n = t.n, cols = t.cols();
   const ForceScale scale = force_scale_of(o.def, near.exponent_cap);
+  const Frame frame = frame_of(o);
   const Rub friction{near.friction, near.dt, {near.gravity[0], near.gravity[1], near.gravity[2]}};
   const hn::CappedTag<double, 1> one;
   const hn::ScalableTag<double> full;
   for (std::uint32_t i = 0; i <= m; ++i) {
     const std::size_t row = std::size_t(i) * cols;
     const std::size_t up = std::size_t(std::min(i + 1, m)) * cols, down = std::size_t(i > 0 ? i - 1 : 0) * cols;
-    const RowForce<Shape, Real> at{o,
+    const RowForce<Shape, Real> at{frame,
                                    near,
                                    scale,
                                    friction,
-                                   {o.center[0], o.center[1], o.center[2]},
-                                   {o.rot[0][2], o.rot[1][2], o.rot[2][2]},
                                    x,
                                    v,
                                    inv_mass,
