@@ -222,8 +222,9 @@ TEST(Obstacles, VectorExpStaysWithinItsBoundOfStdExp) {
 
 // The vectorised kernel against eq (9) point by point, written out here with std::exp, the
 // analytic gradient and the normal from the neighbouring points: crumpled sheets of rows
-// shorter than, equal to and longer than the kernel's chunks, single rows and columns, and
-// every shape, projected and not. Within the cut-off's bound (above) plus rounding.
+// of 64, 65, 66 and 131 points (whole vectors, and a row's end in a part vector), single
+// rows and columns, and every shape, projected and not. Within the cut-off's bound (above)
+// plus rounding.
 TEST(Obstacles, KernelMatchesEq9PointByPointOnCrumpledSheets) {
   const std::pair<std::uint32_t, std::uint32_t> sizes[] = {{0, 0}, {0, 5}, {4, 0}, {3, 63}, {2, 64}, {5, 65}, {3, 130}};
   std::mt19937 rng(11);
@@ -369,8 +370,8 @@ struct Eq9Reference {
   }
 };
 
-// The obstacle term of each instruction set on sheets of rows shorter than a vector, one
-// chunk long and past it, a row wholly beyond reach and points past the cap, projected or
+// The obstacle term of each instruction set on sheets of rows shorter than a vector, of
+// whole vectors and past them, a row wholly beyond reach and points past the cap, projected or
 // not, with and without friction against a moving obstacle: the same bits on every target,
 // and within rounding of Eq9Reference (1e-12 of the force's size in double; in float, the
 // sum rounded to float, 2⁻²³ of it).

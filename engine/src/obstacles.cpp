@@ -636,7 +636,7 @@ bool may_touch(const Obstacle& o, const Aabb& box) {
   return lowest < o.reach_distance;
 }
 
-// One dispatch per sheet and obstacle per substep: the chunks, the shapes' f and ∇f, the
+// One dispatch per sheet and obstacle per substep: the rows, the shapes' f and ∇f, the
 // force scale, the projection and friction run on the widest instruction set the CPU has.
 template <class Real>
 void obstacle_forces(const Topology<Real>& t, const NearObstacle& near, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v,
