@@ -197,10 +197,34 @@ TEST(Obstacles, CutOffForceStaysWithinItsBoundOfTheExactOne) {
   EXPECT_NEAR(drape::detail::potential_force_scale(d, r - h, cap), 0.0, 1e-4 * bound);
 }
 
+// The kernel's exp against std::exp (correctly rounded in glibc to within 1 ulp, 2.2·10⁻¹⁶):
+// its polynomial is 3·10⁻¹⁶ from e^r (tools/exp_polynomial.py), the evaluation and the
+// reduction x − k·ln2 add a few ulp, and the bound, 10⁻¹⁵ of e^x, is what obstacles.h
+// promises (the degree-9 polynomial misses it twentyfold). Exact at 0, and e^−700 below −700.
+TEST(Obstacles, VectorExpStaysWithinItsBoundOfStdExp) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> wide(-700.0, 700.0), used(-17.0, 12.0);  // used: the force's exponents
+  double worst = 0, worst_at = 0;
+  for (int k = 0; k < 400000; ++k) {
+    const double x = k % 4 == 0 ? wide(rng) : used(rng);
+    const double want = std::exp(x), error = std::abs(drape::detail::vector_exp(x) - want) / want;
+    if (error > worst) worst = error, worst_at = x;
+  }
+  for (double x = -2.0; x <= 2.0; x += 1.0 / 1024) {  // around the reduction's steps k·ln2/2
+    const double want = std::exp(x), error = std::abs(drape::detail::vector_exp(x) - want) / want;
+    if (error > worst) worst = error, worst_at = x;
+  }
+  EXPECT_LE(worst, 1e-15) << "at x = " << worst_at;
+  EXPECT_EQ(drape::detail::vector_exp(0.0), 1.0);
+  EXPECT_EQ(drape::detail::vector_exp(-800.0), drape::detail::vector_exp(-700.0));
+  EXPECT_NEAR(drape::detail::vector_exp(-700.0), std::exp(-700.0), 1e-15 * std::exp(-700.0));
+}
+
 // The vectorised kernel against eq (9) point by point, written out here with std::exp, the
 // analytic gradient and the normal from the neighbouring points: crumpled sheets of rows
-// shorter than, equal to and longer than the kernel's chunks, single rows and columns, and
-// every shape, projected and not. Within the cut-off's bound (above) plus rounding.
+// of 64, 65, 66 and 131 points (whole vectors, and a row's end in a part vector), single
+// rows and columns, and every shape, projected and not. Within the cut-off's bound (above)
+// plus rounding.
 TEST(Obstacles, KernelMatchesEq9PointByPointOnCrumpledSheets) {
   const std::pair<std::uint32_t, std::uint32_t> sizes[] = {{0, 0}, {0, 5}, {4, 0}, {3, 63}, {2, 64}, {5, 65}, {3, 130}};
   std::mt19937 rng(11);
@@ -346,8 +370,8 @@ struct Eq9Reference {
   }
 };
 
-// The obstacle term of each instruction set on sheets of rows shorter than a vector, one
-// chunk long and past it, a row wholly beyond reach and points past the cap, projected or
+// The obstacle term of each instruction set on sheets of rows shorter than a vector, of
+// whole vectors and past them, a row wholly beyond reach and points past the cap, projected or
 // not, with and without friction against a moving obstacle: the same bits on every target,
 // and within rounding of Eq9Reference (1e-12 of the force's size in double; in float, the
 // sum rounded to float, 2⁻²³ of it).

@@ -277,7 +277,7 @@ TEST(Simd, PointUpdateOfEveryTargetIsTheEulerStepByHand) {
 // With `cloth`, the first sheet also has shear springs, bending and air against a wind:
 // every term of the sweep runs on the target. With `obstacles`, a floor with friction lies
 // just under both sheets and a sphere just under the second: eq (9) on every point, the
-// plane's and a curved shape's chunks, the projection and friction.
+// plane's and a curved shape's rows, the projection and friction.
 template <class W>
 W make_world(Integrator integrator, int threads, std::uint32_t block_points, bool cloth = false,
              bool obstacles = false) {

@@ -35,14 +35,31 @@ namespace HWY_NAMESPACE {
 namespace hn = hwy::HWY_NAMESPACE;
 namespace lanes = simd::HWY_NAMESPACE;  // over_lanes, Whole, FirstLanes, first_min, first_max
 
+// What f and ∇f read of an obstacle: its pose, its size and the size's reciprocals. The row
+// loop holds a copy (RowForce): it stores into the sheet's forces, which could alias the
+// Obstacle as far as the compiler knows, so it would load the obstacle again for every vector.
+struct Frame {
+  double center[3], rot[3][3];  // as in Obstacle
+  Vec3 size, inv;               // inv = (1/size.x, 1/size.y, 1/size.z), where the shape divides by them
+};
+
+Frame frame_of(const Obstacle& o) {
+  Frame r{{o.center[0], o.center[1], o.center[2]}, {}, o.def.size, {}};
+  for (int k = 0; k < 3; ++k)
+    for (int l = 0; l < 3; ++l) r.rot[k][l] = o.rot[k][l];
+  if (o.def.shape == ObstacleShape::Ellipsoid) r.inv = {1.0 / r.size.x, 1.0 / r.size.y, 1.0 / r.size.z};
+  return r;
+}
+
 // Local implicit functions: f and ∇f at points p of the obstacle's own frame, a vector of
-// them at a time. Where the gradient has no direction (a sphere's centre, a torus's axis or
-// core circle) a fixed unit direction is used, so a point there is still pushed out and
-// never gets 0/0: such a lane's 0/0 is computed and dropped by its mask.
+// them at a time, with one division per point (a reciprocal, then products). Where the
+// gradient has no direction (a sphere's centre, a torus's axis or core circle) a fixed unit
+// direction is used, so a point there is still pushed out and never gets 0/0 or 0·∞: such a
+// lane's value is computed and dropped by its mask.
 struct PlaneF {
   static constexpr bool constant_gradient = true;  // ∇f is the plane's unit normal everywhere
   template <class D, class V>
-  static HWY_INLINE void at(D d, V, V, V z, const Vec3&, V& f, V& gx, V& gy, V& gz) {
+  static HWY_INLINE void at(D d, V, V, V z, const Frame&, V& f, V& gx, V& gy, V& gz) {
     f = z;
     gx = hn::Zero(d);
     gy = hn::Zero(d);
@@ -53,13 +70,15 @@ struct PlaneF {
 struct SphereF {
   static constexpr bool constant_gradient = false;
   template <class D, class V>
-  static HWY_INLINE void at(D d, V x, V y, V z, const Vec3& s, V& f, V& gx, V& gy, V& gz) {
+  static HWY_INLINE void at(D d, V x, V y, V z, const Frame& o, V& f, V& gx, V& gy, V& gz) {
+    const Vec3& s = o.size;
     const V r = hn::Sqrt(hn::Add(hn::Add(hn::Mul(x, x), hn::Mul(y, y)), hn::Mul(z, z)));
     const auto centre = hn::Eq(r, hn::Zero(d));
+    const V inv = hn::Div(hn::Set(d, 1.0), r);
     f = hn::IfThenElse(centre, hn::Set(d, -s.x), hn::Sub(r, hn::Set(d, s.x)));
-    gx = hn::IfThenElse(centre, hn::Zero(d), hn::Div(x, r));
-    gy = hn::IfThenElse(centre, hn::Zero(d), hn::Div(y, r));
-    gz = hn::IfThenElse(centre, hn::Set(d, 1.0), hn::Div(z, r));
+    gx = hn::IfThenElse(centre, hn::Zero(d), hn::Mul(x, inv));
+    gy = hn::IfThenElse(centre, hn::Zero(d), hn::Mul(y, inv));
+    gz = hn::IfThenElse(centre, hn::Set(d, 1.0), hn::Mul(z, inv));
   }
 };
 
@@ -70,16 +89,17 @@ struct SphereF {
 struct EllipsoidF {
   static constexpr bool constant_gradient = false;
   template <class D, class V>
-  static HWY_INLINE void at(D d, V x, V y, V z, const Vec3& s, V& f, V& gx, V& gy, V& gz) {
-    const V k = hn::Set(d, std::min({s.x, s.y, s.z}));
-    const V ax = hn::Set(d, s.x), ay = hn::Set(d, s.y), az = hn::Set(d, s.z);
-    const V ux = hn::Div(x, ax), uy = hn::Div(y, ay), uz = hn::Div(z, az);
+  static HWY_INLINE void at(D d, V x, V y, V z, const Frame& o, V& f, V& gx, V& gy, V& gz) {
+    const Vec3 &s = o.size, &a = o.inv;
+    const double k = std::min({s.x, s.y, s.z});
+    const V ux = hn::Mul(x, hn::Set(d, a.x)), uy = hn::Mul(y, hn::Set(d, a.y)), uz = hn::Mul(z, hn::Set(d, a.z));
     const V q = hn::Sqrt(hn::Add(hn::Add(hn::Mul(ux, ux), hn::Mul(uy, uy)), hn::Mul(uz, uz)));
     const auto centre = hn::Eq(q, hn::Zero(d));
-    f = hn::IfThenElse(centre, hn::Neg(k), hn::Mul(k, hn::Sub(q, hn::Set(d, 1.0))));
-    gx = hn::IfThenElse(centre, hn::Zero(d), hn::Div(hn::Mul(k, ux), hn::Mul(ax, q)));
-    gy = hn::IfThenElse(centre, hn::Zero(d), hn::Div(hn::Mul(k, uy), hn::Mul(ay, q)));
-    gz = hn::IfThenElse(centre, hn::Set(d, 1.0), hn::Div(hn::Mul(k, uz), hn::Mul(az, q)));
+    const V inv = hn::Div(hn::Set(d, 1.0), q);
+    f = hn::IfThenElse(centre, hn::Set(d, -k), hn::Mul(hn::Set(d, k), hn::Sub(q, hn::Set(d, 1.0))));
+    gx = hn::IfThenElse(centre, hn::Zero(d), hn::Mul(hn::Mul(hn::Set(d, k * a.x), ux), inv));
+    gy = hn::IfThenElse(centre, hn::Zero(d), hn::Mul(hn::Mul(hn::Set(d, k * a.y), uy), inv));
+    gz = hn::IfThenElse(centre, hn::Set(d, 1.0), hn::Mul(hn::Mul(hn::Set(d, k * a.z), uz), inv));
   }
 };
 
@@ -87,19 +107,23 @@ struct EllipsoidF {
 struct TorusF {
   static constexpr bool constant_gradient = false;
   template <class D, class V>
-  static HWY_INLINE void at(D d, V x, V y, V z, const Vec3& s, V& f, V& gx, V& gy, V& gz) {
+  static HWY_INLINE void at(D d, V x, V y, V z, const Frame& o, V& f, V& gx, V& gy, V& gz) {
+    const Vec3& s = o.size;
+    const V one = hn::Set(d, 1.0);
     const V rho = hn::Sqrt(hn::Add(hn::Mul(x, x), hn::Mul(y, y)));
     const auto off_axis = hn::Gt(rho, hn::Zero(d));
-    const V cx = hn::IfThenElse(off_axis, hn::Div(x, rho), hn::Set(d, 1.0));
-    const V cy = hn::IfThenElseZero(off_axis, hn::Div(y, rho));
+    const V inv_rho = hn::Div(one, rho);
+    const V cx = hn::IfThenElse(off_axis, hn::Mul(x, inv_rho), one);
+    const V cy = hn::IfThenElseZero(off_axis, hn::Mul(y, inv_rho));
     const V dr = hn::Sub(rho, hn::Set(d, s.x));
     const V len = hn::Sqrt(hn::Add(hn::Mul(dr, dr), hn::Mul(z, z)));
     const auto core = hn::Eq(len, hn::Zero(d));
-    const V along = hn::Div(dr, len);
+    const V inv_len = hn::Div(one, len);
+    const V along = hn::Mul(dr, inv_len);
     f = hn::IfThenElse(core, hn::Set(d, -s.y), hn::Sub(len, hn::Set(d, s.y)));
     gx = hn::IfThenElse(core, hn::Zero(d), hn::Mul(along, cx));
     gy = hn::IfThenElse(core, hn::Zero(d), hn::Mul(along, cy));
-    gz = hn::IfThenElse(core, hn::Set(d, 1.0), hn::Div(z, len));
+    gz = hn::IfThenElse(core, one, hn::Mul(z, inv_len));
   }
 };
 
@@ -117,7 +141,8 @@ HWY_INLINE V sign_of(D d, V v) {
 struct BoxF {
   static constexpr bool constant_gradient = false;
   template <class D, class V>
-  static HWY_INLINE void at(D d, V x, V y, V z, const Vec3& s, V& f, V& gx, V& gy, V& gz) {
+  static HWY_INLINE void at(D d, V x, V y, V z, const Frame& o, V& f, V& gx, V& gy, V& gz) {
+    const Vec3& s = o.size;
     const V qx = hn::Sub(hn::Abs(x), hn::Set(d, s.x)), qy = hn::Sub(hn::Abs(y), hn::Set(d, s.y)),
             qz = hn::Sub(hn::Abs(z), hn::Set(d, s.z));
     const auto px = hn::Gt(qx, hn::Zero(d)), py = hn::Gt(qy, hn::Zero(d)), pz = hn::Gt(qz, hn::Zero(d));
@@ -125,33 +150,33 @@ struct BoxF {
     const V out2 = hn::Add(hn::Add(hn::IfThenElseZero(px, hn::Mul(qx, qx)), hn::IfThenElseZero(py, hn::Mul(qy, qy))),
                            hn::IfThenElseZero(pz, hn::Mul(qz, qz)));
     const auto outside = hn::Gt(out2, hn::Zero(d));
-    const V out = hn::Sqrt(out2);
+    const V out = hn::Sqrt(out2), inv_out = hn::Div(hn::Set(d, 1.0), out);
     const V sx = sign_of(d, x), sy = sign_of(d, y), sz = sign_of(d, z);
     const auto xy = hn::Ge(qx, qy), xz = hn::Ge(qx, qz), yz = hn::Ge(qy, qz);
     const auto face_x = hn::And(xy, xz), face_y = hn::AndNot(xy, yz), face_z = hn::Not(hn::Or(face_x, face_y));
     f = hn::IfThenElse(outside, out, hn::IfThenElse(face_x, qx, hn::IfThenElse(face_y, qy, qz)));
-    gx = hn::IfThenElse(outside, hn::IfThenElseZero(px, hn::Div(hn::Mul(sx, qx), out)), hn::IfThenElseZero(face_x, sx));
-    gy = hn::IfThenElse(outside, hn::IfThenElseZero(py, hn::Div(hn::Mul(sy, qy), out)), hn::IfThenElseZero(face_y, sy));
-    gz = hn::IfThenElse(outside, hn::IfThenElseZero(pz, hn::Div(hn::Mul(sz, qz), out)), hn::IfThenElseZero(face_z, sz));
+    gx = hn::IfThenElse(outside, hn::IfThenElseZero(px, hn::Mul(hn::Mul(sx, qx), inv_out)), hn::IfThenElseZero(face_x, sx));
+    gy = hn::IfThenElse(outside, hn::IfThenElseZero(py, hn::Mul(hn::Mul(sy, qy), inv_out)), hn::IfThenElseZero(face_y, sy));
+    gz = hn::IfThenElse(outside, hn::IfThenElseZero(pz, hn::Mul(hn::Mul(sz, qz), inv_out)), hn::IfThenElseZero(face_z, sz));
   }
 };
 
 // Local coordinate l of world points p (d = p − center): the obstacle's axis l dotted with d.
 // For a plane, l = 2 is f.
 template <class D, class V>
-HWY_INLINE V local_axis(D d, const Obstacle& o, int l, V dx, V dy, V dz) {
+HWY_INLINE V local_axis(D d, const Frame& o, int l, V dx, V dy, V dz) {
   return hn::Add(hn::Add(hn::Mul(hn::Set(d, o.rot[0][l]), dx), hn::Mul(hn::Set(d, o.rot[1][l]), dy)),
                  hn::Mul(hn::Set(d, o.rot[2][l]), dz));
 }
 
 // f and ∇f at world points: to the obstacle's frame, the shape, ∇f back to the world's.
 template <class Shape, class D, class V>
-HWY_INLINE void sample_lanes(D d, const Obstacle& o, V px, V py, V pz, V& f, V& gx, V& gy, V& gz) {
+HWY_INLINE void sample_lanes(D d, const Frame& o, V px, V py, V pz, V& f, V& gx, V& gy, V& gz) {
   const V dx = hn::Sub(px, hn::Set(d, o.center[0])), dy = hn::Sub(py, hn::Set(d, o.center[1])),
           dz = hn::Sub(pz, hn::Set(d, o.center[2]));
   V lx, ly, lz;
   Shape::at(d, local_axis(d, o, 0, dx, dy, dz), local_axis(d, o, 1, dx, dy, dz), local_axis(d, o, 2, dx, dy, dz),
-            o.def.size, f, lx, ly, lz);
+            o, f, lx, ly, lz);
   const auto world = [&](int k) HWY_ATTR {
     return hn::Add(hn::Add(hn::Mul(hn::Set(d, o.rot[k][0]), lx), hn::Mul(hn::Set(d, o.rot[k][1]), ly)),
                    hn::Mul(hn::Set(d, o.rot[k][2]), lz));
@@ -166,13 +191,18 @@ template <class Shape>
 ImplicitSample sample(const Obstacle& o, const double p[3]) {
   const hn::CappedTag<double, 1> d;
   hn::Vec<decltype(d)> f, gx, gy, gz;
-  sample_lanes<Shape>(d, o, hn::Set(d, p[0]), hn::Set(d, p[1]), hn::Set(d, p[2]), f, gx, gy, gz);
+  sample_lanes<Shape>(d, frame_of(o), hn::Set(d, p[0]), hn::Set(d, p[1]), hn::Set(d, p[2]), f, gx, gy, gz);
   return {hn::GetLane(f), {hn::GetLane(gx), hn::GetLane(gy), hn::GetLane(gz)}};
 }
 
 // e^x for x ≥ −700 without a call or a branch, lane by lane (Highway has no exp of its own
 // in this version, and std::exp has no vector form): x = k·ln2 + r with |r| ≤ ln2/2, e^r by
-// its Taylor series to r^13 (truncation below 2e-16 relative), 2^k put into the exponent bits.
+// a polynomial of degree 10, 2^k put into the exponent bits. The polynomial interpolates e^r
+// at the 11 Chebyshev nodes of [−ln2/2, ln2/2] (tools/exp_polynomial.py prints its
+// coefficients), about 3·10⁻¹⁶ from e^r there, so e^x stays within 10⁻¹⁵ of std::exp
+// (Obstacles.VectorExpStaysWithinItsBoundOfStdExp); Taylor's series needed degree 13 for
+// that. It is evaluated in Estrin's scheme, whose longest chain is 4 multiplications and 3
+// additions where Horner's has 10 of each, for 3 more multiplications.
 template <class D, class V>
 HWY_INLINE V exp_lanes(D d, V x) {
   const hn::RebindToUnsigned<D> du;
@@ -184,24 +214,30 @@ HWY_INLINE V exp_lanes(D d, V x) {
   const V kd = hn::Sub(shifted, shifter);
   const V r = hn::Sub(hn::Sub(x, hn::Mul(kd, hn::Set(d, 0x1.62e42fefa3800p-1))),
                       hn::Mul(kd, hn::Set(d, 0x1.ef35793c7673p-45)));  // ln2 in two parts
-  constexpr double taylor[] = {1.0 / 479001600.0, 1.0 / 39916800.0, 1.0 / 3628800.0, 1.0 / 362880.0,
-                               1.0 / 40320.0,     1.0 / 5040.0,     1.0 / 720.0,     1.0 / 120.0,
-                               1.0 / 24.0,        1.0 / 6.0,        0.5,             1.0,
-                               1.0};
-  V p = hn::Set(d, 1.0 / 6227020800.0);
-  for (double a : taylor) p = hn::Add(hn::Mul(p, r), hn::Set(d, a));
+  const auto pair = [&](double a, double b, V t) HWY_ATTR { return hn::Add(hn::Set(d, a), hn::Mul(hn::Set(d, b), t)); };
+  const auto join = [&](V a, V b, V t) HWY_ATTR { return hn::Add(a, hn::Mul(b, t)); };
+  const V r2 = hn::Mul(r, r), r4 = hn::Mul(r2, r2), r8 = hn::Mul(r4, r4);
+  const V p01 = pair(0x1.0000000000000p+0, 0x1.000000000001ep+0, r), p23 = pair(0x1.0000000000005p-1, 0x1.555555554b757p-3, r),
+          p45 = pair(0x1.55555555520afp-5, 0x1.1111112dd67c5p-7, r), p67 = pair(0x1.6c16c17f43a58p-10, 0x1.a01978c6baf81p-13, r),
+          p89 = pair(0x1.a019a66a75dd4p-16, 0x1.72faf024b693bp-19, r);
+  const V p8_10 = join(p89, hn::Set(d, 0x1.28a2c0a7209fbp-22), r2);
+  const V p = join(join(join(p01, p23, r2), join(p45, p67, r2), r4), p8_10, r8);
   return hn::BitCast(d, hn::Add(hn::BitCast(du, p), hn::ShiftLeft<52>(k)));
 }
 
 // The cut-off, shifted eq (9): −dE/df, zero at and beyond the reach.
 struct ForceScale {
-  double c_over_xi, inv_xi, cap, tail, reach;  // tail = e^−reach_exponent
+  double c_over_xi, minus_inv_xi, cap, tail, reach;  // tail = e^−reach_exponent
+  // The scale where f < reach; the caller drops the lanes beyond.
+  template <class D, class V>
+  HWY_INLINE V within(D d, V f) const {
+    const V e = lanes::first_min(hn::Mul(f, hn::Set(d, minus_inv_xi)), hn::Set(d, cap));
+    // ≥ 0 even for a cap below −reach
+    return hn::Mul(hn::Set(d, c_over_xi), lanes::first_max(hn::Sub(exp_lanes(d, e), hn::Set(d, tail)), hn::Zero(d)));
+  }
   template <class D, class V>
   HWY_INLINE V operator()(D d, V f) const {
-    const V e = lanes::first_min(hn::Mul(hn::Neg(f), hn::Set(d, inv_xi)), hn::Set(d, cap));
-    // ≥ 0 even for a cap below −reach
-    const V s = hn::Mul(hn::Set(d, c_over_xi), lanes::first_max(hn::Sub(exp_lanes(d, e), hn::Set(d, tail)), hn::Zero(d)));
-    return hn::IfThenElseZero(hn::Lt(f, hn::Set(d, reach)), s);
+    return hn::IfThenElseZero(hn::Lt(f, hn::Set(d, reach)), within(d, f));
   }
   double operator()(double f) const {
     const hn::CappedTag<double, 1> d;
@@ -209,8 +245,13 @@ struct ForceScale {
   }
 };
 
+double exp_one(double x) {
+  const hn::CappedTag<double, 1> d;
+  return hn::GetLane(exp_lanes(d, hn::Set(d, x)));
+}
+
 ForceScale force_scale_of(const ObstacleDef& d, double cap) {
-  return {d.c / d.xi, 1.0 / d.xi, cap, std::exp(-reach_exponent), reach_exponent * d.xi};
+  return {d.c / d.xi, -(1.0 / d.xi), cap, std::exp(-reach_exponent), reach_exponent * d.xi};
 }
 
 // Loads and stores of a sheet's Real through lanes l of doubles: a float sheet's lanes are
@@ -242,14 +283,17 @@ template <class Real, class Lanes>
 HWY_INLINE auto load_wide(Lanes l, const Real* p) {
   return widen(l, load_real(l, p));
 }
-// f[p] += F as the sheet's Real: a float sheet adds F rounded to float.
-template <class Lanes, class VR, class V, class Real>
-HWY_INLINE void store_sum(Lanes l, VR before, V add, Real* p) {
+// f[p] += F as the sheet's Real where `add` holds, f[p] unchanged elsewhere: a float sheet
+// adds F rounded to float.
+template <class Lanes, class M, class VR, class V, class Real>
+HWY_INLINE void store_sum(Lanes l, M add, VR before, V F, Real* p) {
   if constexpr (std::is_same_v<Real, double>) {
-    l.store(hn::Add(before, add), p);
+    l.store(hn::IfThenElse(add, hn::Add(before, F), before), p);
   } else {
     const auto lf = floats_of(l);
-    lf.store(hn::Add(before, hn::DemoteTo(lf.d, add)), p);
+    // the mask carried over as a value: Highway 1.0 rebinds masks only between lanes of one size
+    const auto keep = hn::Gt(hn::DemoteTo(lf.d, hn::IfThenElseZero(add, hn::Set(l.d, 1.0))), hn::Zero(lf.d));
+    lf.store(hn::IfThenElse(keep, hn::Add(before, hn::DemoteTo(lf.d, F)), before), p);
   }
 }
 // Lanes where m holds and that l covers (a part vector's masked lanes load zeros).
@@ -310,82 +354,69 @@ struct Rub {
   }
 };
 
-// Points go through in chunks of a row: first f (and ∇f) of every point, stored, and whether
-// any is within reach; then, only if one is, the force on every point of the chunk (zero
-// beyond reach). A chunk wholly beyond reach costs only f.
-constexpr std::uint32_t chunk_points = 64;
-
-struct Chunk {
-  alignas(64) double f[chunk_points];
-  alignas(64) double gx[chunk_points], gy[chunk_points], gz[chunk_points];  // unused where ∇f is constant
-};
-
-// The eq (9) term of one obstacle on one row's chunk, lanes at a time. What the loops read
-// of the obstacle is held by value: the stores into f could alias an Obstacle as far as the
+// The eq (9) term of one obstacle on one row, lanes at a time, in one pass: f (and ∇f) of
+// the lanes' points, and only if one of them is within reach, the force, added to f where
+// the point is within reach (a point beyond keeps its force bit for bit, whichever lanes
+// share its vector, so every width gives the same bits). What the loops read of the
+// obstacle is held by value: the stores into f could alias an Obstacle as far as the
 // compiler knows, and it would load it again for every vector.
 template <class Shape, class Real>
-struct RowChunk {
-  const Obstacle& o;  // for f and ∇f, whose loop stores only into the chunk
+struct RowForce {
+  Frame o;
   NearObstacle near;
   ForceScale scale;
   Rub friction;
-  double normal[3];  // ∇f where Shape::constant_gradient
   ConstVec3Ptr<Real> x, v;
   const Real* inv_mass;
   Vec3Ptr<Real> f;
   std::size_t row, up, down;  // first points of the row and of the rows above and below it
-  std::uint32_t j0;
-  Chunk& c;
-  bool project, rub;  // eq (9)'s projection on the sheet normal; friction
+  std::uint32_t n;            // the row's last column
+  bool project, rub;          // eq (9)'s projection on the sheet normal; friction
 
-  // f (and ∇f) of the chunk's points k, k + 1, ...; whether any is within reach.
-  template <class Lanes>
-  HWY_INLINE bool implicit_at(Lanes l, std::size_t k) const {
-    const auto d = l.d;
-    const std::size_t p = row + j0 + k;
-    const auto px = load_wide(l, x.x + p), py = load_wide(l, x.y + p), pz = load_wide(l, x.z + p);
-    hn::Vec<decltype(d)> fv;
-    if constexpr (Shape::constant_gradient) {
-      fv = local_axis(d, o, 2, hn::Sub(px, hn::Set(d, o.center[0])), hn::Sub(py, hn::Set(d, o.center[1])),
-                      hn::Sub(pz, hn::Set(d, o.center[2])));
-    } else {
-      hn::Vec<decltype(d)> gx, gy, gz;
-      sample_lanes<Shape>(d, o, px, py, pz, fv, gx, gy, gz);
-      l.store(gx, c.gx + k);
-      l.store(gy, c.gy + k);
-      l.store(gz, c.gz + k);
-    }
-    l.store(fv, c.f + k);
-    return !hn::AllFalse(d, covered(l, hn::Lt(fv, hn::Set(d, scale.reach))));
-  }
-
-  // The force on the chunk's points k, k + 1, ..., added to f (and projected first, for
-  // eq (9)); their neighbours along the row start at columns left and right.
-  template <class Lanes>
-  HWY_INLINE void force_at(Lanes l, std::size_t k, std::size_t left, std::size_t right) const {
+  // Points j, j + 1, ... of the row; their neighbours along it start at columns j − 1 and
+  // j + 1 (the caller makes sure both exist in memory). Ends: a lane may be column 0 or n,
+  // whose missing neighbour is the point itself (one-sided differences at the row's ends).
+  template <bool Ends, class Lanes>
+  HWY_INLINE void at(Lanes l, std::size_t j, std::size_t left, std::size_t right) const {
     const auto d = l.d;
     using V = hn::Vec<decltype(d)>;
-    const std::size_t p = row + j0 + k, j = j0 + k;
-    const V gx = Shape::constant_gradient ? hn::Set(d, normal[0]) : l.load(c.gx + k);
-    const V gy = Shape::constant_gradient ? hn::Set(d, normal[1]) : l.load(c.gy + k);
-    const V gz = Shape::constant_gradient ? hn::Set(d, normal[2]) : l.load(c.gz + k);
-    const V s = scale(d, l.load(c.f + k));
+    const std::size_t p = row + j;
+    const V px = load_wide(l, x.x + p), py = load_wide(l, x.y + p), pz = load_wide(l, x.z + p);
+    V fv, gx, gy, gz;
+    if constexpr (Shape::constant_gradient) {  // f is local z, ∇f the local z axis
+      fv = local_axis(d, o, 2, hn::Sub(px, hn::Set(d, o.center[0])), hn::Sub(py, hn::Set(d, o.center[1])),
+                      hn::Sub(pz, hn::Set(d, o.center[2])));
+      gx = hn::Set(d, o.rot[0][2]), gy = hn::Set(d, o.rot[1][2]), gz = hn::Set(d, o.rot[2][2]);
+    } else {
+      sample_lanes<Shape>(d, o, px, py, pz, fv, gx, gy, gz);
+    }
+    const auto within = hn::Lt(fv, hn::Set(d, scale.reach));
+    if (hn::AllFalse(d, covered(l, within))) return;  // all beyond reach: f is all they cost
+    const V s = scale.within(d, fv);
     V Fx = hn::Mul(s, gx), Fy = hn::Mul(s, gy), Fz = hn::Mul(s, gz);
     if (project) {
-      const auto across = [&](const Real* a, std::size_t to, std::size_t from) HWY_ATTR {
-        return hn::Sub(load_wide(l, a + to), load_wide(l, a + from));
+      const std::size_t pl = row + left, pr = row + right;  // (row − 1 for left = −1, wrapped)
+      V lx = load_wide(l, x.x + pl), ly = load_wide(l, x.y + pl), lz = load_wide(l, x.z + pl);
+      V rx = load_wide(l, x.x + pr), ry = load_wide(l, x.y + pr), rz = load_wide(l, x.z + pr);
+      if constexpr (Ends) {
+        const V column = hn::Iota(d, double(j));
+        const auto first = hn::Eq(column, hn::Zero(d)), last = hn::Eq(column, hn::Set(d, double(n)));
+        lx = hn::IfThenElse(first, px, lx), ly = hn::IfThenElse(first, py, ly), lz = hn::IfThenElse(first, pz, lz);
+        rx = hn::IfThenElse(last, px, rx), ry = hn::IfThenElse(last, py, ry), rz = hn::IfThenElse(last, pz, rz);
+      }
+      const auto across = [&](const Real* a) HWY_ATTR {
+        return hn::Sub(load_wide(l, a + up + j), load_wide(l, a + down + j));
       };
-      project_on_normal(d, across(x.x, row + right, row + left), across(x.y, row + right, row + left),
-                        across(x.z, row + right, row + left), across(x.x, up + j, down + j),
-                        across(x.y, up + j, down + j), across(x.z, up + j, down + j), Fx, Fy, Fz);
+      project_on_normal(d, hn::Sub(rx, lx), hn::Sub(ry, ly), hn::Sub(rz, lz), across(x.x), across(x.y), across(x.z),
+                        Fx, Fy, Fz);
     }
     const auto before_x = load_real(l, f.x + p), before_y = load_real(l, f.y + p), before_z = load_real(l, f.z + p);
     if (rub) {
       // the slip relative to the obstacle's surface here: v − (linear + angular × (x − center))
       const double* w = near.angular;
-      const V rx = hn::Sub(load_wide(l, x.x + p), hn::Set(d, near.center[0]));
-      const V ry = hn::Sub(load_wide(l, x.y + p), hn::Set(d, near.center[1]));
-      const V rz = hn::Sub(load_wide(l, x.z + p), hn::Set(d, near.center[2]));
+      const V rx = hn::Sub(px, hn::Set(d, near.center[0]));
+      const V ry = hn::Sub(py, hn::Set(d, near.center[1]));
+      const V rz = hn::Sub(pz, hn::Set(d, near.center[2]));
       const auto cross = [&](double a, V b, double e, V g) HWY_ATTR {
         return hn::Sub(hn::Mul(hn::Set(d, a), b), hn::Mul(hn::Set(d, e), g));
       };
@@ -395,47 +426,55 @@ struct RowChunk {
       friction(d, gx, gy, gz, Fx, Fy, Fz, hn::Add(widen(l, before_x), Fx), hn::Add(widen(l, before_y), Fy),
                hn::Add(widen(l, before_z), Fz), vx, vy, vz, load_wide(l, inv_mass + p));
     }
-    store_sum(l, before_x, Fx, f.x + p);
-    store_sum(l, before_y, Fy, f.y + p);
-    store_sum(l, before_z, Fz, f.z + p);
+    store_sum(l, within, before_x, Fx, f.x + p);
+    store_sum(l, within, before_y, Fy, f.y + p);
+    store_sum(l, within, before_z, Fz, f.z + p);
   }
 };
 
 // One loop per shape, chosen once per obstacle. The projection and friction are branches on
 // a flag that holds for the whole call: predicted every time, and a quarter of the code a
-// loop per mode took (compiled under the sanitizers, that code took GCC minutes).
+// loop per mode took (compiled under the sanitizers, that code took GCC minutes). A row runs
+// in whole vectors from column 0 to n, the vectors holding its ends fixing their one-sided
+// differences lane by lane; only the sheet's first point (no point before it in memory) and
+// its last (none after) go one lane at a time.
 template <class Shape, class Real>
 void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near, ConstVec3Ptr<Real> x,
            ConstVec3Ptr<Real> v, const Real* inv_mass, Vec3Ptr<Real> f) {
   const std::uint32_t m = t.m, n = t.n, cols = t.cols();
   const ForceScale scale = force_scale_of(o.def, near.exponent_cap);
+  const Frame frame = frame_of(o);
   const Rub friction{near.friction, near.dt, {near.gravity[0], near.gravity[1], near.gravity[2]}};
   const hn::CappedTag<double, 1> one;
-  Chunk c;
+  const hn::ScalableTag<double> full;
   for (std::uint32_t i = 0; i <= m; ++i) {
     const std::size_t row = std::size_t(i) * cols;
     const std::size_t up = std::size_t(std::min(i + 1, m)) * cols, down = std::size_t(i > 0 ? i - 1 : 0) * cols;
-    for (std::uint32_t j0 = 0; j0 < cols; j0 += chunk_points) {
-      const std::uint32_t count = std::min(chunk_points, cols - j0);
-      const RowChunk<Shape, Real> at{
-          o, near, scale, friction, {o.rot[0][2], o.rot[1][2], o.rot[2][2]}, x, v, inv_mass, f, row, up, down, j0, c,
-          !o.def.full_gradient, near.friction > 0};
-      bool within = false;
-      lanes::over_lanes<double>(count, [&](auto l, std::size_t k) __attribute__((always_inline)) {
-        within |= at.implicit_at(l, k);
+    const RowForce<Shape, Real> at{frame,
+                                   near,
+                                   scale,
+                                   friction,
+                                   x,
+                                   v,
+                                   inv_mass,
+                                   f,
+                                   row,
+                                   up,
+                                   down,
+                                   n,
+                                   !o.def.full_gradient,
+                                   near.friction > 0};
+    const std::uint32_t begin = i == 0 ? 1 : 0, end = i == m ? n : cols;
+    if (i == 0) at.template at<false>(lanes::Whole<decltype(one)>{one}, 0, 0, std::min(1u, n));
+    if (end > begin)
+      lanes::over_lanes<double>(end - begin, [&](auto l, std::size_t e) __attribute__((always_inline)) {
+        const std::size_t j = begin + e;
+        if (j == 0 || j + hn::Lanes(full) > n)
+          at.template at<true>(l, j, j - 1, j + 1);  // at j = 0, row + j − 1 is the row before's last point
+        else
+          at.template at<false>(l, j, j - 1, j + 1);
       });
-      if (!within) continue;  // the whole chunk is beyond reach
-      // Central differences along the row inside it, one-sided at its two ends.
-      const std::uint32_t first = j0 == 0 ? 1 : 0, last = j0 + count > n ? count - 1 : count;
-      if (first > 0) at.force_at(lanes::Whole<decltype(one)>{one}, 0, 0, std::min(1u, n));
-      if (last > first)
-        lanes::over_lanes<double>(last - first, [&](auto l, std::size_t e) __attribute__((always_inline)) {
-          const std::size_t k = first + e;
-          at.force_at(l, k, j0 + k - 1, j0 + k + 1);
-        });
-      if (last < count && (first == 0 || count > 1))
-        at.force_at(lanes::Whole<decltype(one)>{one}, count - 1, n > 0 ? n - 1 : 0, n);
-    }
+    if (i == m && n >= begin) at.template at<false>(lanes::Whole<decltype(one)>{one}, n, n > 0 ? n - 1 : 0, n);
   }
 }
 
@@ -584,6 +623,8 @@ double potential_energy(const ObstacleDef& d, double f, double cap) {
 
 double potential_force_scale(const ObstacleDef& d, double f, double cap) { return here::force_scale_of(d, cap)(f); }
 
+double vector_exp(double x) { return here::exp_one(x); }
+
 bool may_touch(const Obstacle& o, const Aabb& box) {
   if (o.bounded) return overlaps(o.reach, box);
   // The plane's f is linear, so its minimum over the box is at one of the eight corners.
@@ -595,7 +636,7 @@ bool may_touch(const Obstacle& o, const Aabb& box) {
   return lowest < o.reach_distance;
 }
 
-// One dispatch per sheet and obstacle per substep: the chunks, the shapes' f and ∇f, the
+// One dispatch per sheet and obstacle per substep: the rows, the shapes' f and ∇f, the
 // force scale, the projection and friction run on the widest instruction set the CPU has.
 template <class Real>
 void obstacle_forces(const Topology<Real>& t, const NearObstacle& near, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v,

@@ -52,9 +52,13 @@ double stiffness_exponent_cap(double strength, double xi, double lightest_mass, 
 
 // E(f) = c·exp(−f/ξ), cut off and shifted at reach_exponent·ξ (above), continued linearly past
 // the exponent cap, and −dE/df, the factor that multiplies ∇f in the force (the kernel's own
-// arithmetic, a vectorisable exp within 2 ulp of std::exp).
+// arithmetic, with vector_exp below).
 double potential_energy(const ObstacleDef& def, double f, double cap);
 double potential_force_scale(const ObstacleDef& def, double f, double cap);
+
+// The kernel's exp on one value (every instruction set gives the same bits): e^x within
+// 10⁻¹⁵ of it (relative) for x ≥ −700, and e^−700 below.
+double vector_exp(double x);
 
 // Host stage: can a sheet whose bounding box is `box` feel the obstacle at all?
 bool may_touch(const Obstacle& o, const Aabb& box);
