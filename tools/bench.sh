@@ -54,12 +54,12 @@ settle() {
 
 # The baselines the report divides by (issue 13's scenes before the contact work, issue 15's
 # engine before the vector kernels on AVX2), recorded again here so that the ratios come from
-# one run on one machine: recorded at another time, a virtual machine's slow spell (10-15 %
-# on this one, quiet or not) moves a ratio as much as a change does. Each script builds its
-# old commit in a scratch folder and waits for a quiet machine before it measures.
+# one run on one machine: recorded at another time, a virtual machine's slow spell (quiet
+# or not) moves a ratio as much as a change does. Each script builds its old commit (its
+# default) in a scratch folder, waits for a quiet machine, and writes its docs/*-baseline.json.
 if [[ "${DRAPE_BENCH_BASELINES:-1}" != 0 ]]; then
-  "$python" tools/simd_baseline.py --repetitions "$repetitions" --out docs/simd-baseline.json
-  "$python" tools/scenes_baseline.py --commit 0598513 --repetitions "$repetitions" --out docs/scenes-baseline.json
+  "$python" tools/simd_baseline.py --repetitions "$repetitions"
+  "$python" tools/scenes_baseline.py --repetitions "$repetitions"
 fi
 
 mkdir -p docs/img

@@ -18,7 +18,8 @@ are noise). Record it again after such a change to the benchmark, with the same 
     tools/scenes_baseline.py --commit 0598513 --out docs/scenes-baseline.json
 
 Usage: tools/scenes_baseline.py [--commit 0598513] [--out docs/scenes-baseline.json]
-A one-off measurement: rerun it only to move the baseline, on a machine as quiet as you can get.
+tools/bench.sh runs it before its own measurements, so the report divides figures of one run;
+it waits for a quiet machine (load < 0.5) before it measures.
 """
 
 import argparse
@@ -117,7 +118,7 @@ def main():
         "command": [os.path.relpath(command[0], tree), *command[1:]],
         "load_avg_before": load_before,
         "load_avg_after": load_after,
-        "note": "a one-off measurement on a shared 2-core machine; the load averages say how busy it was",
+        "note": "measured on a shared 2-core machine; the load averages say how busy it was",
         "results": results,
     }
     recorder.write(record, args.out)

@@ -13,7 +13,8 @@ run. tools/bench_report.py divides the portable build's rates held to AVX2
 (DRAPE_SIMD_TARGET=AVX2, docs/benchmarks-AVX2.json) by these.
 
 Usage: tools/simd_baseline.py [--commit cf9ea80] [--march x86-64-v3] [--out docs/simd-baseline.json]
-A one-off measurement: run it on a machine as quiet as you can get.
+tools/bench.sh runs it before its own measurements, so the report divides figures of one run;
+it waits for a quiet machine (load < 0.5) before it measures.
 """
 
 import argparse
@@ -113,7 +114,7 @@ def main():
         "command": [os.path.relpath(command[0], scratch), *command[1:]],
         "load_avg_before": load_before,
         "load_avg_after": load_after,
-        "note": "a one-off measurement; the load averages say how busy the machine was",
+        "note": "the load averages say how busy the machine was",
         "results": results,
     }
     recorder.write(record, args.out)
