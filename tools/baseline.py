@@ -1,10 +1,12 @@
 """What the baseline recorders (tools/scenes_baseline.py, tools/simd_baseline.py) share: messages
 named by the script, git and commands that stop the script on failure, a wait for a quiet machine,
-and the record written whole or not at all."""
+the old and the current binary measured in alternating rounds, and the record written whole or
+not at all."""
 import json
 import os
 import subprocess
 import sys
+import tempfile
 import time
 
 
@@ -39,6 +41,30 @@ class Recorder:
         load = list(os.getloadavg())
         print(f"{self.name}: starting at load {load[0]:.2f} (waited {waited} s)", file=sys.stderr)
         return load
+
+    def alternate(self, sides, rounds):
+        """Runs each side's drape_bench (sides: name -> (command, environment)) once per round, one
+        repetition each, the sides' order turning every round, and returns each side's runs of all
+        rounds as one Google Benchmark JSON (tools/bench_report.py reports the fastest of a
+        benchmark's runs). A virtual machine's slow spell lasts minutes and slows whatever runs in
+        it: two runs minutes apart, one of each binary, can differ by 30 % with no change between
+        them, while rounds of the two binaries side by side see the same spells."""
+        merged = {name: None for name in sides}
+        names = list(sides)
+        with tempfile.TemporaryDirectory(prefix="drape-rounds-") as scratch:
+            for round_ in range(rounds):
+                for name in names[round_ % len(names):] + names[:round_ % len(names)]:
+                    command, env = sides[name]
+                    raw = os.path.join(scratch, f"{name}-{round_}.json")
+                    self.run([*command, "--benchmark_repetitions=1", f"--benchmark_out={raw}",
+                              "--benchmark_out_format=json"], env={**os.environ, **env}, stdout=subprocess.DEVNULL)
+                    with open(raw) as f:
+                        data = json.load(f)
+                    if merged[name] is None:
+                        merged[name] = data
+                    else:
+                        merged[name]["benchmarks"] += data.get("benchmarks", [])
+        return merged
 
     def write(self, record, out):
         os.makedirs(os.path.dirname(os.path.abspath(out)), exist_ok=True)

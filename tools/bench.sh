@@ -12,9 +12,11 @@
 #   DRAPE_BENCH_BUILD_DIR   build directory              (build-bench)
 #   DRAPE_BENCH_MIN_TIME    seconds per repetition        (0.2)
 #   DRAPE_BENCH_REPETITIONS repetitions per benchmark     (3)
+#   DRAPE_BENCH_ROUNDS      alternating rounds of a baseline and today's binary (5)
 #   DRAPE_BENCH_SETTLE      most seconds to wait for a quiet machine before each run (300)
 #   DRAPE_BENCH_BASELINES   1: record the two baselines again in this run (default); 0: use
 #                           docs/simd-baseline.json and docs/scenes-baseline.json as they are
+#                           (with the runs of today's binary recorded beside them then)
 #   PYTHON                  interpreter with matplotlib   (/usr/bin/python3, Debian's)
 # Extra arguments go to drape_bench, e.g. --benchmark_filter=Fig13 for a partial report.
 set -euo pipefail
@@ -25,6 +27,7 @@ DRAPE_EXTRA_PACKAGES="${DRAPE_EXTRA_PACKAGES:-} libbullet-dev" tools/setup.sh
 build=${DRAPE_BENCH_BUILD_DIR:-build-bench}
 min_time=${DRAPE_BENCH_MIN_TIME:-0.2}
 repetitions=${DRAPE_BENCH_REPETITIONS:-3}
+rounds=${DRAPE_BENCH_ROUNDS:-5}
 python=${PYTHON:-/usr/bin/python3}
 json=docs/benchmarks.json
 
@@ -56,10 +59,12 @@ settle() {
 # engine before the vector kernels on AVX2), recorded again here so that the ratios come from
 # one run on one machine: recorded at another time, a virtual machine's slow spell (quiet
 # or not) moves a ratio as much as a change does. Each script builds its old commit (its
-# default) in a scratch folder, waits for a quiet machine, and writes its docs/*-baseline.json.
+# default) in a scratch folder, waits for a quiet machine, runs the old binary and today's
+# (the builds above) in alternating rounds, one repetition each, and writes both sides'
+# runs to its docs/*-baseline.json; the report divides the fastest of each side's rounds.
 if [[ "${DRAPE_BENCH_BASELINES:-1}" != 0 ]]; then
-  "$python" tools/simd_baseline.py --repetitions "$repetitions"
-  "$python" tools/scenes_baseline.py --repetitions "$repetitions"
+  "$python" tools/simd_baseline.py --current "$build-portable/bench/drape_bench" --rounds "$rounds"
+  "$python" tools/scenes_baseline.py --current "$build/bench/drape_bench" --rounds "$rounds"
 fi
 
 mkdir -p docs/img

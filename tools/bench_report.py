@@ -57,7 +57,7 @@ def fail(message):
 
 
 class Run:
-    """One benchmark: median over repetitions when there were several."""
+    """One benchmark: the median over repetitions, or the fastest of alternating rounds (runs_of)."""
 
     def __init__(self, name, entry, cv):
         self.name = name
@@ -98,24 +98,33 @@ def load_runs(path):
 
 
 def runs_of(data):
-    """The runs of one drape_bench JSON output, by run name."""
-    by_name = defaultdict(dict)
+    """The runs of one drape_bench JSON output, by run name: the median of a benchmark's
+    repetitions, or, where the JSON holds its single runs instead (the alternating rounds of
+    tools/baseline.py), the fastest of them, with their coefficient of variation."""
+    by_name, singles = defaultdict(dict), defaultdict(list)
     for b in data.get("benchmarks", []):
         name = b.get("run_name", b["name"])
         if b.get("run_type") == "aggregate":
             by_name[name][b["aggregate_name"]] = b
         elif "error_occurred" not in b:
-            by_name[name].setdefault("single", b)
+            singles[name].append(Run(name, b, None))
     runs = {}
     for name, entries in by_name.items():
-        entry = entries.get("median") or entries.get("single")
-        if entry is None:
+        if "median" not in entries:
             continue
         cv = None
         if "cv" in entries:
             c = entries["cv"]
             cv = c["real_time"] if name.endswith("/real_time") else c["cpu_time"]
-        runs[name] = Run(name, entry, cv)
+        runs[name] = Run(name, entries["median"], cv)
+    for name, single in singles.items():
+        if name in runs:
+            continue
+        fastest = min(single, key=lambda r: r.seconds)
+        if len(single) > 1:
+            mean = sum(r.seconds for r in single) / len(single)
+            fastest.cv = math.sqrt(sum((r.seconds - mean) ** 2 for r in single) / (len(single) - 1)) / mean
+        runs[name] = fastest
     return runs
 
 
@@ -434,6 +443,15 @@ class Report:
     # third step) or min_time:… (spans repeated to a minimum time, since).
     SCENE_NAME = r"BM_Scene/(\w+)/threads:(\d+)(?:/iterations:\d+|/min_time:[0-9.]+)?(?:/real_time)?"
 
+    def scene_runs(self, results):
+        """BM_Scene's runs of one JSON by (scene, threads)."""
+        found = {}
+        for name, r in runs_of(results).items():
+            m = re.fullmatch(self.SCENE_NAME, name)
+            if m:
+                found[(m.group(1), int(m.group(2)))] = r
+        return found
+
     def scenes(self):
         """Issue 13: the shipped scenes' cost now against the baseline tools/scenes_baseline.py recorded."""
         now = {}
@@ -443,12 +461,9 @@ class Report:
                 now[(m.group(1), int(m.group(2)))] = self.get(name)
         if not now:
             return
-        base, record = {}, self.scenes_baseline
-        if record:
-            for name, r in runs_of(record.get("results", {})).items():
-                m = re.fullmatch(self.SCENE_NAME, name)
-                if m:
-                    base[(m.group(1), int(m.group(2)))] = r
+        record = self.scenes_baseline
+        base = self.scene_runs(record.get("results", {})) if record else {}
+        beside = self.scene_runs(record.get("current", {}).get("results", {})) if record else {}
         changed = set()
         for scene, digest in (record or {}).get("scene_sha256", {}).items():
             try:
@@ -471,24 +486,33 @@ class Report:
             load = ", ".join(f"{x:.2f}" for x in record.get("load_avg_before", []))
             intro += (f" The baseline is the same benchmark built against the engine of {record['commit'][:7]} "
                       f"by `tools/scenes_baseline.py` on {record.get('date', '?')} "
-                      f"([scenes-baseline.json](scenes-baseline.json), load average {load} when it started); × is "
-                      f"this run's point-steps per second over the baseline's.")
+                      f"([scenes-baseline.json](scenes-baseline.json), load average {load} when it started).")
+            if beside:
+                intro += (f" It ran in {record.get('rounds', '?')} rounds alternating with this run's build (one "
+                          f"repetition each, the two binaries side by side, so a slow spell of the machine slows "
+                          f"both), and each figure beside it is the fastest of its rounds; × is today's point-steps "
+                          f"per second over the baseline's in those rounds. The first time column is the main run's.")
+            else:
+                intro += " × is this run's point-steps per second over the baseline's."
         else:
             intro += " No baseline (docs/scenes-baseline.json, written by `tools/scenes_baseline.py`) was found."
         if record and any("iterations:1" in b.get("name", "") for b in record.get("results", {}).get("benchmarks", [])):
             intro += (" The baseline timed each scene's span once (recorded before the spans were repeated): its short "
                       "scenes are noise until `tools/scenes_baseline.py` records it again with today's benchmark.")
         self.out("## Shipped scenes against the baseline", "", intro, "",
-                 "| scene | threads | sheets | points | s per simulated s | baseline | × |",
-                 "|---|---|---|---|---|---|---|")
+                 "| scene | threads | sheets | points | s per simulated s | baseline | today beside it | × |",
+                 "|---|---|---|---|---|---|---|---|")
+
+        def seconds(run):
+            return f"{run.counters['s_per_simulated_s']:.3g}{cv_text(run)}" if run else "–"
+
         for (scene, threads) in sorted(now):
-            r, b = now[(scene, threads)], base.get((scene, threads))
-            ratio = r.rate / b.rate if b and b.rate else None
+            r, b, t = now[(scene, threads)], base.get((scene, threads)), beside.get((scene, threads))
+            today = t if beside else r
+            ratio = today.rate / b.rate if b and b.rate and today and today.rate else None
             note = " (scene changed since the baseline)" if scene in changed else ""
-            baseline = f"{b.counters['s_per_simulated_s']:.3g}" if b else "–"
             self.out(f"| {scene}{note} | {threads} | {int(r.counters.get('sheets', 0))} | {int(r.points)} | "
-                     f"{r.counters['s_per_simulated_s']:.3g}{cv_text(r)} | {baseline} | "
-                     f"{f'{ratio:.2f}×' if ratio else '–'} |")
+                     f"{seconds(r)} | {seconds(b)} | {seconds(t)} | {f'{ratio:.2f}×' if ratio else '–'} |")
             if threads == 1 and r.counters.get("sheets", 0) >= MANY_SHEETS:
                 self.target(f"Many-sheet scene {scene} now ÷ baseline (1 thread){note}", f"{ratio:.2f}×" if ratio else "–",
                             f"≥ {TARGET_SCENES_SPEEDUP:.0f}×", ratio >= TARGET_SCENES_SPEEDUP if ratio else None,
@@ -702,6 +726,7 @@ class Report:
                      "issue 15's 3× on AVX2 is not judged.", "")
             return
         base = runs_of(record.get("results", {}))
+        beside = runs_of(record.get("current", {}).get("results", {}))
         # (what, benchmark, springs per point: 2·n·(n − 1) on n² points, precision of its divider bound)
         rows = [("1024-point sheet, one substep per call", "BM_Paper1000Points/32", 2 * 32 * 31 / 32**2, "f64"),
                 ("48 sheets of 64×64, float64, 1 thread", "BM_Sheets48_f64/threads:1/real_time", 2 * 64 * 63 / 64**2,
@@ -714,7 +739,10 @@ class Report:
                  f"`-march={record.get('march', '?')}` (what `-march=native` gives on a CPU with AVX2 and no AVX-512) "
                  f"by `tools/simd_baseline.py` on {record.get('date', '?')} on {record['machine'].get('cpu', '?')} "
                  f"([simd-baseline.json](simd-baseline.json), load average {load} when it started), against this "
-                 f"run's portable build held to AVX2 (`DRAPE_SIMD_TARGET=AVX2`). M point-steps/s. The last "
+                 f"run's portable build held to AVX2 (`DRAPE_SIMD_TARGET=AVX2`)"
+                 + (f", the two run in {record.get('rounds', '?')} alternating rounds of one repetition each, side by "
+                    f"side so that a slow spell of the machine slows both; each figure is the fastest of its rounds"
+                    if beside else "") + ". M point-steps/s. The last "
                  f"column divides CPU-time rates (every row runs on one thread): programs sharing the cores "
                  f"stretch a run's wall clock but not its CPU time, so where the two × differ the machine was "
                  f"busy during one of the runs (a virtual machine's host can still slow both alike). The divider "
@@ -725,7 +753,7 @@ class Report:
                  "| benchmark | baseline | AVX2 now | × | × in CPU time | AVX2 divider bound | bound ÷ baseline |",
                  "|---|---|---|---|---|---|---|")
         for what, name, springs_per_point, precision in rows:
-            b, r = base.get(name), avx2.get(name)
+            b, r = base.get(name), (beside or avx2).get(name)
             ratio = r.rate / b.rate if b and r and b.rate and r.rate else None
             cpu = r.cpu_rate / b.cpu_rate if b and r and b.cpu_rate and r.cpu_rate else None
             pairs = avx2.get(f"BM_ArithmeticBound/{precision}")

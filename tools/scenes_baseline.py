@@ -17,15 +17,19 @@ are noise). Record it again after such a change to the benchmark, with the same 
 
     tools/scenes_baseline.py --commit 0598513 --out docs/scenes-baseline.json
 
-Usage: tools/scenes_baseline.py [--commit 0598513] [--out docs/scenes-baseline.json]
-tools/bench.sh runs it before its own measurements, so the report divides figures of one run;
-it waits for a quiet machine (load < 0.5) before it measures.
+With --current BENCH (tools/bench.sh passes its own drape_bench), today's engine runs the same
+scenes in rounds alternating with the baseline's (--rounds, one repetition each), and both sides'
+runs go into the record: the report then divides figures measured side by side, each the
+fastest of its rounds.
+
+Usage: tools/scenes_baseline.py [--commit 0598513] [--current BENCH] [--rounds 5] [--out docs/scenes-baseline.json]
+tools/bench.sh runs it before its own measurements; it waits for a quiet machine (load < 0.5)
+before it measures.
 """
 
 import argparse
 import datetime
 import hashlib
-import json
 import os
 import re
 import shutil
@@ -53,13 +57,18 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--commit", default="0598513", help="the commit whose engine is the baseline")
     ap.add_argument("--out", default="docs/scenes-baseline.json")
-    ap.add_argument("--repetitions", type=int, default=3, help="repetitions of each scene (the median is reported)")
+    ap.add_argument("--current", default=None, help="today's drape_bench, run in rounds alternating with the baseline's")
+    ap.add_argument("--rounds", type=int, default=5, help="rounds of one repetition each (the fastest is reported)")
     ap.add_argument("--scratch", default=None,
                     help="folder for the worktree and its build (must not exist; default: a new one under $TMPDIR). "
                          "Beside this checkout, with CCACHE_BASEDIR set above both, ccache reuses unchanged objects")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel build jobs")
     args = ap.parse_args()
 
+    if args.rounds < 1:
+        fail(f"--rounds {args.rounds}: give at least 1")
+    if args.current and not os.access(args.current, os.X_OK):
+        fail(f"--current {args.current}: not an executable drape_bench")
     repo = git(os.path.dirname(os.path.abspath(__file__)), "rev-parse", "--show-toplevel")
     commit = git(repo, "rev-parse", "--verify", args.commit + "^{commit}")
     subject = git(repo, "log", "-1", "--format=%s", commit)
@@ -79,16 +88,15 @@ def main():
         run(["cmake", "-S", tree, "-B", build, *CMAKE_OPTIONS, *launcher], stdout=subprocess.DEVNULL)
         run(["nice", "-n", "5", "cmake", "--build", build, "--target", "drape_bench", f"-j{args.jobs}"],
             stdout=subprocess.DEVNULL)
-        raw = os.path.join(build, "scenes.json")
-        command = [os.path.join(build, "bench", "drape_bench"), "--benchmark_filter=^BM_Scene/",
-                   f"--benchmark_repetitions={args.repetitions}", "--benchmark_enable_random_interleaving=true",
-                   "--benchmark_report_aggregates_only=true"]
+        command = [os.path.join(build, "bench", "drape_bench"), "--benchmark_filter=^BM_Scene/"]
+        env = {"DRAPE_SCENES_DIR": scenes_dir}
+        sides = {"baseline": (command, env)}
+        if args.current:
+            sides["current"] = ([os.path.abspath(args.current), *command[1:]], env)
         load_before = recorder.settle()
-        run([*command, f"--benchmark_out={raw}", "--benchmark_out_format=json"],
-            env={**os.environ, "DRAPE_SCENES_DIR": scenes_dir}, stdout=subprocess.DEVNULL)
+        measured = recorder.alternate(sides, args.rounds)
         load_after = list(os.getloadavg())
-        with open(raw) as f:
-            results = json.load(f)
+        results = measured["baseline"]
         compiler, flags = compiler_and_flags(build)
     finally:
         subprocess.run(["git", "-C", repo, "worktree", "remove", "--force", tree], capture_output=True)
@@ -116,11 +124,16 @@ def main():
         "flags": flags,
         "cmake_options": CMAKE_OPTIONS,
         "command": [os.path.relpath(command[0], tree), *command[1:]],
+        "rounds": args.rounds,
         "load_avg_before": load_before,
         "load_avg_after": load_after,
         "note": "measured on a shared 2-core machine; the load averages say how busy it was",
         "results": results,
     }
+    if args.current:
+        record["current"] = {"what": "today's drape_bench on the same scene files, each round run right before or "
+                                     "after the baseline's", "binary": os.path.abspath(args.current),
+                             "results": measured["current"]}
     recorder.write(record, args.out)
 
 

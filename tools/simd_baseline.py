@@ -9,17 +9,22 @@ drape_bench as tools/bench.sh builds (Release, no tests, apps or Python module),
 -march=MARCH instead of -march=native (x86-64-v3 is AVX2 without AVX-512, what such a CPU's
 -march=native gives the vectoriser), runs the benchmarks the issue names, and writes their
 results with the commit, the CPU, the compiler and flags and the load average around the
-run. tools/bench_report.py divides the portable build's rates held to AVX2
-(DRAPE_SIMD_TARGET=AVX2, docs/benchmarks-AVX2.json) by these.
+run. tools/bench_report.py divides the portable build's rates held to AVX2 by these: those
+measured beside them (below), else those of docs/benchmarks-AVX2.json.
 
-Usage: tools/simd_baseline.py [--commit cf9ea80] [--march x86-64-v3] [--out docs/simd-baseline.json]
-tools/bench.sh runs it before its own measurements, so the report divides figures of one run;
-it waits for a quiet machine (load < 0.5) before it measures.
+With --current BENCH (tools/bench.sh passes its portable build's drape_bench), that binary held
+to AVX2 (DRAPE_SIMD_TARGET=AVX2) runs the same benchmarks in alternating rounds with the old one
+(--rounds, one repetition each), and both sides' runs go into the record: the report then
+divides figures measured side by side, each the fastest of its rounds.
+
+Usage: tools/simd_baseline.py [--commit cf9ea80] [--march x86-64-v3] [--current BENCH] [--rounds 5]
+                              [--out docs/simd-baseline.json]
+tools/bench.sh runs it before its own measurements; it waits for a quiet machine (load < 0.5)
+before it measures.
 """
 
 import argparse
 import datetime
-import json
 import os
 import shutil
 import subprocess
@@ -55,12 +60,18 @@ def main():
     ap.add_argument("--commit", default="cf9ea80", help="the engine before the Highway kernels")
     ap.add_argument("--march", default="x86-64-v3", help="what -march=native gives on an AVX2 CPU")
     ap.add_argument("--out", default="docs/simd-baseline.json")
-    ap.add_argument("--repetitions", type=int, default=3, help="repetitions of each benchmark (the median is reported)")
+    ap.add_argument("--current", default=None,
+                    help="today's portable drape_bench, run held to AVX2 in rounds alternating with the baseline's")
+    ap.add_argument("--rounds", type=int, default=5, help="rounds of one repetition each (the fastest is reported)")
     ap.add_argument("--scratch", default=None,
                     help="folder for the tree and its build (must not exist; default: a new one under $TMPDIR)")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel build jobs")
     args = ap.parse_args()
 
+    if args.rounds < 1:
+        fail(f"--rounds {args.rounds}: give at least 1")
+    if args.current and not os.access(args.current, os.X_OK):
+        fail(f"--current {args.current}: not an executable drape_bench")
     if "avx2" not in cpu_flags():
         fail("this CPU has no AVX2: the baseline would not run")
     repo = git(os.path.dirname(os.path.abspath(__file__)), "rev-parse", "--show-toplevel")
@@ -85,15 +96,15 @@ def main():
         run(["cmake", "-S", tree, "-B", build, *cmake_options, *launcher], stdout=subprocess.DEVNULL)
         run(["nice", "-n", "5", "cmake", "--build", build, "--target", "drape_bench", f"-j{args.jobs}"],
             stdout=subprocess.DEVNULL)
-        raw = os.path.join(build, "simd.json")
-        command = [os.path.join(build, "bench", "drape_bench"), f"--benchmark_filter={FILTER}",
-                   f"--benchmark_repetitions={args.repetitions}", "--benchmark_enable_random_interleaving=true",
-                   "--benchmark_report_aggregates_only=true"]
+        command = [os.path.join(build, "bench", "drape_bench"), f"--benchmark_filter={FILTER}"]
+        sides = {"baseline": (command, {})}
+        if args.current:
+            sides["current"] = ([os.path.abspath(args.current), f"--benchmark_filter={FILTER}"],
+                                {"DRAPE_SIMD_TARGET": "AVX2"})
         load_before = recorder.settle()
-        run([*command, f"--benchmark_out={raw}", "--benchmark_out_format=json"], stdout=subprocess.DEVNULL)
+        measured = recorder.alternate(sides, args.rounds)
         load_after = list(os.getloadavg())
-        with open(raw) as f:
-            results = json.load(f)
+        results = measured["baseline"]
         compiler, flags = compiler_and_flags(build)
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
@@ -112,11 +123,16 @@ def main():
         "flags": flags,
         "cmake_options": cmake_options,
         "command": [os.path.relpath(command[0], scratch), *command[1:]],
+        "rounds": args.rounds,
         "load_avg_before": load_before,
         "load_avg_after": load_after,
         "note": "the load averages say how busy the machine was",
         "results": results,
     }
+    if args.current:
+        record["current"] = {"what": "today's portable drape_bench held to AVX2 (DRAPE_SIMD_TARGET=AVX2), "
+                                     "each round run right before or after the baseline's",
+                             "binary": os.path.abspath(args.current), "results": measured["current"]}
     recorder.write(record, args.out)
 
 
