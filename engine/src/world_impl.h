@@ -90,6 +90,7 @@ struct BasicWorld<Real>::Impl {
   std::vector<const detail::ContactForces<Real>*> sources;  // per sheet, in pair order
   std::vector<std::uint32_t> source_cursor;                 // while filling sources
   std::vector<Block> blocks;
+  std::vector<detail::simd::Extent<Real>> block_box;  // a split block's box after its update
 
   explicit Impl(const WorldDef& d) : def(d) { make_arena(); }
 
