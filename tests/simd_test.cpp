@@ -352,6 +352,7 @@ detail::Aabb searched_box(const detail::Sheet<Real>& s) {
 
 void expect_same_box(const detail::Aabb& a, const detail::Aabb& b) {
   for (int c = 0; c < 3; ++c) {
+    EXPECT_TRUE(std::isfinite(b.lo[c]) && std::isfinite(b.hi[c]) && b.lo[c] < b.hi[c]) << "axis " << c;
     EXPECT_EQ(a.lo[c], b.lo[c]) << "axis " << c;
     EXPECT_EQ(a.hi[c], b.hi[c]) << "axis " << c;
   }
@@ -382,24 +383,32 @@ detail::Sheet<Real> pinned_sheet(std::uint32_t m, std::uint32_t n, bool pins_in_
 
 // Every integrator's step with its box (integrate's bounds, from the update's registers for
 // the per-point ones, from a pass for the others): the box is that of the points after the
-// step and the pins, and the step's bits are those of a step without a box.
+// step and the pins, and the step's bits are those of a step without a box. The per-point
+// integrators also on a sheet beyond the cache budget, whose rows are moved one by one as
+// the sweep finishes them (sheet_forces_by_rows).
 template <class Real>
 void expect_every_integrators_box_is_its_points_box() {
   for_each_target([&](std::int64_t) {
     for (Integrator integrator : integrators())
-      for (bool in_order : {true, false}) {
-        SCOPED_TRACE(testing::Message() << integrator_info(integrator).name << (in_order ? "" : ", pins out of order"));
-        auto s = pinned_sheet<Real>(9, 6, in_order), plain = s;
-        const detail::StepParams<Real> params{Real(1e-3), Real(0), Real(0), Real(-9.81)};
-        for (int step = 0; step < 4; ++step) {
-          detail::Aabb box;
-          detail::integrate(integrator, s, params, &box);
-          detail::integrate(integrator, plain, params);
-          expect_same_box(box, searched_box(s));
-          ASSERT_EQ(s.position.z, plain.position.z);
-          ASSERT_EQ(s.position.x, plain.position.x);
+      for (bool in_order : {true, false})
+        for (bool large : {false, true}) {
+          if (large && !detail::updates_per_point(integrator)) continue;
+          SCOPED_TRACE(testing::Message() << integrator_info(integrator).name << (in_order ? "" : ", pins out of order")
+                                          << (large ? ", beyond the cache budget" : ""));
+          auto s = large ? pinned_sheet<Real>(200, 150, in_order) : pinned_sheet<Real>(9, 6, in_order), plain = s;
+          if (large) {
+            ASSERT_FALSE(detail::fits_cache_budget(s));
+          }
+          const detail::StepParams<Real> params{Real(1e-3), Real(0), Real(0), Real(-9.81)};
+          for (int step = 0; step < 4; ++step) {
+            detail::Aabb box;
+            detail::integrate(integrator, s, params, &box);
+            detail::integrate(integrator, plain, params);
+            expect_same_box(box, searched_box(s));
+            ASSERT_EQ(s.position.z, plain.position.z);
+            ASSERT_EQ(s.position.x, plain.position.x);
+          }
         }
-      }
   });
 }
 
