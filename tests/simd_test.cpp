@@ -20,6 +20,8 @@
 
 #include "bounds.h"
 #include "each_target.h"
+#include "forces.h"
+#include "integrate.h"
 #include "simd/kernels.h"
 
 namespace drape {
@@ -271,6 +273,188 @@ TEST(Simd, PointUpdateOfEveryTargetIsTheEulerStepByHand) {
     }
   });
 }
+
+// The update's growing variant (PointUpdate::grow) on every target: the same positions and
+// velocities, bit for bit, as the plain update, and a box that is the smallest and largest
+// new position found by a plain search, merged into the box it started from. Lengths 1 to
+// 40 and some longer cover runs shorter than a vector, whole vectors and every remainder.
+template <class Real>
+void expect_growing_update_gives_the_box_of_the_new_positions() {
+  std::mt19937 rng(246);
+  std::uniform_real_distribution<double> u(-3.0, 3.0);
+  for_each_target([&](std::int64_t) {
+    std::vector<std::size_t> counts;
+    for (std::size_t count = 1; count <= 40; ++count) counts.push_back(count);
+    for (std::size_t count : {63, 64, 65, 127, 129}) counts.push_back(count);
+    for (std::size_t count : counts)
+      for (bool semi : {false, true})
+        for (bool from_none : {false, true}) {
+          std::vector<Real> x[3], v[3], f[3], im;
+          for (int c = 0; c < 3; ++c)
+            for (std::size_t i = 0; i < count; ++i) {
+              x[c].push_back(Real(u(rng)));
+              v[c].push_back(Real(u(rng)));
+              f[c].push_back(Real(u(rng)));
+            }
+          for (std::size_t i = 0; i < count; ++i) im.push_back(Real(1.0 + 0.5 * u(rng)));
+          auto plain_x = x[0], plain_y = x[1], plain_z = x[2], plain_vz = v[2];
+          auto update = [&](Real* xs, Real* ys, Real* zs, Real* vz) {
+            return detail::simd::PointUpdate<Real>::of(count, xs, ys, zs, v[0].data(), v[1].data(), vz, f[0].data(),
+                                                       f[1].data(), f[2].data(), im.data())
+                .step(Real(0.1), Real(0), Real(0.5), Real(-9.81), semi);
+          };
+          const auto v0 = v[0], v1 = v[1];
+          detail::simd::update_points(update(plain_x.data(), plain_y.data(), plain_z.data(), plain_vz.data()));
+          v[0] = v0;  // the plain update moved them: the growing one starts from the same state
+          v[1] = v1;
+          // a box that already holds something, or none yet
+          auto box = from_none ? detail::simd::Extent<Real>::none()
+                               : detail::simd::Extent<Real>{{Real(-1), Real(-1), Real(-1)}, {Real(1), Real(1), Real(1)}};
+          const auto before = box;
+          detail::simd::update_points(update(x[0].data(), x[1].data(), x[2].data(), v[2].data()).grow(&box));
+          EXPECT_EQ(x[0], plain_x);
+          EXPECT_EQ(x[1], plain_y);
+          EXPECT_EQ(x[2], plain_z);
+          EXPECT_EQ(v[2], plain_vz);
+          for (int c = 0; c < 3; ++c) {
+            SCOPED_TRACE(testing::Message() << "count " << count << ", axis " << c << (semi ? ", semi" : ""));
+            Real lo = before.lo[c], hi = before.hi[c];
+            for (Real p : x[c]) {
+              lo = std::min(lo, p);
+              hi = std::max(hi, p);
+            }
+            EXPECT_EQ(box.lo[c], lo);
+            EXPECT_EQ(box.hi[c], hi);
+          }
+        }
+  });
+}
+
+TEST(Simd, GrowingUpdateOfEveryTargetGivesTheBoxOfTheNewPositions) {
+  expect_growing_update_gives_the_box_of_the_new_positions<double>();
+}
+TEST(Simd, GrowingUpdateOfEveryTargetGivesTheBoxOfTheNewPositionsInFloat) {
+  expect_growing_update_gives_the_box_of_the_new_positions<float>();
+}
+
+// The smallest and largest coordinate of a sheet's points, by a plain search.
+template <class Real>
+detail::Aabb searched_box(const detail::Sheet<Real>& s) {
+  detail::Aabb box = detail::empty_box();
+  const std::vector<Real, detail::CacheAligned<Real>>* xs[3] = {&s.position.x, &s.position.y, &s.position.z};
+  for (int c = 0; c < 3; ++c)
+    for (Real p : *xs[c]) {
+      box.lo[c] = std::min(box.lo[c], double(p));
+      box.hi[c] = std::max(box.hi[c], double(p));
+    }
+  return box;
+}
+
+void expect_same_box(const detail::Aabb& a, const detail::Aabb& b) {
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_TRUE(std::isfinite(b.lo[c]) && std::isfinite(b.hi[c]) && b.lo[c] < b.hi[c]) << "axis " << c;
+    EXPECT_EQ(a.lo[c], b.lo[c]) << "axis " << c;
+    EXPECT_EQ(a.hi[c], b.hi[c]) << "axis " << c;
+  }
+}
+
+// A sheet whose pinned points were given a large velocity and targets away from the sheet:
+// the update moves a pinned point far before its pin holds it, and the pin's target is
+// the sheet's extreme, so a box that took a pinned point's update, or missed its pin, is
+// wrong. Pins in point order, or not (then the box comes from a pass).
+template <class Real>
+detail::Sheet<Real> pinned_sheet(std::uint32_t m, std::uint32_t n, bool pins_in_order) {
+  SheetDef def;
+  def.m = m;
+  def.n = n;
+  def.damping = 0.01;
+  def.pins = {0, 5, (m + 1) * (n + 1) - 1};
+  if (!pins_in_order) std::reverse(def.pins.begin(), def.pins.end());
+  auto s = detail::build_sheet<Real>(def);
+  for (std::size_t k = 0; k < s.pins.point.size(); ++k) {
+    const std::uint32_t q = s.pins.point[k];
+    s.velocity.z[q] = Real(-200);
+    s.velocity.x[q] = Real(150);
+    s.pins.tz[k] = Real(0.75 + 0.25 * double(k));
+    s.pins.tx[k] = Real(-2.0 - double(k));
+  }
+  return s;
+}
+
+// Every integrator's step with its box (integrate's bounds, from the update's registers for
+// the per-point ones, from a pass for the others): the box is that of the points after the
+// step and the pins, and the step's bits are those of a step without a box. The per-point
+// integrators also on a sheet beyond the cache budget, whose rows are moved one by one as
+// the sweep finishes them (sheet_forces_by_rows).
+template <class Real>
+void expect_every_integrators_box_is_its_points_box() {
+  for_each_target([&](std::int64_t) {
+    for (Integrator integrator : integrators())
+      for (bool in_order : {true, false})
+        for (bool large : {false, true}) {
+          if (large && !detail::updates_per_point(integrator)) continue;
+          SCOPED_TRACE(testing::Message() << integrator_info(integrator).name << (in_order ? "" : ", pins out of order")
+                                          << (large ? ", beyond the cache budget" : ""));
+          auto s = large ? pinned_sheet<Real>(200, 150, in_order) : pinned_sheet<Real>(9, 6, in_order), plain = s;
+          if (large) {
+            ASSERT_FALSE(detail::fits_cache_budget(s));
+          }
+          const detail::StepParams<Real> params{Real(1e-3), Real(0), Real(0), Real(-9.81)};
+          for (int step = 0; step < 4; ++step) {
+            detail::Aabb box;
+            detail::integrate(integrator, s, params, &box);
+            detail::integrate(integrator, plain, params);
+            expect_same_box(box, searched_box(s));
+            ASSERT_EQ(s.position.z, plain.position.z);
+            ASSERT_EQ(s.position.x, plain.position.x);
+          }
+        }
+  });
+}
+
+TEST(Simd, EveryIntegratorsBoxIsThatOfItsPointsAfterTheStep) { expect_every_integrators_box_is_its_points_box<double>(); }
+TEST(Simd, EveryIntegratorsBoxIsThatOfItsPointsAfterTheStepInFloat) {
+  expect_every_integrators_box_is_its_points_box<float>();
+}
+
+// A sheet split into row blocks as the world splits it (forces of every block, then each
+// block's update growing its own box): the blocks' boxes merged in block order are the box
+// of the sheet's points, and the points are those of the whole-sheet step.
+template <class Real>
+void expect_row_blocks_boxes_make_the_sheets_box() {
+  for_each_target([&](std::int64_t) {
+    for (Integrator integrator : {Integrator::ForwardEuler, Integrator::SemiImplicitEuler})
+      for (bool in_order : {true, false}) {
+        SCOPED_TRACE(testing::Message() << integrator_info(integrator).name << (in_order ? "" : ", pins out of order"));
+        auto s = pinned_sheet<Real>(10, 11, in_order), whole = s;  // 11 × 12 points
+        const std::uint32_t rows = s.topology->rows(), cols = s.topology->cols();
+        const std::uint32_t cuts[] = {0, 4, 5, 9, rows};
+        const std::size_t blocks = std::size(cuts) - 1;
+        s.row_scratch.resize(blocks * cols);
+        const detail::StepParams<Real> params{Real(1e-3), Real(0), Real(0), Real(-9.81)};
+        for (int step = 0; step < 4; ++step) {
+          auto row = detail::ptr(s.row_scratch);
+          for (std::size_t b = 0; b < blocks; ++b)
+            detail::sheet_forces_rows(s, detail::cptr(s.position), detail::cptr(s.velocity), detail::ptr(s.force),
+                                      {row.x + b * cols, row.y + b * cols, row.z + b * cols}, cuts[b], cuts[b + 1]);
+          detail::Aabb box = detail::empty_box();
+          for (std::size_t b = 0; b < blocks; ++b) {
+            auto block = detail::simd::Extent<Real>::none();
+            detail::update_points(integrator, s, params, std::size_t(cuts[b]) * cols, std::size_t(cuts[b + 1]) * cols,
+                                  &block);
+            detail::include_extent(box, block);
+          }
+          detail::integrate(integrator, whole, params);
+          expect_same_box(box, searched_box(s));
+          ASSERT_EQ(s.position.z, whole.position.z);
+          ASSERT_EQ(s.position.y, whole.position.y);
+        }
+      }
+  });
+}
+
+TEST(Simd, RowBlocksBoxesMakeTheSheetsBox) { expect_row_blocks_boxes_make_the_sheets_box<double>(); }
+TEST(Simd, RowBlocksBoxesMakeTheSheetsBoxInFloat) { expect_row_blocks_boxes_make_the_sheets_box<float>(); }
 
 // A world whose free sheets step in one task each (frames), split into row blocks, with
 // per-spring parameters and pins; every spring starts stretched or compressed.

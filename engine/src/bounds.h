@@ -1,5 +1,5 @@
-// Axis-aligned bounding boxes: what the host stage refreshes every substep and what the
-// broad-phase and the obstacle test compare.
+// Axis-aligned bounding boxes: what each substep's update leaves for the next host stage
+// (integrate's bounds) and what the broad-phase and the obstacle test compare.
 #pragma once
 
 #include <algorithm>
@@ -37,10 +37,9 @@ void include_extent(Aabb& box, const simd::Extent<Real>& e) {
   }
 }
 
-// Grows `box` to contain points [0, count) of the three coordinate arrays: the host stage
-// and contact-free frames read every point of every sheet each substep, so the min/max
-// runs as an explicit vector kernel on the widest instruction set the CPU has (one dispatch
-// per call). A NaN coordinate is skipped unless it is the first; a NaN first point gives a
+// Grows `box` to contain points [0, count) of the three coordinate arrays: the pass for
+// boxes the explicit update does not take as it moves the points (integrate.h), as an
+// explicit vector kernel on the widest instruction set the CPU has (one dispatch per call). A NaN coordinate is skipped unless it is the first; a NaN first point gives a
 // NaN box.
 template <class Real>
 void include_points(Aabb& box, const Real* x, const Real* y, const Real* z, std::size_t count) {

@@ -358,16 +358,21 @@ inline void damp(std::size_t count, const Real* __restrict c, const Real* __rest
 // explicit Euler step of its points (an integrator's per-point update, simd/kernels.h).
 struct NoUpdate {
   template <class Real>
-  void operator()(std::size_t, Vec3Ptr<Real>, Vec3Ptr<Real>, ConstVec3Ptr<Real>, const Real*) const {}
+  void operator()(std::size_t, Vec3Ptr<Real>, Vec3Ptr<Real>, ConstVec3Ptr<Real>, const Real*,
+                  simd::Extent<Real>* = nullptr) const {}
 };
 
 template <bool SemiImplicit, class Real>
 struct EulerUpdate {
   simd::EulerStep<Real> step;
+  // `grow`, when given, grows to contain the new positions (the update's growing variant)
   HWY_INLINE void operator()(std::size_t count, Vec3Ptr<Real> x, Vec3Ptr<Real> v, ConstVec3Ptr<Real> f,
-                  const Real* inv_mass) const {
-    const auto u = simd::PointUpdate<Real>::of(count, x.x, x.y, x.z, v.x, v.y, v.z, f.x, f.y, f.z, inv_mass).step(step);
-    kernels::update_loop<SemiImplicit>(u);
+                             const Real* inv_mass, simd::Extent<Real>* grow = nullptr) const {
+    auto u = simd::PointUpdate<Real>::of(count, x.x, x.y, x.z, v.x, v.y, v.z, f.x, f.y, f.z, inv_mass).step(step);
+    if (grow)
+      kernels::update_loop_growing<SemiImplicit>(u.grow(grow));
+    else
+      kernels::update_loop<SemiImplicit>(u);
   }
 };
 
@@ -424,15 +429,22 @@ void sheet_forces_rows_of(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Rea
 
 template <class Real, class Update>
 void sheet_forces_by_rows_with(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f,
-                               Update update) {
+                               Update update, simd::Extent<Real>* box) {
   const Topology<Real>& t = *s.topology;
   const auto& an = s.anchors;
   auto anchor = [&](std::size_t a) { add_anchor(an, a, x, f, an.point[a]); };
   // the update moves the sheet's own points (x and v are the sheet's arrays whenever it runs)
-  auto move = [&](std::size_t p, std::size_t count) {
-    update(count, Vec3Ptr<Real>{s.position.x.data() + p, s.position.y.data() + p, s.position.z.data() + p},
+  auto run = [&](std::size_t p, std::size_t end, simd::Extent<Real>* grow) {
+    update(end - p, Vec3Ptr<Real>{s.position.x.data() + p, s.position.y.data() + p, s.position.z.data() + p},
            Vec3Ptr<Real>{s.velocity.x.data() + p, s.velocity.y.data() + p, s.velocity.z.data() + p},
-           ConstVec3Ptr<Real>{f.x + p, f.y + p, f.z + p}, s.inv_mass.data() + p);
+           ConstVec3Ptr<Real>{f.x + p, f.y + p, f.z + p}, s.inv_mass.data() + p, grow);
+  };
+  std::size_t next_pin = 0;
+  auto move = [&](std::size_t p, std::size_t count) {
+    if (box)
+      update_around_pins(s.pins, next_pin, p, p + count, *box, run);
+    else
+      run(p, p + count, nullptr);
   };
   // Obstacle forces (eq 9) follow the sheet's surface normal, which reads the rows on both
   // sides of a point, so they cannot be added row by row once earlier rows have moved.
@@ -466,8 +478,8 @@ void sheet_forces_by_rows_with(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Pt
 
 template <class Real>
 void sheet_forces_by_rows_of(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f,
-                             const simd::EulerStep<Real>* step) {
-  with_update(step, [&](auto update) { sheet_forces_by_rows_with(s, x, v, f, update); });
+                             const simd::EulerStep<Real>* step, simd::Extent<Real>* box) {
+  with_update(step, [&](auto update) { sheet_forces_by_rows_with(s, x, v, f, update, step ? box : nullptr); });
 }
 
 template <class Real, class Springs, class Terms, class Update>
@@ -544,8 +556,8 @@ void sheet_wave_of(Sheet<Real>& s, std::uint32_t levels, std::uint32_t row_begin
     sheet_forces_rows_of(s, x, v, f, row, row_begin, row_end);                                                     \
   }                                                                                                                \
   void SheetForcesByRows##Suffix(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f,     \
-                                 const simd::EulerStep<Real>* step) {                                              \
-    sheet_forces_by_rows_of(s, x, v, f, step);                                                                     \
+                                 const simd::EulerStep<Real>* step, simd::Extent<Real>* box) {                     \
+    sheet_forces_by_rows_of(s, x, v, f, step, box);                                                                \
   }                                                                                                                \
   void SheetWave##Suffix(Sheet<Real>& s, std::uint32_t levels, std::uint32_t row_begin, std::uint32_t row_end,    \
                          WaveScratch<Real>& w, const simd::EulerStep<Real>& step, Aabb* swept) {                   \
@@ -597,11 +609,11 @@ void sheet_forces_rows(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> 
 
 template <class Real>
 void sheet_forces_by_rows(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f,
-                          const simd::EulerStep<Real>* step) {
+                          const simd::EulerStep<Real>* step, simd::Extent<Real>* box) {
   if constexpr (std::is_same_v<Real, double>)
-    HWY_DYNAMIC_DISPATCH(SheetForcesByRowsF64)(s, x, v, f, step);
+    HWY_DYNAMIC_DISPATCH(SheetForcesByRowsF64)(s, x, v, f, step, box);
   else
-    HWY_DYNAMIC_DISPATCH(SheetForcesByRowsF32)(s, x, v, f, step);
+    HWY_DYNAMIC_DISPATCH(SheetForcesByRowsF32)(s, x, v, f, step, box);
 }
 
 template <class Real>
@@ -682,9 +694,9 @@ template void sheet_wave<double>(Sheet<double>&, std::uint32_t, std::uint32_t, s
 template void sheet_wave<float>(Sheet<float>&, std::uint32_t, std::uint32_t, std::uint32_t, WaveScratch<float>&,
                                 const simd::EulerStep<float>&, Aabb*);
 template void sheet_forces_by_rows<double>(Sheet<double>&, ConstVec3Ptr<double>, ConstVec3Ptr<double>, Vec3Ptr<double>,
-                                           const simd::EulerStep<double>*);
+                                           const simd::EulerStep<double>*, simd::Extent<double>*);
 template void sheet_forces_by_rows<float>(Sheet<float>&, ConstVec3Ptr<float>, ConstVec3Ptr<float>, Vec3Ptr<float>,
-                                          const simd::EulerStep<float>*);
+                                          const simd::EulerStep<float>*, simd::Extent<float>*);
 
 }  // namespace drape::detail
 #endif  // HWY_ONCE

@@ -65,9 +65,32 @@ void sheet_forces(Sheet<Real>& sheet, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v
 // the caches streams half the bytes per step). A sheet within the cache budget
 // (fits_cache_budget), or with obstacles near it, is moved in one pass after its forces.
 // The sweep and the update run on one instruction set, chosen once per call (forces.cpp).
+// `box`, when given with a step (the sheet's pins sorted by point), grows to contain the
+// sheet's positions after the step and its pins (update_around_pins), from the update's
+// registers: no later pass reads the points for their box.
 template <class Real>
 void sheet_forces_by_rows(Sheet<Real>& sheet, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f,
-                          const simd::EulerStep<Real>* step);
+                          const simd::EulerStep<Real>* step, simd::Extent<Real>* box = nullptr);
+
+// Points [begin, end) of an update whose new positions grow `box`, where hold_pin will
+// then move the pinned points among them (pins sorted by point, the next at or after
+// `next_pin`, which advances): update(b, e, grow) moves points [b, e) growing *grow when
+// it is not null. Runs between pins grow the box; a pinned point is moved without, and
+// its pin's target grows the box instead, so the box is that of the positions after the
+// pins hold: the box a pass over the points would give (no NaN among them).
+template <class Real, class Update>
+void update_around_pins(const Pins<Real>& pins, std::size_t& next_pin, std::size_t begin, std::size_t end,
+                        simd::Extent<Real>& box, Update update) {
+  for (; next_pin < pins.point.size() && pins.point[next_pin] < end; ++next_pin) {
+    const std::size_t q = pins.point[next_pin];
+    if (q < begin) continue;
+    if (q > begin) update(begin, q, &box);
+    update(q, q + 1, nullptr);
+    box.include(pins.tx[next_pin], pins.ty[next_pin], pins.tz[next_pin]);
+    begin = q + 1;
+  }
+  if (begin < end) update(begin, end, &box);
+}
 
 // ---- Several substeps in one sweep (temporal blocking) ------------------------------
 //

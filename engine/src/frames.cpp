@@ -74,9 +74,10 @@ void BasicWorld<Real>::Impl::integrate_runs(double h, std::uint64_t count, std::
       } else if (detail::updates_per_point(def.integrator) && detail::wave_ready(s) && !detail::fits_cache_budget(s)) {
         detail::integrate_wave(def.integrator, s, params, levels, 0, s.topology->rows(), wave_scratch.local(), box);
       } else {
+        detail::Aabb after;  // the box after each substep, taken as the update moves the points
         for (std::uint32_t k = 0; k < levels; ++k) {
-          detail::integrate(def.integrator, s, params);
-          if (box) detail::include_box(*box, detail::sheet_bounds(s));
+          detail::integrate(def.integrator, s, params, box ? &after : nullptr);
+          if (box) detail::include_box(*box, after);
         }
       }
     });

@@ -10,6 +10,7 @@
 #include "vertex_block.h"
 #include "simd/kernels.h"
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <limits>
@@ -38,10 +39,20 @@ simd::EulerStep<Real> euler_step(const StepParams<Real>& p, bool semi_implicit) 
 
 // Each row is updated as soon as its force is final, in the same sweep and on the same
 // instruction set (sheet_forces_by_rows), so forces never leave the cache.
-template <class Real, bool SemiImplicit>
-void first_order_step(Sheet<Real>& s, const StepParams<Real>& p) {
-  const simd::EulerStep<Real> step = euler_step(p, SemiImplicit);
-  sheet_forces_by_rows(s, cptr(s.position), cptr(s.velocity), ptr(s.force), &step);
+// `box`, when given, grows to contain the new positions and the pins' targets
+// (sheet_forces_by_rows).
+template <class Real>
+void first_order_step(Sheet<Real>& s, const StepParams<Real>& p, bool semi_implicit,
+                      simd::Extent<Real>* box = nullptr) {
+  const simd::EulerStep<Real> step = euler_step(p, semi_implicit);
+  sheet_forces_by_rows(s, cptr(s.position), cptr(s.velocity), ptr(s.force), &step, box);
+}
+
+// Whether an update can grow the sheet's box as it moves the points (update_around_pins
+// walks the pins in order).
+template <class Real>
+bool box_in_update(const Sheet<Real>& s) {
+  return s.size() > 0 && std::is_sorted(s.pins.point.begin(), s.pins.point.end());
 }
 
 // a = f(x, v)/m + g into s.force, with pinned points held at zero acceleration so that
@@ -156,9 +167,9 @@ void rk4_step(Sheet<Real>& s, const StepParams<Real>& p) {
 
 // Per-point first-order updates as whole-sheet steps, for the table.
 template <class Real>
-void forward_euler_step(Sheet<Real>& s, const StepParams<Real>& p) { first_order_step<Real, false>(s, p); }
+void forward_euler_step(Sheet<Real>& s, const StepParams<Real>& p) { first_order_step(s, p, false); }
 template <class Real>
-void semi_implicit_euler_step(Sheet<Real>& s, const StepParams<Real>& p) { first_order_step<Real, true>(s, p); }
+void semi_implicit_euler_step(Sheet<Real>& s, const StepParams<Real>& p) { first_order_step(s, p, true); }
 
 double forward_euler_limit(double omega) { return std::numbers::ln2 / (omega * omega); }
 double interval_two(double omega) { return 2.0 / omega; }
@@ -225,13 +236,22 @@ const IntegratorRow& row_of(Integrator integrator) {
 }  // namespace
 
 template <class Real>
-void integrate(Integrator integrator, Sheet<Real>& s, const StepParams<Real>& p) {
+void integrate(Integrator integrator, Sheet<Real>& s, const StepParams<Real>& p, Aabb* bounds) {
   const IntegratorRow& row = row_of(integrator);
+  if (bounds && row.per_point && box_in_update(s)) {  // the box from the update's registers
+    auto box = simd::Extent<Real>::none();
+    first_order_step(s, p, integrator == Integrator::SemiImplicitEuler, &box);
+    apply_pins(s);
+    *bounds = empty_box();
+    include_extent(*bounds, box);
+    return;
+  }
   if constexpr (std::is_same_v<Real, double>)
     row.step_double(s, p);
   else
     row.step_float(s, p);
   apply_pins(s);
+  if (bounds) *bounds = sheet_bounds(s);  // a pass over the points
 }
 
 bool updates_per_point(Integrator integrator) { return row_of(integrator).per_point; }
@@ -245,19 +265,31 @@ void record_solve(SolveStats& stats, int iterations, double relative_residual, b
 
 template <class Real>
 void update_points(Integrator integrator, Sheet<Real>& s, const StepParams<Real>& p, std::size_t begin,
-                   std::size_t end) {
-  // the same update as the whole-sheet step, on this block's points only (one dispatch per block)
-  if (integrator == Integrator::ForwardEuler || integrator == Integrator::SemiImplicitEuler) {
-    const std::size_t b = begin;
-    simd::update_points(simd::PointUpdate<Real>::of(end - begin, s.position.x.data() + b, s.position.y.data() + b,
+                   std::size_t end, simd::Extent<Real>* box) {
+  // the same update as the whole-sheet step, on this block's points only (one dispatch per run)
+  const bool first_order = integrator == Integrator::ForwardEuler || integrator == Integrator::SemiImplicitEuler;
+  auto run = [&](std::size_t b, std::size_t e, simd::Extent<Real>* grow) {
+    simd::update_points(simd::PointUpdate<Real>::of(e - b, s.position.x.data() + b, s.position.y.data() + b,
                                                     s.position.z.data() + b, s.velocity.x.data() + b,
                                                     s.velocity.y.data() + b, s.velocity.z.data() + b,
                                                     s.force.x.data() + b, s.force.y.data() + b, s.force.z.data() + b,
                                                     s.inv_mass.data() + b)
-                            .step(euler_step(p, integrator == Integrator::SemiImplicitEuler)));
+                            .step(euler_step(p, integrator == Integrator::SemiImplicitEuler))
+                            .grow(grow));
+  };
+  const bool grows = box && first_order && begin < end && box_in_update(s);
+  if (grows) {
+    const auto& pins = s.pins.point;
+    auto next_pin = std::size_t(std::lower_bound(pins.begin(), pins.end(), begin) - pins.begin());
+    update_around_pins(s.pins, next_pin, begin, end, *box, run);
+  } else if (first_order) {
+    run(begin, end, nullptr);
   }
   // the other integrators: updates_per_point() keeps them whole, never split
   apply_pins(s, begin, end);
+  if (box && !grows && begin < end)  // a pass over the block's points
+    box->include(simd::points_extent(s.position.x.data() + begin, s.position.y.data() + begin,
+                                     s.position.z.data() + begin, end - begin));
 }
 
 template <class Real>
@@ -272,10 +304,12 @@ template void integrate_wave<double>(Integrator, Sheet<double>&, const StepParam
                                      std::uint32_t, std::uint32_t, WaveScratch<double>&, Aabb*);
 template void integrate_wave<float>(Integrator, Sheet<float>&, const StepParams<float>&, std::uint32_t, std::uint32_t,
                                     std::uint32_t, WaveScratch<float>&, Aabb*);
-template void update_points<double>(Integrator, Sheet<double>&, const StepParams<double>&, std::size_t, std::size_t);
-template void update_points<float>(Integrator, Sheet<float>&, const StepParams<float>&, std::size_t, std::size_t);
-template void integrate<double>(Integrator, Sheet<double>&, const StepParams<double>&);
-template void integrate<float>(Integrator, Sheet<float>&, const StepParams<float>&);
+template void update_points<double>(Integrator, Sheet<double>&, const StepParams<double>&, std::size_t, std::size_t,
+                                    simd::Extent<double>*);
+template void update_points<float>(Integrator, Sheet<float>&, const StepParams<float>&, std::size_t, std::size_t,
+                                   simd::Extent<float>*);
+template void integrate<double>(Integrator, Sheet<double>&, const StepParams<double>&, Aabb*);
+template void integrate<float>(Integrator, Sheet<float>&, const StepParams<float>&, Aabb*);
 
 }  // namespace drape::detail
 

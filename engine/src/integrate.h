@@ -26,8 +26,11 @@ struct StepParams {
 template <class Real>
 using StepFunction = void (*)(Sheet<Real>& sheet, const StepParams<Real>& params);
 
+// `bounds`, when given, becomes the sheet's box after the step (sheet_bounds): the per-point
+// integrators take it from the update's registers (sheet_forces_by_rows), the others from a
+// pass over the points.
 template <class Real>
-void integrate(Integrator integrator, Sheet<Real>& sheet, const StepParams<Real>& params);
+void integrate(Integrator integrator, Sheet<Real>& sheet, const StepParams<Real>& params, Aabb* bounds = nullptr);
 
 // An implicit integrator's solve, into Sheet::last_solve.
 void record_solve(SolveStats& stats, int iterations, double relative_residual, bool converged);
@@ -38,10 +41,11 @@ void record_solve(SolveStats& stats, int iterations, double relative_residual, b
 bool updates_per_point(Integrator integrator);
 
 // Points [begin, end) of such an integrator's update from sheet.force, then the pins among
-// them; integrate() is sheet_forces followed by update_points over all points.
+// them; integrate() is sheet_forces followed by update_points over all points. `box`, when
+// given, grows to contain those points after the update and the pins (as integrate's bounds).
 template <class Real>
 void update_points(Integrator integrator, Sheet<Real>& sheet, const StepParams<Real>& params, std::size_t begin,
-                   std::size_t end);
+                   std::size_t end, simd::Extent<Real>* box = nullptr);
 
 // `levels` substeps of such an integrator on rows [row_begin, row_end) of a wave_ready
 // sheet in one sweep (forces.h, sheet_wave): bit-identical to `levels` integrate() calls.

@@ -233,7 +233,7 @@ void BasicWorld<Real>::Impl::plan_blocks() {
     // The obstacle term works on whole sheets: a sheet near an obstacle is not split.
     if (can_split && s.near_obstacles.empty() && points >= 2 * std::uint64_t(def.block_points))
       count = static_cast<std::uint32_t>(std::min<std::uint64_t>(rows, points / def.block_points));
-    slots[active[k]].bounds_fresh = false;  // set again by a whole sheet's task
+    slots[active[k]].bounds_fresh = false;  // set again by the update (integrate_sheets)
     if (count == 1) {
       blocks.push_back({k, 0, rows, 0, false});
       continue;
@@ -282,11 +282,9 @@ void BasicWorld<Real>::Impl::integrate_sheets(const detail::StepParams<Real>& pa
     const std::size_t cols = s.topology->cols();
     gather(b.sheet, b.row_begin * cols, b.row_end * cols);
     if (!b.split) {
-      detail::integrate(def.integrator, s, params);
-      if (keep_bounds) {  // for the next host stage, while the positions are in cache
-        slot.bounds = detail::sheet_bounds(s);
-        slot.bounds_fresh = true;
-      }
+      // the box for the next host stage, taken as the update moves the points
+      detail::integrate(def.integrator, s, params, keep_bounds ? &slot.bounds : nullptr);
+      slot.bounds_fresh = keep_bounds;
       return;
     }
     auto row = detail::ptr(s.row_scratch);
@@ -296,14 +294,26 @@ void BasicWorld<Real>::Impl::integrate_sheets(const detail::StepParams<Real>& pa
   });
   for (const Block& b : blocks) any_split = any_split || b.split;
   if (!any_split) return;
+  if (keep_bounds) block_box.assign(blocks.size(), detail::simd::Extent<Real>::none());
   // Second pass, after every block's forces: a block's springs read its neighbours' rows.
   tasks([&](std::size_t q) {
     const Block& b = blocks[q];
     if (!b.split) return;
     Sheet<Real>& s = at(b.sheet);
     const std::size_t cols = s.topology->cols();
-    detail::update_points(def.integrator, s, params, b.row_begin * cols, b.row_end * cols);
+    detail::update_points(def.integrator, s, params, b.row_begin * cols, b.row_end * cols,
+                          keep_bounds ? &block_box[q] : nullptr);
   });
+  if (!keep_bounds) return;
+  // A split sheet's box: its blocks' boxes in block order (min and max are exact anyway).
+  for (std::size_t q = 0; q < blocks.size(); ++q) {
+    const Block& b = blocks[q];
+    if (!b.split) continue;
+    Slot& slot = slots[active[b.sheet]];
+    if (b.index == 0) slot.bounds = detail::empty_box();
+    detail::include_extent(slot.bounds, block_box[q]);
+    slot.bounds_fresh = true;
+  }
 }
 
 // One substep: the stages of substep_stages, in order.

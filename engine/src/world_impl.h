@@ -90,6 +90,7 @@ struct BasicWorld<Real>::Impl {
   std::vector<const detail::ContactForces<Real>*> sources;  // per sheet, in pair order
   std::vector<std::uint32_t> source_cursor;                 // while filling sources
   std::vector<Block> blocks;
+  std::vector<detail::simd::Extent<Real>> block_box;  // a split block's box after its update
 
   explicit Impl(const WorldDef& d) : def(d) { make_arena(); }
 
@@ -166,8 +167,8 @@ struct BasicWorld<Real>::Impl {
 
   bool contacts_possible() const;
   void move_rigid_parts();
-  // A sheet's box now: the one its last integration took while the positions were in
-  // cache, unless something moved the points since.
+  // A sheet's box now: the one its last integration took (from the update's registers, or
+  // a pass while the positions were in cache), unless something moved the points since.
   detail::Aabb current_bounds(const Slot& slot) const {
     return slot.bounds_fresh ? slot.bounds : detail::sheet_bounds(*slot.sheet);
   }

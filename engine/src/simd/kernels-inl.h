@@ -12,6 +12,8 @@
 
 #include <hwy/highway.h>
 
+#include <type_traits>
+
 #include "simd/kernels.h"
 
 HWY_BEFORE_NAMESPACE();
@@ -202,9 +204,24 @@ HWY_INLINE void air_cells_of(const AirCells<Real>& r) {
   over_lanes<Real>(r.count, [&](auto lanes, std::size_t j) __attribute__((always_inline)) { air_cells_at(lanes, r, j); });
 }
 
-// eq (4), first order, on the points of one vector from i.
-template <bool SemiImplicit, class Real, class Lanes>
-HWY_INLINE void update_at(Lanes l, const PointUpdate<Real>& u, std::size_t i) {
+// Grows the running bounds lo, hi of one coordinate (vectors of lanes, each lane its own
+// box) by v, as Extent::include does; the bounds pass and the integrators' update share it.
+template <class V>
+HWY_INLINE void extent_take(V v, V& lo, V& hi) {
+  lo = hn::IfThenElse(hn::Lt(v, lo), v, lo);
+  hi = hn::IfThenElse(hn::Gt(v, hi), v, hi);
+}
+
+// Coordinate k of `into` grown by the lanes of lo and hi.
+template <class D, class V, class Real>
+HWY_INLINE void extent_reduce(D d, V lo, V hi, int k, Extent<Real>& into) {
+  into.include(k, hn::GetLane(hn::MinOfLanes(d, lo)), hn::GetLane(hn::MaxOfLanes(d, hi)));
+}
+
+// eq (4), first order, on the points of one vector from i; new_position(c, x) sees each
+// coordinate's new positions.
+template <bool SemiImplicit, class Real, class Lanes, class Seen>
+HWY_INLINE void update_at(Lanes l, const PointUpdate<Real>& u, std::size_t i, Seen new_position) {
   const auto d = l.d;
   const auto dt = hn::Set(d, u.dt);
   const auto im = l.load(u.inv_mass + i);
@@ -220,17 +237,59 @@ HWY_INLINE void update_at(Lanes l, const PointUpdate<Real>& u, std::size_t i) {
     if constexpr (SemiImplicit) x = hn::Add(x, hn::Mul(dt, v));
     l.store(x, xs[c] + i);
     l.store(v, vs[c] + i);
+    new_position(c, x);
   }
 }
 
 template <bool SemiImplicit, class Real>
 HWY_INLINE void update_loop(const PointUpdate<Real>& u) {
-  over_lanes<Real>(u.count,
-                   [&](auto lanes, std::size_t i) __attribute__((always_inline)) { update_at<SemiImplicit>(lanes, u, i); });
+  over_lanes<Real>(u.count, [&](auto lanes, std::size_t i) __attribute__((always_inline)) {
+    update_at<SemiImplicit>(lanes, u, i, [](int, auto) {});
+  });
 }
 
+// The update that also grows *u.extent by the new positions: whole vectors take them from
+// the registers they are computed in; a remainder is read back (it was just stored) as the
+// last whole vector, which overlaps the ones before it as in extent_of, or point by point
+// when there are fewer points than lanes.
+template <bool SemiImplicit, class Real>
+HWY_INLINE void update_loop_growing(const PointUpdate<Real>& u) {
+  const hn::ScalableTag<Real> d;
+  using Full = Whole<decltype(d)>;
+  const std::size_t lanes = hn::Lanes(d), count = u.count;
+  const Extent<Real> none = Extent<Real>::none();
+  // named vectors, not an array: scalable vectors (SVE, RVV) cannot be array elements
+  auto lo0 = hn::Set(d, none.lo[0]), hi0 = hn::Set(d, none.hi[0]), lo1 = lo0, hi1 = hi0, lo2 = lo0, hi2 = hi0;
+  auto take = [&](int c, auto x) __attribute__((always_inline)) {
+    if (c == 0) extent_take(x, lo0, hi0);
+    if (c == 1) extent_take(x, lo1, hi1);
+    if (c == 2) extent_take(x, lo2, hi2);
+  };
+  over_lanes<Real>(count, [&](auto l, std::size_t i) __attribute__((always_inline)) {
+    if constexpr (std::is_same_v<decltype(l), Full>)
+      update_at<SemiImplicit>(l, u, i, take);
+    else
+      update_at<SemiImplicit>(l, u, i, [](int, auto) {});
+  });
+  Extent<Real>& e = *u.extent;
+  if (count % lanes != 0 && count >= lanes) {
+    const std::size_t last = count - lanes;
+    take(0, hn::LoadU(d, u.x + last));
+    take(1, hn::LoadU(d, u.y + last));
+    take(2, hn::LoadU(d, u.z + last));
+  } else if (count < lanes) {
+    for (std::size_t i = 0; i < count; ++i) e.include(u.x[i], u.y[i], u.z[i]);
+  }
+  extent_reduce(d, lo0, hi0, 0, e);
+  extent_reduce(d, lo1, hi1, 1, e);
+  extent_reduce(d, lo2, hi2, 2, e);
+}
+
+// The step and whether it grows a box picked once per call, not per point.
 template <class Real>
 HWY_INLINE void update_run(const PointUpdate<Real>& u) {
+  if (u.extent)
+    return u.semi_implicit ? update_loop_growing<true>(u) : update_loop_growing<false>(u);
   if (u.semi_implicit)
     update_loop<true>(u);
   else
@@ -244,53 +303,38 @@ HWY_INLINE void update_run(const PointUpdate<Real>& u) {
 // single pair leaves the core idle most of the time (the bounds pass of a sheet near an
 // obstacle ran at a quarter of its throughput).
 template <class Real>
-HWY_INLINE void extent_of(const Real* a, std::size_t count, Real& lo, Real& hi) {
+HWY_INLINE void extent_of(const Real* a, std::size_t count, int k, Extent<Real>& e) {
   const hn::ScalableTag<Real> d;
   using V = hn::Vec<decltype(d)>;
   const std::size_t lanes = hn::Lanes(d);
-  Real low = a[0], high = a[0];
+  e.lo[k] = e.hi[k] = a[0];
   if (count < lanes) {
-    for (std::size_t i = 1; i < count; ++i) {
-      low = a[i] < low ? a[i] : low;
-      high = a[i] > high ? a[i] : high;
-    }
-    lo = low;
-    hi = high;
+    for (std::size_t i = 1; i < count; ++i) e.include(k, a[i], a[i]);
     return;
   }
   // named vectors, not an array: scalable vectors (SVE, RVV) cannot be array elements
-  V lo0 = hn::Set(d, low), hi0 = lo0, lo1 = lo0, hi1 = lo0, lo2 = lo0, hi2 = lo0, lo3 = lo0, hi3 = lo0;
-  auto take = [&](V& vlo, V& vhi, std::size_t i) __attribute__((always_inline)) {
-    const auto v = hn::LoadU(d, a + i);
-    vlo = hn::IfThenElse(hn::Lt(v, vlo), v, vlo);
-    vhi = hn::IfThenElse(hn::Gt(v, vhi), v, vhi);
-  };
+  V lo0 = hn::Set(d, a[0]), hi0 = lo0, lo1 = lo0, hi1 = lo0, lo2 = lo0, hi2 = lo0, lo3 = lo0, hi3 = lo0;
   std::size_t i = 0;
   for (; i + 4 * lanes <= count; i += 4 * lanes) {
-    take(lo0, hi0, i);
-    take(lo1, hi1, i + lanes);
-    take(lo2, hi2, i + 2 * lanes);
-    take(lo3, hi3, i + 3 * lanes);
+    extent_take(hn::LoadU(d, a + i), lo0, hi0);
+    extent_take(hn::LoadU(d, a + i + lanes), lo1, hi1);
+    extent_take(hn::LoadU(d, a + i + 2 * lanes), lo2, hi2);
+    extent_take(hn::LoadU(d, a + i + 3 * lanes), lo3, hi3);
   }
-  for (; i + lanes <= count; i += lanes) take(lo0, hi0, i);
-  if (i < count) take(lo0, hi0, count - lanes);
-  auto merge = [&](V vlo, V vhi) __attribute__((always_inline)) {
-    lo0 = hn::IfThenElse(hn::Lt(vlo, lo0), vlo, lo0);
-    hi0 = hn::IfThenElse(hn::Gt(vhi, hi0), vhi, hi0);
-  };
-  merge(lo1, hi1);
-  merge(lo2, hi2);
-  merge(lo3, hi3);
-  lo = hn::GetLane(hn::MinOfLanes(d, lo0));
-  hi = hn::GetLane(hn::MaxOfLanes(d, hi0));
+  for (; i + lanes <= count; i += lanes) extent_take(hn::LoadU(d, a + i), lo0, hi0);
+  if (i < count) extent_take(hn::LoadU(d, a + count - lanes), lo0, hi0);
+  extent_reduce(d, lo0, hi0, k, e);
+  extent_reduce(d, lo1, hi1, k, e);
+  extent_reduce(d, lo2, hi2, k, e);
+  extent_reduce(d, lo3, hi3, k, e);
 }
 
 template <class Real>
 HWY_INLINE Extent<Real> points_extent_of(const Real* x, const Real* y, const Real* z, std::size_t count) {
   Extent<Real> e;
-  extent_of(x, count, e.lo[0], e.hi[0]);
-  extent_of(y, count, e.lo[1], e.hi[1]);
-  extent_of(z, count, e.lo[2], e.hi[2]);
+  extent_of(x, count, 0, e);
+  extent_of(y, count, 1, e);
+  extent_of(z, count, 2, e);
   return e;
 }
 

@@ -12,6 +12,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 namespace drape::detail::simd {
@@ -79,6 +80,34 @@ struct SpringRun {
 void springs(const SpringRun<double>& run);
 void springs(const SpringRun<float>& run);
 
+// A box of points, per coordinate k the smallest lo[k] and the largest hi[k] as the scalar
+// loop  lo = v < lo ? v : lo;  hi = v > hi ? v : hi  grows them: a NaN is skipped unless
+// it is where the box started. none() is the box before any point (the first one included
+// becomes it); points_extent and the integrators' update (PointUpdate::grow) both grow
+// boxes this way, in vectors, and merge them here.
+template <class Real>
+struct Extent {
+  Real lo[3] = {0, 0, 0};
+  Real hi[3] = {0, 0, 0};
+
+  static Extent none() {
+    constexpr Real inf = std::numeric_limits<Real>::infinity();
+    return {{inf, inf, inf}, {-inf, -inf, -inf}};
+  }
+  void include(int k, Real low, Real high) {
+    lo[k] = low < lo[k] ? low : lo[k];
+    hi[k] = high > hi[k] ? high : hi[k];
+  }
+  void include(Real x, Real y, Real z) {
+    include(0, x, x);
+    include(1, y, y);
+    include(2, z, z);
+  }
+  void include(const Extent& e) {
+    for (int k = 0; k < 3; ++k) include(k, e.lo[k], e.hi[k]);
+  }
+};
+
 // One first-order explicit step (eq 4 with M, C diagonal): forward Euler
 // (semi_implicit = false) moves x with the old v; semi-implicit Euler with the new one.
 // v += dt (f/m + g).
@@ -98,6 +127,10 @@ struct PointUpdate {
   const Real* inv_mass = nullptr;
   Real dt = 0, gx = 0, gy = 0, gz = 0;
   bool semi_implicit = true;
+  // When set, grows to contain every new position, taken from the registers the update
+  // computes it in (a compile-time variant of the update: a step that needs no box pays
+  // nothing for it), so no later pass reads the points again for their box.
+  Extent<Real>* extent = nullptr;
 
   // PointUpdate::of(n, x…, v…, f…, 1/m).step(dt, g…, semi_implicit)
   static PointUpdate of(std::size_t count, Real* x, Real* y, Real* z, Real* vx, Real* vy, Real* vz, const Real* fx,
@@ -125,21 +158,19 @@ struct PointUpdate {
     return *this;
   }
   PointUpdate& step(const EulerStep<Real>& e) { return step(e.dt, e.gx, e.gy, e.gz, e.semi_implicit); }
+  PointUpdate& grow(Extent<Real>* box) {
+    extent = box;
+    return *this;
+  }
 };
 
 void update_points(const PointUpdate<double>& u);
 void update_points(const PointUpdate<float>& u);
 
-// The smallest and the largest of a[0, count), count ≥ 1, as the scalar loop
-//   lo = hi = a[0];  for i ≥ 1: lo = a[i] < lo ? a[i] : lo;  hi = a[i] > hi ? a[i] : hi;
-// gives them: a NaN after the first value is skipped, a NaN first value gives NaN. Exact on
-// every target (min and max round nothing); only which of −0 and +0 wins a tie may differ.
-// Bounding boxes (bounds.h) take x, y and z in one call.
-template <class Real>
-struct Extent {
-  Real lo[3] = {0, 0, 0};
-  Real hi[3] = {0, 0, 0};
-};
+// The box of points [0, count), count ≥ 1, grown from the first point (so a NaN first
+// coordinate gives a NaN bound). Exact on every target (min and max round nothing); only
+// which of −0 and +0 wins a tie may differ. Bounding boxes (bounds.h) take x, y and z in
+// one call.
 Extent<double> points_extent(const double* x, const double* y, const double* z, std::size_t count);
 Extent<float> points_extent(const float* x, const float* y, const float* z, std::size_t count);
 
