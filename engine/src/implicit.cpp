@@ -28,23 +28,50 @@ int offset_of(const Matrix& a, int row, int col) {
 template <class Real>
 void build_pattern(ImplicitScratch<Real>& sc, const Sheet<Real>& s) {
   const auto& t = *s.topology;
-  const int n3 = static_cast<int>(3 * s.size());
-  std::vector<Eigen::Triplet<Real, int>> entries;
-  entries.reserve(9 * (s.size() + 2 * std::size_t(t.springs())));
-  auto block = [&](std::uint32_t p, std::uint32_t q) {
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c) entries.emplace_back(int(3 * p) + r, int(3 * q) + c, Real(0));
-  };
-  for (std::uint32_t p = 0; p < s.size(); ++p) block(p, p);
+  const std::size_t count = s.size();
+  const int n3 = static_cast<int>(3 * count);
+  // Per point p, the points q of its blocks (p, q): itself, its springs' other ends and
+  // wherever the other terms' Jacobians reach (terms/terms.h); sorted, each once. Written
+  // straight into the compressed rows (a point's three rows have the same columns): Eigen's
+  // setFromTriplets, nine triplets per block sorted through a transposed copy, was the
+  // dearest part of a sheet's first implicit step. The same pattern, so the same bits.
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs;
+  pairs.reserve(count + 2 * std::size_t(t.springs()));
+  for (std::uint32_t p = 0; p < count; ++p) pairs.emplace_back(p, p);
   for (std::uint32_t e = 0; e < t.springs(); ++e) {
-    block(t.a[e], t.b[e]);
-    block(t.b[e], t.a[e]);
+    pairs.emplace_back(t.a[e], t.b[e]);
+    pairs.emplace_back(t.b[e], t.a[e]);
   }
-  // the other terms' blocks (terms/terms.h), wherever their Jacobians reach
-  add_term_jacobians(s, cptr(s.position), [&](std::uint32_t p, std::uint32_t q, const Real (&)[3][3]) { block(p, q); });
+  add_term_jacobians(s, cptr(s.position),
+                     [&](std::uint32_t p, std::uint32_t q, const Real (&)[3][3]) { pairs.emplace_back(p, q); });
+  std::vector<int> start(count + 1, 0), blocks(pairs.size());
+  for (const auto& [p, q] : pairs) ++start[p + 1];
+  for (std::size_t p = 0; p < count; ++p) start[p + 1] += start[p];
+  {
+    std::vector<int> at(start.begin(), start.end() - 1);
+    for (const auto& [p, q] : pairs) blocks[std::size_t(at[p]++)] = int(q);
+  }
+  std::vector<int> width(count);  // per point: its distinct blocks, first in its slice of `blocks`
+  for (std::size_t p = 0; p < count; ++p) {
+    const auto begin = blocks.begin() + start[p], end = blocks.begin() + start[p + 1];
+    std::sort(begin, end);
+    width[p] = int(std::unique(begin, end) - begin);
+  }
+  std::size_t nonzeros = 0;
+  for (std::size_t p = 0; p < count; ++p) nonzeros += 9 * std::size_t(width[p]);
   sc.system.resize(n3, n3);
-  sc.system.setFromTriplets(entries.begin(), entries.end());
-  sc.system.makeCompressed();
+  sc.system.resizeNonZeros(Eigen::Index(nonzeros));
+  int* outer = sc.system.outerIndexPtr();
+  int* inner = sc.system.innerIndexPtr();
+  int next = 0;
+  for (std::size_t p = 0; p < count; ++p)
+    for (int r = 0; r < 3; ++r) {
+      outer[3 * p + std::size_t(r)] = next;
+      for (int k = start[p]; k < start[p] + width[p]; ++k)
+        for (int c = 0; c < 3; ++c) inner[next++] = 3 * blocks[std::size_t(k)] + c;
+    }
+  outer[n3] = next;
+  std::fill(sc.system.valuePtr(), sc.system.valuePtr() + nonzeros, Real(0));
 
   sc.diagonal.resize(std::size_t(n3));
   for (int row = 0; row < n3; ++row) sc.diagonal[std::size_t(row)] = offset_of(sc.system, row, row - row % 3);
