@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <memory>
 #include <Eigen/SparseCholesky>
 #include <cmath>
 #include <random>
@@ -122,16 +123,46 @@ struct OneStep {
   drape::World::SolverStats stats;
 };
 
-OneStep step_once(const drape::WorldDef& wd, double stiffness) {
+// The positions implicit Euler's kept Cholesky factor was made at: x, y, z of every point
+// after the guess in its integrator memory (ImplicitMemory, implicit.cpp).
+State factor_positions(const drape::World& world, drape::SheetId id) {
+  const auto memory = world.integrator_memory(id);
+  const std::size_t count = world.view(id).size();
+  State s;
+  for (std::size_t p = 0; p < count; ++p)
+    s.x.insert(s.x.end(), {memory[3 * count + p], memory[4 * count + p], memory[5 * count + p]});
+  return s;
+}
+
+// With `kept`, the step is preconditioned by a factor kept from an earlier step: the sheet
+// steps once from the ruffled state (its factor is made there), goes back to that state
+// moved by 1e-5 m per point, and the measured step starts from there.
+OneStep step_once(const drape::WorldDef& wd, double stiffness, bool kept = false) {
   const drape::SheetDef d = small_sheet(stiffness);
   drape::World world(wd);
   const auto id = world.add_sheet(d);
   OneStep s{forces_of(world, id, d), {}, {}, {}};
   ruffle(world, id);
+  if (kept) {
+    const State start = read(world, id);
+    EXPECT_TRUE(world.step(1).ok());
+    auto st = world.state(id);
+    for (std::size_t p = 0; p < st.size(); ++p) {
+      st.x[p] = start.x[3 * p];
+      st.y[p] = start.x[3 * p + 1];
+      st.z[p] = start.x[3 * p + 2] + (p == 0 ? 0.0 : 1e-5 * std::cos(double(p)));
+      st.vx[p] = start.v[3 * p];
+      st.vy[p] = start.v[3 * p + 1];
+      st.vz[p] = start.v[3 * p + 2];
+    }
+  }
   s.before = read(world, id);
   EXPECT_TRUE(world.step(1).ok());
   s.after = read(world, id);
   s.stats = world.solver_stats(id);
+  if (kept && wd.cg_preconditioner == drape::Preconditioner::Cholesky) {  // the kept factor served
+    EXPECT_NE(factor_positions(world, id).x, s.before.x);
+  }
   return s;
 }
 
@@ -139,23 +170,25 @@ OneStep step_once(const drape::WorldDef& wd, double stiffness) {
 //   (M + h·C − h²·K) Δv = h·(f + M g − C v + h·K·v),  K = ∂f/∂x by central differences,
 // with the pinned point's rows and columns removed (its Δv is zero).
 // Both preconditioners, on a soft and a stiff sheet.
-void expect_dense_solve(drape::Preconditioner preconditioner, double stiffness) {
-  SCOPED_TRACE(std::string(drape::preconditioner_name(preconditioner)) + ", k = " + std::to_string(stiffness));
+void expect_dense_solve(drape::Preconditioner preconditioner, double stiffness, bool kept = false) {
+  SCOPED_TRACE(std::string(drape::preconditioner_name(preconditioner)) + ", k = " + std::to_string(stiffness) +
+               (kept ? ", kept factor" : ""));
   drape::WorldDef wd;
   wd.integrator = Integrator::ImplicitEuler;
   wd.dt = 1.0 / 60;
   wd.cg_tolerance = 1e-13;
   wd.cg_max_iterations = 10000;
   wd.cg_preconditioner = preconditioner;
-  const auto [forces, before, after, stats] = step_once(wd, stiffness);
+  const auto [forces, before, after, stats] = step_once(wd, stiffness, kept);
   const drape::SheetDef& d = forces.d;
   EXPECT_TRUE(stats.converged);
   EXPECT_LE(stats.relative_residual, 1e-13);
   // an exact factor leaves CG one iteration, two with rounding; the float factor, each
   // iteration shrinking the residual by its rounding error, a few to 1e-13 on this small
-  // sheet; a wrong one would still converge (CG corrects it) but take many
+  // sheet; a wrong one would still converge (CG corrects it) but take many. A kept factor
+  // serves within implicit.cpp's budget of 6 iterations or is replaced.
   if (preconditioner == drape::Preconditioner::Cholesky) {
-    EXPECT_LE(stats.iterations, 5);
+    EXPECT_LE(stats.iterations, kept ? 6 : 5);
   }
 
   const std::size_t n3 = 3 * forces.points();
@@ -194,6 +227,13 @@ void expect_dense_solve(drape::Preconditioner preconditioner, double stiffness) 
 TEST(ImplicitEuler, StepSolvesTheLinearisedSystemLikeADenseSolve) {
   for (auto preconditioner : {drape::Preconditioner::BlockJacobi, drape::Preconditioner::Cholesky})
     for (double stiffness : {800.0, 1e5}) expect_dense_solve(preconditioner, stiffness);
+}
+
+// A step preconditioned by a Cholesky factor of an earlier step's matrix (the springs since
+// turned a little) still solves the step's own system to the tolerance: the same dense
+// comparison, and the memory shows that the kept factor was the one used.
+TEST(ImplicitEuler, KeptFactorStepSolvesTheLinearisedSystemLikeADenseSolve) {
+  for (double stiffness : {800.0, 1e5}) expect_dense_solve(drape::Preconditioner::Cholesky, stiffness, true);
 }
 
 // The supernodal factor (supernodal.h) alone, against Eigen's dense Cholesky: a 12×10 grid
@@ -281,6 +321,15 @@ TEST(Supernodal, FactorSolvesLikeADenseCholeskyOnAGrid) {
   expect_factor_solves_like_dense<float>(1e-5);
 }
 
+// Implicit Euler at dt = 1/60 s with the Cholesky preconditioner.
+drape::WorldDef cholesky_world() {
+  drape::WorldDef wd;
+  wd.integrator = Integrator::ImplicitEuler;
+  wd.dt = 1.0 / 60;
+  wd.cg_preconditioner = drape::Preconditioner::Cholesky;
+  return wd;
+}
+
 // A 16×16 sheet of `mass` hanging from its corners.
 drape::SheetDef hanging_sheet(double stiffness, double mass) {
   drape::SheetDef d;
@@ -318,21 +367,19 @@ TEST(ImplicitEuler, EverySolveConvergesFromSoftToStiffSheets) {
 // matrix leaves float's range: k = 1e42 N/m at dt = 1/60 s puts dt²k ≈ 3e38 per spring on
 // the diagonal, whose sums pass float's 3.4e38, so the float factor refuses it (the test
 // above). With 1e30 kg the matrix is as well conditioned as a 1 kg sheet at k = 1e12 N/m,
-// and the double factor must take over and solve every step in one or two iterations
-// (block Jacobi, the last resort, takes tens here). The residual is the engine's
+// and the double factor must take over and solve every step in one or two iterations, or
+// a few with the factor kept from an earlier step (block Jacobi, the last resort, takes
+// tens here). The residual is the engine's
 // |b − A·Δv|, which no preconditioner enters.
 TEST(ImplicitEuler, CholeskyGoesOnInDoubleWhereTheFloatFactorCannotServe) {
-  drape::WorldDef wd;
-  wd.integrator = Integrator::ImplicitEuler;
-  wd.dt = 1.0 / 60;
-  wd.cg_preconditioner = drape::Preconditioner::Cholesky;
+  const drape::WorldDef wd = cholesky_world();
   drape::World world(wd);
   const auto id = world.add_sheet(hanging_sheet(1e42, 1e30));
   for (int step = 0; step < 3; ++step) {
     ASSERT_TRUE(world.step(1).ok()) << "step " << step;
     const auto stats = world.solver_stats(id);
     EXPECT_TRUE(stats.converged) << "step " << step;
-    EXPECT_LE(stats.iterations, 2) << "step " << step;
+    EXPECT_LE(stats.iterations, 6) << "step " << step;  // two on a new factor, six at most on a kept one
   }
   EXPECT_EQ(world.solver_stats(id).unconverged_solves, 0u);
   EXPECT_TRUE(world.all_finite());
@@ -363,8 +410,9 @@ TEST(ImplicitEuler, AutoPicksBlockJacobiForSoftAndCholeskyForStiffSheets) {
   EXPECT_NE(stiff, run(drape::Preconditioner::BlockJacobi, 1e4).first);
 }
 
-// The factor is rebuilt from the step's own matrix every step, so nothing in it depends on
-// history: one or two threads (sheets in parallel), frames or single substeps, the same bits.
+// The factor that preconditions a step is the step's own or one kept from an earlier step
+// of the same sheet (implicit.cpp), which depends on the sheet's history only: one or two
+// threads (sheets in parallel), frames or single substeps, the same bits.
 TEST(ImplicitEuler, CholeskyRunsChangeNoBitWithThreadsOrFrames) {
   auto run = [](int threads, int frames, int substeps) {
     drape::WorldDef wd;
@@ -392,6 +440,77 @@ TEST(ImplicitEuler, CholeskyRunsChangeNoBitWithThreadsOrFrames) {
   EXPECT_EQ(run(1, 2, 3), one_by_one);
   EXPECT_EQ(run(2, 6, 1), one_by_one);
   EXPECT_EQ(run(2, 1, 6), one_by_one);
+}
+
+// A kept factor lives in the integrator memory (the positions and dt it was made at), so a
+// run resumed from state and memory, in a fresh world or in one that has stepped (and holds
+// another factor), makes the same factor and repeats the uninterrupted run bit for bit.
+// Without the factor's part of the memory the resumed run differs (in rounding): the
+// factor's age does enter the bits, which is why it is part of the memory.
+TEST(ImplicitEuler, ResumedRunRemakesTheKeptFactorBitForBit) {
+  const drape::WorldDef wd = cholesky_world();
+  auto make = [&] {
+    auto world = std::make_unique<drape::World>(wd);
+    world->add_sheet(hanging_sheet(1e4, 1.0));
+    return world;
+  };
+  auto uninterrupted = make();
+  const drape::SheetId id = uninterrupted->sheets()[0];
+  // settling, up to a step whose next one tries the kept factor (no back-off left: the
+  // memory's last value but one is zero)
+  int steps = 0;
+  for (uninterrupted->step(60), steps = 60; steps < 300; uninterrupted->step(1), ++steps) {
+    const auto m = uninterrupted->integrator_memory(id);
+    if (m[m.size() - 2] == 0 && m[m.size() - 3] != 0 && factor_positions(*uninterrupted, id).x != read(*uninterrupted, id).x) break;
+  }
+  ASSERT_LT(steps, 300);
+  const auto v = uninterrupted->view(id);
+  const std::vector<double> x(v.x.begin(), v.x.end()), y(v.y.begin(), v.y.end()), z(v.z.begin(), v.z.end());
+  const std::vector<double> vx(v.vx.begin(), v.vx.end()), vy(v.vy.begin(), v.vy.end()), vz(v.vz.begin(), v.vz.end());
+  const auto memory = uninterrupted->integrator_memory(id);
+  const std::vector<double> full(memory.begin(), memory.end());
+  ASSERT_NE(factor_positions(*uninterrupted, id).x, read(*uninterrupted, id).x);  // a kept factor, not this step's
+  auto resume = [&](drape::World& world, const std::vector<double>& with) {
+    const drape::SheetId to = world.sheets()[0];
+    world.set_state(to, {v.m, v.n, x, y, z, vx, vy, vz});
+    world.set_integrator_memory(to, with);
+    world.set_step_count(uninterrupted->step_count());
+    world.step(30);
+    return read(world, to);
+  };
+  auto fresh = make();
+  auto stepped = make();
+  stepped->step(steps - 1);  // holds a factor of its own
+  auto forgotten = make();
+  uninterrupted->step(30);
+  const State expected = read(*uninterrupted, id);
+  const State a = resume(*fresh, full), b = resume(*stepped, full);
+  EXPECT_EQ(a.x, expected.x);
+  EXPECT_EQ(a.v, expected.v);
+  EXPECT_EQ(b.x, expected.x);
+  EXPECT_EQ(b.v, expected.v);
+  const State c = resume(*forgotten, std::vector<double>(full.begin(), full.begin() + std::ptrdiff_t(3 * v.size())));
+  EXPECT_NE(c.x, expected.x);
+}
+
+// A new dt changes the matrix: the factor kept for the old one must not precondition the
+// new one's first step, which factors its own matrix (one or two iterations: a kept factor
+// of the old dt would spend its probe first) and keeps that.
+TEST(ImplicitEuler, NewStepSizeMakesANewFactor) {
+  const drape::WorldDef wd = cholesky_world();
+  drape::World world(wd);
+  const auto id = world.add_sheet(hanging_sheet(1e4, 1.0));
+  world.step(60);
+  for (double dt : {1.0 / 240, 1.0 / 30}) {
+    world.set_dt(dt);
+    const State before = read(world, id);
+    ASSERT_TRUE(world.step(1).ok());
+    const auto stats = world.solver_stats(id);
+    EXPECT_TRUE(stats.converged) << "dt " << dt;
+    EXPECT_LE(stats.iterations, 2) << "dt " << dt;
+    EXPECT_EQ(factor_positions(world, id).x, before.x) << "dt " << dt;
+    EXPECT_EQ(world.integrator_memory(id)[6 * before.x.size() / 3], dt);
+  }
 }
 
 // Local/global converges to the backward-Euler step itself: with enough iterations, the

@@ -6,19 +6,20 @@
 // assembled as an Eigen sparse matrix and solved by preconditioned conjugate gradient, with
 // one of two preconditioners (Preconditioner, types.h):
 //   block Jacobi: the inverses of its 3×3 diagonal blocks (one per point);
-//   Cholesky: a sparse Cholesky factor of the matrix itself, refactored every step, in 3×3
-//     blocks on the symbolic structure (pattern of L, fill-reducing permutation) of
-//     local/global's factored matrix, whose point graph is the same (local_global.h), by
-//     supernodes with dense kernels (supernodal.h); in float first, in double when float's
-//     factor does not bring CG to its tolerance (cholesky_cg, implicit.cpp).
+//   Cholesky: a sparse Cholesky factor of the matrix itself, in 3×3 blocks on the symbolic
+//     structure (pattern of L, fill-reducing permutation) of local/global's factored
+//     matrix, whose point graph is the same (local_global.h), by supernodes with dense
+//     kernels (supernodal.h); in float first, in double when float's factor does not bring
+//     CG to its tolerance; kept for later steps while it still brings their CG to the
+//     tolerance within a few iterations (cholesky_cg, ImplicitMemory, implicit.cpp).
 // The factored mass–spring matrix of local/global (M̃ + dt²·L, the same for x, y and z) was
 // tried as the preconditioner first and measured worse than block Jacobi: it counts every
 // spring as stiff in all three directions, while the system is stiff only along each
 // spring (u uᵀ), so the modes a grid of springs barely resists (out of plane, and in-plane
 // shear of a grid without diagonals) come out of it with eigenvalues near m/(dt²k), and CG
 // took hundreds of iterations at k ≥ 1e3 N/m on 64×64 (docs/integrators.md). A factor kept
-// from an earlier step fails the same way once springs turn between steps. Only the step's
-// own matrix captures each spring's direction.
+// from an earlier step fails the same way once springs have turned far enough, hence its
+// small budget and back-off (implicit.cpp).
 #pragma once
 
 #include <Eigen/LU>
@@ -30,6 +31,9 @@
 #include "supernodal.h"
 
 namespace drape::detail {
+
+// Which Cholesky factor preconditions implicit Euler's solves (implicit.cpp).
+enum class FactorKind { None = 0, Single = 1, Full = 2 };
 
 template <class Real>
 struct ImplicitScratch {
@@ -64,6 +68,8 @@ struct ImplicitScratch {
   SupernodalFactor<float> single;
   SupernodalFactor<double> full;
   bool full_analysed = false;
+  FactorKind held = FactorKind::None;  // the factor in `single` or `full`, kept across steps
+  std::vector<Real> held_key;          // the memory's key it was made for (implicit.cpp)
   SupernodalFactor<float>::Aligned single_work;
   SupernodalFactor<double>::Aligned full_work;
 };
