@@ -78,15 +78,14 @@ mv "$json.tmp" "$json"
 # so a script times the program (docs/sweep_ranks.json, read by the report).
 settle "the MPI sweep"
 "$python" tools/bench_ranks.py --drape "$build/apps/drape" --out docs/sweep_ranks.json
-# The portable build: only the figures the report compares with the native run
-# (docs/benchmarks-portable.json).
+# The portable build against the native one (docs/benchmarks-portable.json): the figures the
+# report compares, the two binaries in alternating rounds of one repetition each, so that both
+# see the same slow spells of the machine (tools/portable_pair.py).
 portable_json=docs/benchmarks-portable.json
 settle "the portable run"
-"$build-portable/bench/drape_bench" "--benchmark_min_time=$min_time" "--benchmark_repetitions=$repetitions" \
-  --benchmark_enable_random_interleaving=true --benchmark_report_aggregates_only=true \
-  "--benchmark_filter=^BM_(Sheets48_f|Fig13/semi_implicit_euler/f64/|Paper1000Points|CeilingSheets48|ArithmeticBound)" \
-  --benchmark_out="$portable_json.tmp" --benchmark_out_format=json >/dev/null
-mv "$portable_json.tmp" "$portable_json"
+"$python" tools/portable_pair.py --native "$build/bench/drape_bench" --portable "$build-portable/bench/drape_bench" \
+  --rounds "$rounds" --out "$portable_json" -- "--benchmark_min_time=$min_time" \
+  "--benchmark_filter=^BM_(Sheets48_f|Fig13/semi_implicit_euler/f64/|Paper1000Points|CeilingSheets48|ArithmeticBound)"
 # The same binary held to lower instruction sets (DRAPE_SIMD_TARGET, read by bench_simd.cpp):
 # how it runs on a CPU with AVX2 but no AVX-512, or SSE4 only (docs/benchmarks-<set>.json).
 forced_json=()

@@ -662,19 +662,23 @@ class Report:
         """Issue 15: the portable build (no -march=native) against this, the native one."""
         if self.portable is None:
             return
-        pctx, pruns = self.portable
-        names = [n for n in sorted(pruns) if n in self.runs]
+        pctx, pruns, paired = self.portable
+        native = paired if paired else self.runs
+        names = [n for n in sorted(pruns) if n in native]
         if not names:
             return
+        when = ("each run in alternating rounds of one repetition with the native build's same benchmark "
+                "(tools/portable_pair.py), so that both saw the same slow spells of the machine; each figure is "
+                "the fastest of its rounds" if paired else "run right after the native run")
         self.out("## Portable build against native", "",
                  "The same benchmarks from a `-DDRAPE_NATIVE=OFF` build (no `-march=native`: what a distribution "
-                 "or a Python wheel ships), run right after the native run. Kernels ran with "
+                 f"or a Python wheel ships), {when}. Kernels ran with "
                  f"{self.simd_text(pctx)} in the portable build and {self.simd_text(self.context, False)} in the native "
                  "one.", "", "| benchmark | native, M point-steps/s | portable, M point-steps/s | portable ÷ native |",
                  "|---|---|---|---|")
         worst = None
         for n in names:
-            nat, por = self.get(n), pruns[n]
+            nat, por = (native[n] if paired else self.get(n)), pruns[n]
             if not nat.rate or not por.rate:
                 continue
             ratio = por.rate / nat.rate
@@ -1354,7 +1358,12 @@ def main():
     args = ap.parse_args()
     context, runs = load_runs(args.json)
     sweep_ranks = optional_json(args.sweep_ranks)
-    portable = load_runs(args.portable_json) if args.portable_json and os.path.exists(args.portable_json) else None
+    portable = None
+    if args.portable_json and os.path.exists(args.portable_json):
+        # tools/portable_pair.py's record: the portable side's runs, the native side's beside them
+        pcontext, pruns = load_runs(args.portable_json)
+        native = optional_json(args.portable_json).get("native")
+        portable = (pcontext, pruns, runs_of(native) if native else None)
     forced = [load_runs(p) for p in args.forced_json if os.path.exists(p)]
     scenes_baseline = optional_json(args.scenes_baseline)
     report = Report(context, runs, args.build_dir, args.img, os.path.dirname(os.path.abspath(args.out)), sweep_ranks,
