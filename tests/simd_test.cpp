@@ -430,13 +430,14 @@ void expect_row_blocks_boxes_make_the_sheets_box() {
         const std::uint32_t rows = s.topology->rows(), cols = s.topology->cols();
         const std::uint32_t cuts[] = {0, 4, 5, 9, rows};
         const std::size_t blocks = std::size(cuts) - 1;
-        s.row_scratch.resize(blocks * cols);
+        const std::size_t stride = s.topology->scratch_cols();
+        s.row_scratch.resize(blocks * stride);
         const detail::StepParams<Real> params{Real(1e-3), Real(0), Real(0), Real(-9.81)};
         for (int step = 0; step < 4; ++step) {
           auto row = detail::ptr(s.row_scratch);
           for (std::size_t b = 0; b < blocks; ++b)
             detail::sheet_forces_rows(s, detail::cptr(s.position), detail::cptr(s.velocity), detail::ptr(s.force),
-                                      {row.x + b * cols, row.y + b * cols, row.z + b * cols}, cuts[b], cuts[b + 1]);
+                                      {row.x + b * stride, row.y + b * stride, row.z + b * stride}, cuts[b], cuts[b + 1]);
           detail::Aabb box = detail::empty_box();
           for (std::size_t b = 0; b < blocks; ++b) {
             auto block = detail::simd::Extent<Real>::none();

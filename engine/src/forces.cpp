@@ -142,46 +142,43 @@ struct SpringSource {
   }
 };
 
-// Horizontal springs of one row: forces go to a scratch row first, so the scatter into
-// both endpoints becomes a dependency-free second loop the compiler can vectorise.
+// Horizontal springs of one row, spring j joining points j and j + 1, stored at net[j]
+// between zeros at net[−1] and net[n] (a row of Sheet::row_scratch from its pad on). No
+// point's force is written here: point j gets net[j] − net[j − 1], the spring on its right
+// minus the one on its left, summed in as the vertical springs above the row are subtracted
+// from it (SpringRun::netted), or by net_row where there are none. Each point's force comes
+// from the same two operands either way, so its bits do not depend on the path. (Scattered
+// by a loop of its own, the springs cost the 1024-point step held to AVX2 5 % more.)
 template <bool PerSpring, class Real, class Springs>
 HWY_INLINE void row_springs(std::uint32_t n, const Real* __restrict x, const Real* __restrict y, const Real* __restrict z,
-                        Springs springs, Real* __restrict sx, Real* __restrict sy, Real* __restrict sz,
-                        Real* __restrict fx, Real* __restrict fy, Real* __restrict fz) {
-  // spring j joins points j and j + 1
+                            Springs springs, Vec3Ptr<Real> net) {
+  net.x[-1] = net.y[-1] = net.z[-1] = Real(0);
+  net.x[n] = net.y[n] = net.z[n] = Real(0);
   auto run = simd::SpringRun<Real>::between(n, x, y, z, x + 1, y + 1, z + 1);
-  kernels::springs_loop<PerSpring, true, false, false>(springs.template into<PerSpring>(run).store(sx, sy, sz));
-  // point j gets +s[j] from the spring on its right and −s[j−1] from the one on its left
-  if (n == 0) {
-    fx[0] = fy[0] = fz[0] = Real(0);
-    return;
-  }
-  fx[0] = sx[0];
-  fy[0] = sy[0];
-  fz[0] = sz[0];
-  for (std::uint32_t j = 1; j < n; ++j) {
-    fx[j] = sx[j] - sx[j - 1];
-    fy[j] = sy[j] - sy[j - 1];
-    fz[j] = sz[j] - sz[j - 1];
-  }
-  fx[n] = -sx[n - 1];
-  fy[n] = -sy[n - 1];
-  fz[n] = -sz[n - 1];
+  kernels::springs_loop<PerSpring, true, false, false>(springs.template into<PerSpring>(run).store(net.x, net.y, net.z));
+}
+
+// The forces of a row's n + 1 points from their horizontal springs alone (row_springs' net).
+template <class Real>
+HWY_INLINE void net_row(std::uint32_t n, const Real* __restrict net, Real* __restrict f) {
+  const Real* left = net - 1;  // net[j − 1], with j unsigned
+  for (std::uint32_t j = 0; j <= n; ++j) f[j] = net[j] - left[j];
 }
 
 // Vertical springs between row `a` and the row below it, `b`: no two iterations touch
-// the same point, and the kernel adds to both rows directly. A block of rows that does not
-// own row a (or b) still evaluates the spring, with the same arithmetic, and adds only to
-// its own row: forces of a row are then bit-identical however the sheet is split.
+// the same point, and the kernel adds to both rows directly, row b's forces starting from
+// its horizontal springs' net (row_springs). A block of rows that does not own row a (or
+// b) still evaluates the spring, with the same arithmetic, and adds only to its own row:
+// forces of a row are then bit-identical however the sheet is split.
 template <bool PerSpring, bool ToA, bool ToB, class Real, class Springs>
 HWY_INLINE void column_springs(std::uint32_t cols, const Real* xa, const Real* ya, const Real* za, const Real* xb,
-                           const Real* yb, const Real* zb, Springs springs, Real* fxa, Real* fya, Real* fza, Real* fxb,
-                           Real* fyb, Real* fzb) {
+                               const Real* yb, const Real* zb, Springs springs, Real* fxa, Real* fya, Real* fza,
+                               Real* fxb, Real* fyb, Real* fzb, ConstVec3Ptr<Real> net) {
   auto run = simd::SpringRun<Real>::between(cols, xa, ya, za, xb, yb, zb);
   springs.template into<PerSpring>(run);
   if constexpr (ToA) run.add(fxa, fya, fza);
-  if constexpr (ToB) run.sub(fxb, fyb, fzb);
-  kernels::springs_loop<PerSpring, false, ToA, ToB>(run);
+  if constexpr (ToB) run.sub(fxb, fyb, fzb).netted(net.x, net.y, net.z);
+  kernels::springs_loop<PerSpring, false, ToA, ToB, ToB>(run);
 }
 
 // The rows terms 2–4 of terms/terms.h read when row q arrives, q − 2 to q (those the window
@@ -250,19 +247,26 @@ template <bool PerSpring, class Real, class Springs, class Terms, class Window>
 HWY_INLINE void arrive_with(const Topology<Real>& t, Springs horizontal_springs, Springs vertical_springs,
                             const Terms& terms, const Window& w, std::uint32_t q) {
   const std::uint32_t n = t.n, cols = t.cols();
+  const bool above = q > w.read_lo;  // the vertical springs between rows q − 1 and q
+  constexpr std::uint32_t pad = Topology<Real>::scratch_pad;
+  const Vec3Ptr<Real> net{w.scratch.x + pad, w.scratch.y + pad, w.scratch.z + pad};
   if (w.owns(q)) {
     const ConstVec3Ptr<Real> x = w.x(q);
-    const Vec3Ptr<Real> f = w.f(q);
-    row_springs<PerSpring>(n, x.x, x.y, x.z, horizontal_springs.template offset<PerSpring>(std::size_t(q) * n),
-                           w.scratch.x, w.scratch.y, w.scratch.z, f.x, f.y, f.z);
+    row_springs<PerSpring>(n, x.x, x.y, x.z, horizontal_springs.template offset<PerSpring>(std::size_t(q) * n), net);
+    if (!above) {
+      const Vec3Ptr<Real> f = w.f(q);
+      net_row(n, net.x, f.x);
+      net_row(n, net.y, f.y);
+      net_row(n, net.z, f.z);
+    }
   }
-  if (q > w.read_lo) {
+  if (above) {
     const ConstVec3Ptr<Real> xa = w.x(q - 1), xb = w.x(q);
     const Vec3Ptr<Real> fa = w.f(q - 1), fb = w.f(q);
     auto vertical = [&]<bool ToA, bool ToB>() __attribute__((always_inline)) {
       column_springs<PerSpring, ToA, ToB>(cols, xa.x, xa.y, xa.z, xb.x, xb.y, xb.z,
                                           vertical_springs.template offset<PerSpring>(std::size_t(q - 1) * cols), fa.x,
-                                          fa.y, fa.z, fb.x, fb.y, fb.z);
+                                          fa.y, fa.z, fb.x, fb.y, fb.z, ConstVec3Ptr<Real>(net));
     };
     const bool to_a = w.owns(q - 1), to_b = w.owns(q);
     if (to_a && to_b)
@@ -495,7 +499,7 @@ void wave_rows(Sheet<Real>& s, Springs horizontal_springs, Springs vertical_spri
   // (a power of two: the slot is a mask, not a division, on every row of every substep).
   const std::uint32_t ring = std::bit_ceil(levels * reach + 2), mask = ring - 1;
   if (w.forces.x.size() < std::size_t(ring) * cols) w.forces.resize(std::size_t(ring) * cols);
-  if (w.row.x.size() < cols) w.row.resize(cols);
+  if (w.row.x.size() < t.scratch_cols()) w.row.resize(t.scratch_cols());
   const WaveRows<Real> rows{&s, &w, range, row_begin, row_end, cols, mask};
   const RowWindow<Real, WaveRows<Real>> window{rows, lo, lo, hi, ptr(w.row)};
   const auto& an = s.anchors;

@@ -42,7 +42,8 @@ template <class Real>
 void spring_forces(const Topology<Real>& topo, ConstVec3Ptr<Real> x, Vec3Ptr<Real> f, Vec3Ptr<Real> row,
                    std::uint32_t row_begin, std::uint32_t row_end);
 
-// Rows [row_begin, row_end) of sheet_forces, with `row` as the block's scratch row; each
+// Rows [row_begin, row_end) of sheet_forces, with `row` as the block's scratch row
+// (Topology::scratch_cols long, as every `row` here); each
 // point's terms are added in the same order as in sheet_forces, so a split sheet's forces
 // are bit-identical. Never called for a sheet with obstacles near it (they read normals
 // across rows): the world keeps such sheets whole.

@@ -173,7 +173,7 @@ Sheet<Real> build_sheet(const SheetDef& d) {
   s.position.resize(count);
   s.velocity.resize(count);
   s.force.resize(count);
-  s.row_scratch.resize(cols);
+  s.row_scratch.resize(s.topology->scratch_cols());
   s.self_collision = d.self_collision;
   if (d.air) {
     s.air.emplace();

@@ -64,6 +64,11 @@ struct Topology {
   std::optional<Real> bending;  // k_b
 
   std::uint32_t cols() const { return n + 1; }
+  // A row of Sheet::row_scratch: the row's n horizontal spring forces (forces.cpp) from
+  // scratch_pad on, between zeros at scratch_pad − 1 and scratch_pad + n; the pad and the
+  // length are whole cache lines, so the springs' vector stores start on one.
+  static constexpr std::uint32_t scratch_pad = 64 / sizeof(Real);
+  std::uint32_t scratch_cols() const { return scratch_pad + (cols() + scratch_pad - 1) / scratch_pad * scratch_pad; }
   std::uint32_t rows() const { return m + 1; }
   std::uint32_t points() const { return rows() * cols(); }
   std::uint32_t horizontal_count() const { return rows() * n; }
@@ -171,7 +176,7 @@ struct Sheet {
   Anchors<Real> anchors;
   Pins<Real> pins;
   std::optional<Air<Real>> air;
-  Vec3Array<Real> row_scratch;       // one row of horizontal spring forces
+  Vec3Array<Real> row_scratch;       // a row's horizontal spring forces, row_scratch_length per row
   std::vector<Real> integrator_scratch;  // extra state an integrator may keep (RK4's stages)
   // Shared between copies of a sheet only until one of them steps implicitly again: the
   // integrator replaces a scratch it does not own alone (implicit.cpp).

@@ -227,7 +227,7 @@ void BasicWorld<Real>::Impl::plan_blocks() {
   const bool can_split = detail::updates_per_point(def.integrator) && arena->max_concurrency() > 1;
   for (std::uint32_t k = 0; k < active.size(); ++k) {
     Sheet<Real>& s = at(k);
-    const std::uint32_t rows = s.topology->rows(), cols = s.topology->cols();
+    const std::uint32_t rows = s.topology->rows();
     const std::uint64_t points = s.size();
     std::uint32_t count = 1;
     // The obstacle term works on whole sheets: a sheet near an obstacle is not split.
@@ -238,7 +238,8 @@ void BasicWorld<Real>::Impl::plan_blocks() {
       blocks.push_back({k, 0, rows, 0, false});
       continue;
     }
-    if (s.row_scratch.x.size() < std::size_t(count) * cols) s.row_scratch.resize(std::size_t(count) * cols);
+    const std::size_t scratch = std::size_t(count) * s.topology->scratch_cols();
+    if (s.row_scratch.x.size() < scratch) s.row_scratch.resize(scratch);
     push_row_blocks(k, rows, count);
   }
 }
@@ -288,7 +289,7 @@ void BasicWorld<Real>::Impl::integrate_sheets(const detail::StepParams<Real>& pa
       return;
     }
     auto row = detail::ptr(s.row_scratch);
-    const std::size_t off = b.index * cols;
+    const std::size_t off = b.index * s.topology->scratch_cols();
     detail::sheet_forces_rows(s, detail::cptr(s.position), detail::cptr(s.velocity), detail::ptr(s.force),
                               {row.x + off, row.y + off, row.z + off}, b.row_begin, b.row_end);
   });

@@ -103,7 +103,7 @@ HWY_INLINE void over_lanes_storing(std::size_t count, Kernel kernel) {
 
 // eq (6) on the springs of one vector from e: the same operations, in the same order, as
 // spring_scale in terms/rows.h, so a lane gives the scalar kernel's bits.
-template <bool PerSpring, bool Store, bool Add, bool Sub, class Real, class Lanes>
+template <bool PerSpring, bool Store, bool Add, bool Sub, bool Net, class Real, class Lanes>
 HWY_INLINE void springs_at(Lanes l, const SpringRun<Real>& r, std::size_t e) {
   const auto d = l.d;
   const auto dx = hn::Sub(l.load(r.ax + e), l.load(r.bx + e));
@@ -127,18 +127,23 @@ HWY_INLINE void springs_at(Lanes l, const SpringRun<Real>& r, std::size_t e) {
     l.store(hn::Add(l.load(r.add_z + e), fz), r.add_z + e);
   }
   if constexpr (Sub) {
-    l.store(hn::Sub(l.load(r.sub_x + e), fx), r.sub_x + e);
-    l.store(hn::Sub(l.load(r.sub_y + e), fy), r.sub_y + e);
-    l.store(hn::Sub(l.load(r.sub_z + e), fz), r.sub_z + e);
+    // what the forces are taken from: sub itself, or the netted row (SpringRun::netted)
+    auto from = [&](const Real* sub, const Real* net) __attribute__((always_inline)) {
+      if constexpr (Net) return hn::Sub(l.load(net + e), l.load(net + e - 1));
+      return l.load(sub + e);
+    };
+    l.store(hn::Sub(from(r.sub_x, r.net_x), fx), r.sub_x + e);
+    l.store(hn::Sub(from(r.sub_y, r.net_y), fy), r.sub_y + e);
+    l.store(hn::Sub(from(r.sub_z, r.net_z), fz), r.sub_z + e);
   }
 }
 
-template <bool PerSpring, bool Store, bool Add, bool Sub, class Real>
+template <bool PerSpring, bool Store, bool Add, bool Sub, bool Net = false, class Real>
 HWY_INLINE void springs_loop(const SpringRun<Real>& r) {
   // forced inline, like the kernels: GCC's inliner otherwise leaves a call per vector in a
   // sweep that has grown large
   auto kernel = [&](auto lanes, std::size_t e) __attribute__((always_inline)) {
-    springs_at<PerSpring, Store, Add, Sub>(lanes, r, e);
+    springs_at<PerSpring, Store, Add, Sub, Net>(lanes, r, e);
   };
   if constexpr (Store && !Add && !Sub)
     over_lanes_storing<Real>(r.count, kernel);  // the spring's forces alone, stored apart from its ends
@@ -151,6 +156,11 @@ template <class Real>
 HWY_INLINE void springs_run(const SpringRun<Real>& r) {
   auto with_outputs = [&]<bool PerSpring>() {
     const bool store = r.store_x != nullptr, add = r.add_x != nullptr, sub = r.sub_x != nullptr;
+    if (r.net_x != nullptr) {
+      if (!store && add && sub) return springs_loop<PerSpring, false, true, true, true>(r);
+      if (!store && !add && sub) return springs_loop<PerSpring, false, false, true, true>(r);
+      return;  // netted forces go only with sub and without store
+    }
     if (store && !add && !sub) return springs_loop<PerSpring, true, false, false>(r);
     if (!store && add && sub) return springs_loop<PerSpring, false, true, true>(r);
     if (!store && add && !sub) return springs_loop<PerSpring, false, true, false>(r);

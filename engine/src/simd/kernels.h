@@ -20,7 +20,11 @@ namespace drape::detail::simd {
 // Springs e in [0, count) between points a[e] and b[e], d = a − b: the force on a is
 // s·d with s = −k(|d| − ℓ)/|d| (eq 6, zero for |d| = 0). rest and k point to per-spring
 // values, or are null and every spring has rest_same and k_same. Each non-null output
-// array set takes s·d: `store` is assigned, `add` added to, `sub` subtracted from.
+// array set takes s·d: `store` is assigned, `add` added to, `sub` subtracted from. With
+// `netted` set, what `sub` takes s·d from is not read from sub but is net[e] − net[e − 1]:
+// a row's horizontal spring forces (spring j at net[j], zeros at net[−1] and net[count − 1])
+// summed into each point's force on the way, eq (6) giving point j the spring on its right
+// minus the one on its left.
 template <class Real>
 struct SpringRun {
   std::size_t count = 0;
@@ -32,6 +36,7 @@ struct SpringRun {
   Real *store_x = nullptr, *store_y = nullptr, *store_z = nullptr;
   Real *add_x = nullptr, *add_y = nullptr, *add_z = nullptr;
   Real *sub_x = nullptr, *sub_y = nullptr, *sub_z = nullptr;
+  const Real *net_x = nullptr, *net_y = nullptr, *net_z = nullptr;
 
   // A run is set up as between(...) then where k and ℓ come from, then its outputs:
   // SpringRun::between(n, a…, b…).same(rest, k).store(x, y, z)
@@ -73,6 +78,12 @@ struct SpringRun {
     sub_x = x;
     sub_y = y;
     sub_z = z;
+    return *this;
+  }
+  SpringRun& netted(const Real* x, const Real* y, const Real* z) {
+    net_x = x;
+    net_y = y;
+    net_z = z;
     return *this;
   }
 };
