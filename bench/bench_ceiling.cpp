@@ -33,14 +33,15 @@ struct PlainSheet {
   // 64-byte aligned like the engine's arrays: alignment is the machine's to give, not the engine's
   using Array = std::vector<double, drape::detail::CacheAligned<double>>;
   Array x, y, z, vx, vy, vz, fx, fy, fz;
-  Array sx, sy, sz;  // one row of horizontal spring forces
+  Array sx, sy, sz;  // one row of horizontal spring forces, from `pad` on (the engine's row_scratch)
+  static constexpr std::uint32_t pad = 64 / sizeof(double);
   Array inv_mass_row;  // one mass for all points: one row of it, for the kernel's per-point 1/m
   double k = 100.0, rest = 0, inv_mass = 0, dt = 0, gz = -9.81;
 
   PlainSheet(std::uint32_t points_per_side, double offset_z) : side(points_per_side) {
     const std::size_t count = std::size_t(side) * side;
     for (auto* a : {&x, &y, &z, &vx, &vy, &vz, &fx, &fy, &fz}) a->assign(count, 0.0);
-    for (auto* a : {&sx, &sy, &sz}) a->assign(side, 0.0);
+    for (auto* a : {&sx, &sy, &sz}) a->assign(pad + side, 0.0);
     rest = 1.0 / (side - 1);
     for (std::uint32_t i = 0; i < side; ++i)
       for (std::uint32_t j = 0; j < side; ++j) {
@@ -78,33 +79,32 @@ namespace HWY_NAMESPACE {
 namespace kernels = drape::detail::simd::HWY_NAMESPACE;
 
 // Horizontal springs of one row of w points through the engine's vector kernel (eq 6, one
-// k and ℓ): assign the row's forces. s is scratch.
+// k and ℓ), stored as the engine's row sweep stores them: spring j at net[j], between zeros
+// at net[−1] and net[w − 1], net on a cache line.
 HWY_INLINE void horizontal(std::uint32_t w, double k, double rest, const double* __restrict x, const double* __restrict y,
-                const double* __restrict z, double* __restrict sx, double* __restrict sy, double* __restrict sz,
-                double* __restrict fx, double* __restrict fy, double* __restrict fz) {
+                           const double* __restrict z, double* __restrict nx, double* __restrict ny, double* __restrict nz) {
+  nx[-1] = ny[-1] = nz[-1] = 0.0;
+  nx[w - 1] = ny[w - 1] = nz[w - 1] = 0.0;
   kernels::springs_loop<false, true, false, false>(
-      drape::detail::simd::SpringRun<double>::between(w - 1, x, y, z, x + 1, y + 1, z + 1).same(rest, k).store(sx, sy, sz));
-  fx[0] = sx[0];
-  fy[0] = sy[0];
-  fz[0] = sz[0];
-  for (std::uint32_t j = 1; j + 1 < w; ++j) {
-    fx[j] = sx[j] - sx[j - 1];
-    fy[j] = sy[j] - sy[j - 1];
-    fz[j] = sz[j] - sz[j - 1];
-  }
-  fx[w - 1] = -sx[w - 2];
-  fy[w - 1] = -sy[w - 2];
-  fz[w - 1] = -sz[w - 2];
+      drape::detail::simd::SpringRun<double>::between(w - 1, x, y, z, x + 1, y + 1, z + 1).same(rest, k).store(nx, ny, nz));
 }
 
-// Vertical springs between row a and row b below it, added to both rows' forces.
+// The first row's forces, which no vertical springs above it net: net[j] − net[j − 1].
+HWY_INLINE void net_forces(std::uint32_t w, const double* __restrict net, double* __restrict f) {
+  const double* left = net - 1;
+  for (std::uint32_t j = 0; j < w; ++j) f[j] = net[j] - left[j];
+}
+
+// Vertical springs between row a and row b below it, added to row a's forces and taken
+// from row b's horizontal springs netted (SpringRun::netted), which makes row b's forces.
 HWY_INLINE void vertical(std::uint32_t w, double k, double rest, const double* xa, const double* ya, const double* za,
-              const double* xb, const double* yb, const double* zb, double* fxa, double* fya, double* fza,
-              double* fxb, double* fyb, double* fzb) {
-  kernels::springs_loop<false, false, true, true>(drape::detail::simd::SpringRun<double>::between(w, xa, ya, za, xb, yb, zb)
-                                   .same(rest, k)
-                                   .add(fxa, fya, fza)
-                                   .sub(fxb, fyb, fzb));
+                         const double* xb, const double* yb, const double* zb, double* fxa, double* fya, double* fza,
+                         double* fxb, double* fyb, double* fzb, const double* nx, const double* ny, const double* nz) {
+  kernels::springs_loop<false, false, true, true, true>(drape::detail::simd::SpringRun<double>::between(w, xa, ya, za, xb, yb, zb)
+                                                            .same(rest, k)
+                                                            .add(fxa, fya, fza)
+                                                            .sub(fxb, fyb, fzb)
+                                                            .netted(nx, ny, nz));
 }
 
 // Semi-implicit Euler on one row, through the engine's vector kernel.
@@ -119,15 +119,18 @@ HWY_INLINE void step(PlainSheet& s) {
   double *x = s.x.data(), *y = s.y.data(), *z = s.z.data();
   double *vx = s.vx.data(), *vy = s.vy.data(), *vz = s.vz.data();
   double *fx = s.fx.data(), *fy = s.fy.data(), *fz = s.fz.data();
-  double *sx = s.sx.data(), *sy = s.sy.data(), *sz = s.sz.data();
+  double *nx = s.sx.data() + s.pad, *ny = s.sy.data() + s.pad, *nz = s.sz.data() + s.pad;
   const double* im = s.inv_mass_row.data();
-  horizontal(w, s.k, s.rest, x, y, z, sx, sy, sz, fx, fy, fz);
+  horizontal(w, s.k, s.rest, x, y, z, nx, ny, nz);
+  net_forces(w, nx, fx);
+  net_forces(w, ny, fy);
+  net_forces(w, nz, fz);
   for (std::uint32_t i = 0; i + 1 < w; ++i) {
     const std::size_t a = std::size_t(i) * w, b = a + w;
-    horizontal(w, s.k, s.rest, x + b, y + b, z + b, sx, sy, sz, fx + b, fy + b, fz + b);
+    horizontal(w, s.k, s.rest, x + b, y + b, z + b, nx, ny, nz);
     // row i is complete once its vertical springs are in, and no later spring reads it
     vertical(w, s.k, s.rest, x + a, y + a, z + a, x + b, y + b, z + b, fx + a, fy + a, fz + a, fx + b, fy + b,
-             fz + b);
+             fz + b, nx, ny, nz);
     integrate(w, s, im, x + a, y + a, z + a, vx + a, vy + a, vz + a, fx + a, fy + a, fz + a);
   }
   const std::size_t last = std::size_t(w - 1) * w;
