@@ -48,6 +48,7 @@ struct ImplicitScratch {
   std::vector<int> diagonal;      // per scalar row 3p+r: value offset of entry (3p+r, 3p)
   std::vector<int> upper, lower;  // per spring e and r: offsets of (3a+r, 3b) and (3b+r, 3a)
   std::vector<Real> free;         // per point: 1, or 0 for a pinned point (its rows and columns are dropped)
+  std::vector<Real> spring_direction;  // per spring: u and the transverse factor (spring_jacobian.h)
   Vector rhs, dv;                 // dv: the solution (its copy in Sheet::integrator_scratch is the next guess)
   Vector residual, direction, preconditioned, product;  // the solve's work vectors
   Vector best;  // the iterate of smallest residual so far: what a solve that diverged returns

@@ -4,6 +4,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <algorithm>
+#include <type_traits>
 
 namespace drape::detail {
 
@@ -129,6 +130,58 @@ bool SupernodalFactor<Scalar>::factor() {
   return true;
 }
 
+namespace {
+// One supernode's part of the solves with its width fixed at W points (3W columns): most
+// supernodes of a grid's ordering are one or two points wide, and Eigen's dynamic-size
+// triangular solve and matrix–vector product cost more in dispatch than in arithmetic at
+// that size. Fixed sizes give Eigen's coefficient-wise kernels, vectorised along the panel's
+// rows (forward) or its columns (backward), with nothing dispatched at run time.
+template <int W, class Scalar>
+void forward_fixed(const Scalar* panel, Eigen::Index ld, Scalar* x, Scalar* own_x, const int* rows, int count,
+                   Scalar* gathered) {
+  using Own = Eigen::Map<Eigen::Matrix<Scalar, 3 * W, 1>>;
+  using Diagonal = Eigen::Map<const Eigen::Matrix<Scalar, 3 * W, 3 * W>, 0, Eigen::OuterStride<>>;
+  using Below = Eigen::Map<const Eigen::Matrix<Scalar, Eigen::Dynamic, 3 * W>, 0, Eigen::OuterStride<>>;
+  Own own(own_x);
+  Diagonal(panel, Eigen::OuterStride<>(ld)).template triangularView<Eigen::Lower>().solveInPlace(own);
+  if (count == 0) return;
+  Column<Scalar> product(gathered, 3 * count);
+  product.noalias() = Below(panel + 3 * W, 3 * count, 3 * W, Eigen::OuterStride<>(ld)).lazyProduct(own);
+  for (int i = 0; i < count; ++i)
+    for (int r = 0; r < 3; ++r) x[3 * rows[i] + r] -= gathered[3 * i + r];
+}
+
+template <int W, class Scalar>
+void backward_fixed(const Scalar* panel, Eigen::Index ld, const Scalar* x, Scalar* own_x, const int* rows, int count,
+                    Scalar* gathered) {
+  using Own = Eigen::Map<Eigen::Matrix<Scalar, 3 * W, 1>>;
+  using Diagonal = Eigen::Map<const Eigen::Matrix<Scalar, 3 * W, 3 * W>, 0, Eigen::OuterStride<>>;
+  using Below = Eigen::Map<const Eigen::Matrix<Scalar, Eigen::Dynamic, 3 * W>, 0, Eigen::OuterStride<>>;
+  Own own(own_x);
+  if (count > 0) {
+    for (int i = 0; i < count; ++i)
+      for (int r = 0; r < 3; ++r) gathered[3 * i + r] = x[3 * rows[i] + r];
+    const Column<Scalar> values(gathered, 3 * count);
+    own.noalias() -= Below(panel + 3 * W, 3 * count, 3 * W, Eigen::OuterStride<>(ld)).transpose().lazyProduct(values);
+  }
+  const Diagonal diagonal(panel, Eigen::OuterStride<>(ld));
+  diagonal.template triangularView<Eigen::Lower>().transpose().solveInPlace(own);
+}
+
+// f(std::integral_constant<int, W>) for a supernode W = w3 / 3 points wide that has a fixed
+// kernel above; false for a wider one (Eigen's blocked kernels).
+template <class F>
+bool fixed_width(Eigen::Index w3, F&& f) {
+  switch (w3) {
+    case 3: f(std::integral_constant<int, 1>{}); return true;
+    case 6: f(std::integral_constant<int, 2>{}); return true;
+    case 9: f(std::integral_constant<int, 3>{}); return true;
+    case 12: f(std::integral_constant<int, 4>{}); return true;
+    default: return false;
+  }
+}
+}  // namespace
+
 template <class Scalar>
 void SupernodalFactor<Scalar>::solve(Scalar* x) const {
   const std::size_t supernodes = first_.size() - 1;
@@ -150,6 +203,11 @@ void SupernodalFactor<Scalar>::solve(Scalar* x) const {
   for (std::size_t s = 0; s < supernodes; ++s) {  // L y = b
     Part p = part(s);
     const Eigen::Index w3 = p.own.size();
+    if (fixed_width(w3, [&](auto w) {
+          forward_fixed<decltype(w)::value>(p.panel.data(), p.panel.outerStride(), x, p.own.data(), p.rows, p.count,
+                                        gathered.data());
+        }))
+      continue;
     p.panel.topLeftCorner(w3, w3).template triangularView<Eigen::Lower>().solveInPlace(p.own);
     if (p.count == 0) continue;
     gathered.head(3 * p.count).noalias() = p.panel.bottomRows(3 * p.count) * p.own;
@@ -159,6 +217,11 @@ void SupernodalFactor<Scalar>::solve(Scalar* x) const {
   for (std::size_t s = supernodes; s-- > 0;) {  // Lᵀ x = y
     Part p = part(s);
     const Eigen::Index w3 = p.own.size();
+    if (fixed_width(w3, [&](auto w) {
+          backward_fixed<decltype(w)::value>(p.panel.data(), p.panel.outerStride(), x, p.own.data(), p.rows, p.count,
+                                        gathered.data());
+        }))
+      continue;
     if (p.count > 0) {
       for (int i = 0; i < p.count; ++i)
         for (int r = 0; r < 3; ++r) gathered[3 * i + r] = x[3 * p.rows[i] + r];
