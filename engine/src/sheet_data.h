@@ -176,7 +176,7 @@ struct Sheet {
   Anchors<Real> anchors;
   Pins<Real> pins;
   std::optional<Air<Real>> air;
-  Vec3Array<Real> row_scratch;       // a row's horizontal spring forces, row_scratch_length per row
+  Vec3Array<Real> row_scratch;       // a row's horizontal spring forces, Topology::scratch_cols per row
   std::vector<Real> integrator_scratch;  // extra state an integrator may keep (RK4's stages)
   // Shared between copies of a sheet only until one of them steps implicitly again: the
   // integrator replaces a scratch it does not own alone (implicit.cpp).
