@@ -1,7 +1,7 @@
-"""What the baseline recorders (tools/scenes_baseline.py, tools/simd_baseline.py) share: messages
-named by the script, git and commands that stop the script on failure, a wait for a quiet machine,
-the old and the current binary measured in alternating rounds, and the record written whole or
-not at all."""
+"""What the baseline recorders (tools/scenes_baseline.py, tools/simd_baseline.py) and the pairing
+scripts (tools/portable_pair.py, tools/floor_pair.py) share: messages named by the script, git and
+commands that stop the script on failure, a wait for a quiet machine, binaries (or benchmarks of
+one binary) measured in alternating rounds, and the record written whole or not at all."""
 import json
 import os
 import subprocess
@@ -65,6 +65,25 @@ class Recorder:
                     else:
                         merged[name]["benchmarks"] += data.get("benchmarks", [])
         return merged
+
+    def check_sides(self, rounds, *benches):
+        """Stops the script unless rounds ≥ 1 and every bench is an executable file."""
+        if rounds < 1:
+            self.fail(f"--rounds must be at least 1, not {rounds}")
+        for bench in benches:
+            if not os.access(bench, os.X_OK):
+                self.fail(f"{bench}: not an executable drape_bench")
+
+    def pair(self, sides, rounds, what):
+        """A quiet machine, then `alternate`; stops the script if a side produced no results.
+        Returns each side's runs and how they were measured (for the record's "paired" field)."""
+        load_before = self.settle()
+        measured = self.alternate(sides, rounds)
+        for name, data in measured.items():
+            if not data.get("benchmarks"):
+                self.fail(f"{name}: the run produced no results (does the filter match?)")
+        return measured, {"rounds": rounds, "load_avg_before": load_before, "load_avg_after": list(os.getloadavg()),
+                          "what": what}
 
     def write(self, record, out):
         os.makedirs(os.path.dirname(os.path.abspath(out)), exist_ok=True)

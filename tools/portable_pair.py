@@ -31,21 +31,14 @@ def main():
     ap.add_argument("--out", default="docs/benchmarks-portable.json")
     ap.add_argument("bench_args", nargs="*", help="arguments for both binaries (after --)")
     args = ap.parse_args()
-    if args.rounds < 1:
-        recorder.fail(f"--rounds must be at least 1, not {args.rounds}")
-    for side in (args.native, args.portable):
-        if not os.access(side, os.X_OK):
-            recorder.fail(f"{side}: not an executable drape_bench")
+    recorder.check_sides(args.rounds, args.native, args.portable)
     sides = {name: ([os.path.abspath(path), *args.bench_args], {})
              for name, path in (("native", args.native), ("portable", args.portable))}
-    load_before = recorder.settle()
-    measured = recorder.alternate(sides, args.rounds)
-    if not measured["portable"].get("benchmarks") or not measured["native"].get("benchmarks"):
-        recorder.fail("the run produced no results (does the filter match?)")
+    measured, paired = recorder.pair(sides, args.rounds,
+                                     "each round ran the native and the portable drape_bench one after the other, "
+                                     "the order turning every round; `native` holds the native side's runs")
     record = measured["portable"]
-    record["paired"] = {"rounds": args.rounds, "load_avg_before": load_before, "load_avg_after": list(os.getloadavg()),
-                        "what": "each round ran the native and the portable drape_bench one after the other, "
-                                "the order turning every round; `native` holds the native side's runs"}
+    record["paired"] = paired
     record["native"] = measured["native"]
     recorder.write(record, args.out)
 
