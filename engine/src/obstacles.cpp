@@ -322,6 +322,15 @@ HWY_INLINE void project_on_normal(D d, V ax, V ay, V az, V bx, V by, V bz, V& fx
   fz = hn::IfThenElse(has, hn::Mul(dot, nz), fz);
 }
 
+// 1/|g|² (0 where g = 0) and its square root, what friction divides by: per point, or once
+// per call where ∇f is the same everywhere (the plane), with the same bits.
+template <class D, class V>
+HWY_INLINE void inverse_norms(D d, V gx, V gy, V gz, V& inv_g2, V& inv_g) {
+  const V g2 = hn::Add(hn::Add(hn::Mul(gx, gx), hn::Mul(gy, gy)), hn::Mul(gz, gz));
+  inv_g2 = hn::IfThenElseZero(hn::Gt(g2, hn::Zero(d)), hn::Div(hn::Set(d, 1.0), g2));
+  inv_g = hn::Sqrt(inv_g2);
+}
+
 // Coulomb friction on points (docs/scene-format.md, Friction): N the repulsion F's part
 // along g = ∇f, v* the velocity the substep would leave the point with (its total force
 // so far, F included, and gravity) relative to the obstacle's surface there (v is passed
@@ -330,13 +339,11 @@ HWY_INLINE void project_on_normal(D d, V ax, V ay, V az, V bx, V by, V bz, V& fx
 struct Rub {
   double mu, dt, gravity[3];
   template <class D, class V>
-  HWY_INLINE void operator()(D d, V gx, V gy, V gz, V& Fx, V& Fy, V& Fz, V tx, V ty, V tz, V vx, V vy, V vz,
-                             V inv_mass) const {
+  HWY_INLINE void operator()(D d, V gx, V gy, V gz, V inv_g2, V inv_g, V& Fx, V& Fy, V& Fz, V tx, V ty, V tz, V vx,
+                             V vy, V vz, V inv_mass) const {
     const V zero = hn::Zero(d), one = hn::Set(d, 1.0), step = hn::Set(d, dt);
-    const V g2 = hn::Add(hn::Add(hn::Mul(gx, gx), hn::Mul(gy, gy)), hn::Mul(gz, gz));
-    const V inv_g2 = hn::IfThenElseZero(hn::Gt(g2, zero), hn::Div(one, g2));
     const V along = hn::Add(hn::Add(hn::Mul(Fx, gx), hn::Mul(Fy, gy)), hn::Mul(Fz, gz));
-    const V load = hn::IfThenElseZero(hn::Gt(along, zero), hn::Mul(along, hn::Sqrt(inv_g2)));  // N
+    const V load = hn::IfThenElseZero(hn::Gt(along, zero), hn::Mul(along, inv_g));  // N
     const V wx = hn::Add(vx, hn::Mul(step, hn::Add(hn::Mul(inv_mass, tx), hn::Set(d, gravity[0]))));
     const V wy = hn::Add(vy, hn::Mul(step, hn::Add(hn::Mul(inv_mass, ty), hn::Set(d, gravity[1]))));
     const V wz = hn::Add(vz, hn::Mul(step, hn::Add(hn::Mul(inv_mass, tz), hn::Set(d, gravity[2]))));
@@ -366,6 +373,7 @@ struct RowForce {
   NearObstacle near;
   ForceScale scale;
   Rub friction;
+  double inv_g2, inv_g;  // inverse_norms of a constant ∇f (Shape::constant_gradient)
   ConstVec3Ptr<Real> x, v;
   const Real* inv_mass;
   Vec3Ptr<Real> f;
@@ -423,7 +431,12 @@ struct RowForce {
       const V vx = hn::Sub(load_wide(l, v.x + p), hn::Add(hn::Set(d, near.linear[0]), cross(w[1], rz, w[2], ry)));
       const V vy = hn::Sub(load_wide(l, v.y + p), hn::Add(hn::Set(d, near.linear[1]), cross(w[2], rx, w[0], rz)));
       const V vz = hn::Sub(load_wide(l, v.z + p), hn::Add(hn::Set(d, near.linear[2]), cross(w[0], ry, w[1], rx)));
-      friction(d, gx, gy, gz, Fx, Fy, Fz, hn::Add(widen(l, before_x), Fx), hn::Add(widen(l, before_y), Fy),
+      V inv_g2_at, inv_g_at;
+      if constexpr (Shape::constant_gradient)
+        inv_g2_at = hn::Set(d, inv_g2), inv_g_at = hn::Set(d, inv_g);
+      else
+        inverse_norms(d, gx, gy, gz, inv_g2_at, inv_g_at);
+      friction(d, gx, gy, gz, inv_g2_at, inv_g_at, Fx, Fy, Fz, hn::Add(widen(l, before_x), Fx), hn::Add(widen(l, before_y), Fy),
                hn::Add(widen(l, before_z), Fz), vx, vy, vz, load_wide(l, inv_mass + p));
     }
     store_sum(l, within, before_x, Fx, f.x + p);
@@ -447,6 +460,9 @@ void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near,
   const Rub friction{near.friction, near.dt, {near.gravity[0], near.gravity[1], near.gravity[2]}};
   const hn::CappedTag<double, 1> one;
   const hn::ScalableTag<double> full;
+  hn::Vec<decltype(one)> inv_g2, inv_g;  // used only for a constant ∇f, the local z axis
+  inverse_norms(one, hn::Set(one, frame.rot[0][2]), hn::Set(one, frame.rot[1][2]), hn::Set(one, frame.rot[2][2]),
+                inv_g2, inv_g);
   for (std::uint32_t i = 0; i <= m; ++i) {
     const std::size_t row = std::size_t(i) * cols;
     const std::size_t up = std::size_t(std::min(i + 1, m)) * cols, down = std::size_t(i > 0 ? i - 1 : 0) * cols;
@@ -454,6 +470,8 @@ void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near,
                                    near,
                                    scale,
                                    friction,
+                                   hn::GetLane(inv_g2),
+                                   hn::GetLane(inv_g),
                                    x,
                                    v,
                                    inv_mass,
