@@ -983,10 +983,10 @@ class Report:
                     f"`BM_Feature_obstacle` and `BM_Feature_obstacle_friction` run from this run's binary in {rounds} "
                     f"alternating rounds of one repetition each ([benchmarks-floor.json](benchmarks-floor.json), "
                     f"tools/floor_pair.py), so that a slow spell of the machine slows all three; each figure is the "
-                    f"fastest of its rounds: {us(floor.step_seconds)} µs per substep against {us(bare.step_seconds)} µs "
-                    f"bare, {100 * price:+.0f} %")
+                    f"fastest of its rounds (± their coefficient of variation): {us(floor.step_seconds)} µs{cv_text(floor)} per "
+                    f"substep against {us(bare.step_seconds)} µs{cv_text(bare)} bare, {100 * price:+.0f} %")
             if rub:
-                text += (f"; with Coulomb friction (μ = 0.5) on every point {us(rub.step_seconds)} µs, "
+                text += (f"; with Coulomb friction (μ = 0.5) on every point {us(rub.step_seconds)} µs{cv_text(rub)}, "
                          f"{100 * (rub.step_seconds / floor.step_seconds - 1):+.0f} % over the frictionless floor")
             self.out(text + ".")
         elif "BM_Feature_obstacle" in self.runs:
