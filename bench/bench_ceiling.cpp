@@ -151,7 +151,7 @@ HWY_EXPORT(Step);
 
 void plain_step(PlainSheet& s) { HWY_DYNAMIC_DISPATCH(Step)(s); }
 
-// One sheet of side×side points: the ceiling of BM_Fig13.
+// One sheet of side×side points, one substep per call: the ceiling of BM_Fig13.
 void BM_CeilingSheet(benchmark::State& state) {
   const auto side = static_cast<std::uint32_t>(state.range(0));
   PlainSheet sheet(side, 0.0);
@@ -161,7 +161,8 @@ void BM_CeilingSheet(benchmark::State& state) {
 }
 BENCHMARK(BM_CeilingSheet)->RangeMultiplier(2)->Range(16, 1024);
 
-// 48 sheets of 64×64 on one core: the ceiling of BM_Sheets48.
+// 48 sheets of 64×64 on one core, one substep per call: the ceiling of the feature
+// benchmarks (bench_features.cpp).
 void BM_CeilingSheets48(benchmark::State& state) {
   std::vector<PlainSheet> sheets;
   for (int s = 0; s < 48; ++s) sheets.emplace_back(64, 0.0);
@@ -170,8 +171,22 @@ void BM_CeilingSheets48(benchmark::State& state) {
   benchmark::DoNotOptimize(sheets.front().z.data());
   drape::bench::set_point_rate(state, 48.0 * 64 * 64);
 }
-BENCHMARK(BM_CeilingSheets48);                  // CPU time, like the feature benchmarks
-BENCHMARK(BM_CeilingSheets48)->UseRealTime();   // wall time, like the thread benchmarks
+BENCHMARK(BM_CeilingSheets48);  // CPU time, like the feature benchmarks, which step once per call
+
+// The same 48 sheets a frame at a time, as a program steps them and as BM_Sheets48 steps
+// the engine (bench_common.h's step_frames): each sheet takes the frame's substeps in turn
+// while its arrays are in this core's caches, where one substep at a time streams all 48
+// sheets through them every substep. The ceiling of BM_Sheets48.
+void BM_CeilingSheets48Frames(benchmark::State& state) {
+  std::vector<PlainSheet> sheets;
+  for (int s = 0; s < 48; ++s) sheets.emplace_back(64, 0.0);
+  for (auto _ : state)
+    for (auto& sheet : sheets)
+      for (int substep = 0; substep < drape::bench::frame_substeps; ++substep) plain_step(sheet);
+  benchmark::DoNotOptimize(sheets.front().z.data());
+  drape::bench::set_point_rate(state, 48.0 * 64 * 64, drape::bench::frame_substeps);
+}
+BENCHMARK(BM_CeilingSheets48Frames)->UseRealTime();  // wall time, like the thread benchmarks
 
 }  // namespace drape::bench::ceiling
 #endif  // HWY_ONCE
