@@ -107,6 +107,17 @@ HWY_INLINE void vertical(std::uint32_t w, double k, double rest, const double* x
                                                             .netted(nx, ny, nz));
 }
 
+// Row b's horizontal springs and the vertical springs between rows a and b in one pass, as
+// the engine's row sweep runs them where it can (simd::rows_joined); false where not.
+HWY_INLINE bool joined(std::uint32_t w, double k, double rest, const double* xa, const double* ya, const double* za,
+                       const double* xb, const double* yb, const double* zb, double* fxa, double* fya, double* fza,
+                       double* fxb, double* fyb, double* fzb) {
+  using Run = drape::detail::simd::SpringRun<double>;
+  return kernels::rows_joined<false>(
+      Run::between(w - 1, xb, yb, zb, xb + 1, yb + 1, zb + 1).same(rest, k),
+      Run::between(w, xa, ya, za, xb, yb, zb).same(rest, k).add(fxa, fya, fza).sub(fxb, fyb, fzb));
+}
+
 // Semi-implicit Euler on one row, through the engine's vector kernel.
 HWY_INLINE void integrate(std::uint32_t w, const PlainSheet& s, const double* inv_mass, double* x, double* y, double* z,
                double* vx, double* vy, double* vz, const double* fx, const double* fy, const double* fz) {
@@ -127,10 +138,13 @@ HWY_INLINE void step(PlainSheet& s) {
   net_forces(w, nz, fz);
   for (std::uint32_t i = 0; i + 1 < w; ++i) {
     const std::size_t a = std::size_t(i) * w, b = a + w;
-    horizontal(w, s.k, s.rest, x + b, y + b, z + b, nx, ny, nz);
     // row i is complete once its vertical springs are in, and no later spring reads it
-    vertical(w, s.k, s.rest, x + a, y + a, z + a, x + b, y + b, z + b, fx + a, fy + a, fz + a, fx + b, fy + b,
-             fz + b, nx, ny, nz);
+    if (!joined(w, s.k, s.rest, x + a, y + a, z + a, x + b, y + b, z + b, fx + a, fy + a, fz + a, fx + b, fy + b,
+                fz + b)) {
+      horizontal(w, s.k, s.rest, x + b, y + b, z + b, nx, ny, nz);
+      vertical(w, s.k, s.rest, x + a, y + a, z + a, x + b, y + b, z + b, fx + a, fy + a, fz + a, fx + b, fy + b,
+               fz + b, nx, ny, nz);
+    }
     integrate(w, s, im, x + a, y + a, z + a, vx + a, vy + a, vz + a, fx + a, fy + a, fz + a);
   }
   const std::size_t last = std::size_t(w - 1) * w;
