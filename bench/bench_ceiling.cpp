@@ -107,6 +107,17 @@ HWY_INLINE void vertical(std::uint32_t w, double k, double rest, const double* x
                                                             .netted(nx, ny, nz));
 }
 
+// Row b's horizontal springs and the vertical springs between rows a and b in one pass, as
+// the engine's row sweep runs them where it can (simd::rows_joined); false where not.
+HWY_INLINE bool joined(std::uint32_t w, double k, double rest, const double* xa, const double* ya, const double* za,
+                       const double* xb, const double* yb, const double* zb, double* fxa, double* fya, double* fza,
+                       double* fxb, double* fyb, double* fzb) {
+  using Run = drape::detail::simd::SpringRun<double>;
+  return kernels::rows_joined<false>(
+      Run::between(w - 1, xb, yb, zb, xb + 1, yb + 1, zb + 1).same(rest, k),
+      Run::between(w, xa, ya, za, xb, yb, zb).same(rest, k).add(fxa, fya, fza).sub(fxb, fyb, fzb));
+}
+
 // Semi-implicit Euler on one row, through the engine's vector kernel.
 HWY_INLINE void integrate(std::uint32_t w, const PlainSheet& s, const double* inv_mass, double* x, double* y, double* z,
                double* vx, double* vy, double* vz, const double* fx, const double* fy, const double* fz) {
@@ -127,10 +138,13 @@ HWY_INLINE void step(PlainSheet& s) {
   net_forces(w, nz, fz);
   for (std::uint32_t i = 0; i + 1 < w; ++i) {
     const std::size_t a = std::size_t(i) * w, b = a + w;
-    horizontal(w, s.k, s.rest, x + b, y + b, z + b, nx, ny, nz);
     // row i is complete once its vertical springs are in, and no later spring reads it
-    vertical(w, s.k, s.rest, x + a, y + a, z + a, x + b, y + b, z + b, fx + a, fy + a, fz + a, fx + b, fy + b,
-             fz + b, nx, ny, nz);
+    if (!joined(w, s.k, s.rest, x + a, y + a, z + a, x + b, y + b, z + b, fx + a, fy + a, fz + a, fx + b, fy + b,
+                fz + b)) {
+      horizontal(w, s.k, s.rest, x + b, y + b, z + b, nx, ny, nz);
+      vertical(w, s.k, s.rest, x + a, y + a, z + a, x + b, y + b, z + b, fx + a, fy + a, fz + a, fx + b, fy + b,
+               fz + b, nx, ny, nz);
+    }
     integrate(w, s, im, x + a, y + a, z + a, vx + a, vy + a, vz + a, fx + a, fy + a, fz + a);
   }
   const std::size_t last = std::size_t(w - 1) * w;
@@ -151,7 +165,7 @@ HWY_EXPORT(Step);
 
 void plain_step(PlainSheet& s) { HWY_DYNAMIC_DISPATCH(Step)(s); }
 
-// One sheet of side×side points: the ceiling of BM_Fig13.
+// One sheet of side×side points, one substep per call: the ceiling of BM_Fig13.
 void BM_CeilingSheet(benchmark::State& state) {
   const auto side = static_cast<std::uint32_t>(state.range(0));
   PlainSheet sheet(side, 0.0);
@@ -161,7 +175,8 @@ void BM_CeilingSheet(benchmark::State& state) {
 }
 BENCHMARK(BM_CeilingSheet)->RangeMultiplier(2)->Range(16, 1024);
 
-// 48 sheets of 64×64 on one core: the ceiling of BM_Sheets48.
+// 48 sheets of 64×64 on one core, one substep per call: the ceiling of the feature
+// benchmarks (bench_features.cpp).
 void BM_CeilingSheets48(benchmark::State& state) {
   std::vector<PlainSheet> sheets;
   for (int s = 0; s < 48; ++s) sheets.emplace_back(64, 0.0);
@@ -170,8 +185,22 @@ void BM_CeilingSheets48(benchmark::State& state) {
   benchmark::DoNotOptimize(sheets.front().z.data());
   drape::bench::set_point_rate(state, 48.0 * 64 * 64);
 }
-BENCHMARK(BM_CeilingSheets48);                  // CPU time, like the feature benchmarks
-BENCHMARK(BM_CeilingSheets48)->UseRealTime();   // wall time, like the thread benchmarks
+BENCHMARK(BM_CeilingSheets48);  // CPU time, like the feature benchmarks, which step once per call
+
+// The same 48 sheets a frame at a time, as a program steps them and as BM_Sheets48 steps
+// the engine (bench_common.h's step_frames): each sheet takes the frame's substeps in turn
+// while its arrays are in this core's caches, where one substep at a time streams all 48
+// sheets through them every substep. The ceiling of BM_Sheets48.
+void BM_CeilingSheets48Frames(benchmark::State& state) {
+  std::vector<PlainSheet> sheets;
+  for (int s = 0; s < 48; ++s) sheets.emplace_back(64, 0.0);
+  for (auto _ : state)
+    for (auto& sheet : sheets)
+      for (int substep = 0; substep < drape::bench::frame_substeps; ++substep) plain_step(sheet);
+  benchmark::DoNotOptimize(sheets.front().z.data());
+  drape::bench::set_point_rate(state, 48.0 * 64 * 64, drape::bench::frame_substeps);
+}
+BENCHMARK(BM_CeilingSheets48Frames)->UseRealTime();  // wall time, like the thread benchmarks
 
 }  // namespace drape::bench::ceiling
 #endif  // HWY_ONCE

@@ -245,6 +245,75 @@ TEST(Simd, AirKernelOfEveryTargetGivesTheDragLaw) { expect_air_cells_follow_the_
 TEST(Simd, AirKernelOfEveryTargetGivesTheDragLawInFloat) { expect_air_cells_follow_the_drag_law<float>(); }
 
 // One step by hand: forward Euler moves x with the old v, semi-implicit Euler with the new.
+// The row sweep's springs on rows of whole vectors of every width (32 points), where
+// AVX-512 joins a row's horizontal springs and the vertical ones above it into one pass
+// (simd::rows_joined) and the other targets net them through the scratch row: every target
+// gives the first target's bits, for the whole sheet and for two blocks of rows, and each
+// point's force is eq (6) summed spring by spring over the topology's edge list.
+template <class Real>
+void expect_rows_of_whole_vectors_give_equation_six() {
+  for (bool regions : {false, true}) {
+    SCOPED_TRACE(regions ? "per-spring stiffness" : "one stiffness");
+    SheetDef def;
+    def.m = 6;
+    def.n = 31;  // rows of 32 points
+    def.stiffness = 150;
+    if (regions) def.stiffness_regions = {{1, 4, 5, 20, 900.0}};
+    auto s = detail::build_sheet<Real>(def);
+    ASSERT_EQ(s.topology->uniform.has_value(), !regions);
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> jitter(-0.01, 0.01);
+    for (std::size_t p = 0; p < s.size(); ++p) {
+      s.position.x[p] += Real(jitter(rng));
+      s.position.y[p] += Real(jitter(rng));
+      s.position.z[p] += Real(jitter(rng));
+    }
+    const auto& t = *s.topology;
+    std::vector<long double> want[3];
+    for (auto& w : want) w.assign(s.size(), 0.0L);
+    for (std::size_t e = 0; e < t.a.size(); ++e) {
+      const std::uint32_t a = t.a[e], b = t.b[e];
+      const long double d[3] = {(long double)s.position.x[a] - s.position.x[b],
+                                (long double)s.position.y[a] - s.position.y[b],
+                                (long double)s.position.z[a] - s.position.z[b]};
+      const long double len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+      for (int c = 0; c < 3; ++c) {
+        const long double f = -(long double)t.stiffness[e] * (len - t.rest_length[e]) * d[c] / len;
+        want[c][a] += f;
+        want[c][b] -= f;
+      }
+    }
+    // rounding of coordinates near 0.5 m, through up to four springs of the largest k
+    const double tolerance = (std::is_same_v<Real, double> ? 1e-12 : 2e-6) * (regions ? 900.0 : 150.0);
+    std::vector<Real> first;
+    for_each_target([&](std::int64_t) {
+      std::vector<Real> got;
+      for (int blocks : {1, 2}) {
+        const std::uint32_t rows = t.rows(), cut = blocks == 1 ? rows : 3;
+        std::fill(s.force.x.begin(), s.force.x.end(), Real(-1));
+        detail::spring_forces(t, cptr(s.position), ptr(s.force), ptr(s.row_scratch), 0, cut);
+        if (cut < rows) detail::spring_forces(t, cptr(s.position), ptr(s.force), ptr(s.row_scratch), cut, rows);
+        for (std::size_t p = 0; p < s.size(); ++p) {
+          const Real f[3] = {s.force.x[p], s.force.y[p], s.force.z[p]};
+          for (int c = 0; c < 3; ++c) {
+            EXPECT_NEAR(double(f[c]), double(want[c][p]), tolerance) << "point " << p << " axis " << c;
+            got.push_back(f[c]);
+          }
+        }
+      }
+      if (first.empty())
+        first = got;
+      else
+        EXPECT_TRUE(got == first) << "not the first target's bits";
+    });
+  }
+}
+
+TEST(Simd, RowsOfWholeVectorsGiveEquationSixAndEveryTargetsBits) { expect_rows_of_whole_vectors_give_equation_six<double>(); }
+TEST(Simd, RowsOfWholeVectorsGiveEquationSixAndEveryTargetsBitsInFloat) {
+  expect_rows_of_whole_vectors_give_equation_six<float>();
+}
+
 TEST(Simd, PointUpdateOfEveryTargetIsTheEulerStepByHand) {
   const std::size_t count = 21;
   for_each_target([&](std::int64_t) {

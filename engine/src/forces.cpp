@@ -250,7 +250,19 @@ HWY_INLINE void arrive_with(const Topology<Real>& t, Springs horizontal_springs,
   const bool above = q > w.read_lo;  // the vertical springs between rows q − 1 and q
   constexpr std::uint32_t pad = Topology<Real>::scratch_pad;
   const Vec3Ptr<Real> net{w.scratch.x + pad, w.scratch.y + pad, w.scratch.z + pad};
-  if (w.owns(q)) {
+  // row q's horizontal springs and the vertical ones above it in one pass where the
+  // target and row allow (simd::rows_joined), with the operands and bits of the two below
+  auto join = [&]() __attribute__((always_inline)) {
+    const ConstVec3Ptr<Real> xa = w.x(q - 1), xb = w.x(q);
+    const Vec3Ptr<Real> fa = w.f(q - 1), fb = w.f(q);
+    auto h = simd::SpringRun<Real>::between(n, xb.x, xb.y, xb.z, xb.x + 1, xb.y + 1, xb.z + 1);
+    auto v = simd::SpringRun<Real>::between(cols, xa.x, xa.y, xa.z, xb.x, xb.y, xb.z);
+    horizontal_springs.template offset<PerSpring>(std::size_t(q) * n).template into<PerSpring>(h);
+    vertical_springs.template offset<PerSpring>(std::size_t(q - 1) * cols).template into<PerSpring>(v);
+    return kernels::rows_joined<PerSpring>(h, v.add(fa.x, fa.y, fa.z).sub(fb.x, fb.y, fb.z));
+  };
+  const bool joined = above && w.owns(q) && w.owns(q - 1) && join();
+  if (!joined && w.owns(q)) {
     const ConstVec3Ptr<Real> x = w.x(q);
     row_springs<PerSpring>(n, x.x, x.y, x.z, horizontal_springs.template offset<PerSpring>(std::size_t(q) * n), net);
     if (!above) {
@@ -260,7 +272,7 @@ HWY_INLINE void arrive_with(const Topology<Real>& t, Springs horizontal_springs,
       net_row(n, net.z, f.z);
     }
   }
-  if (above) {
+  if (!joined && above) {
     const ConstVec3Ptr<Real> xa = w.x(q - 1), xb = w.x(q);
     const Vec3Ptr<Real> fa = w.f(q - 1), fb = w.f(q);
     auto vertical = [&]<bool ToA, bool ToB>() __attribute__((always_inline)) {

@@ -103,8 +103,8 @@ HWY_INLINE void over_lanes_storing(std::size_t count, Kernel kernel) {
 
 // eq (6) on the springs of one vector from e: the same operations, in the same order, as
 // spring_scale in terms/rows.h, so a lane gives the scalar kernel's bits.
-template <bool PerSpring, bool Store, bool Add, bool Sub, bool Net, class Real, class Lanes>
-HWY_INLINE void springs_at(Lanes l, const SpringRun<Real>& r, std::size_t e) {
+template <bool PerSpring, class Real, class Lanes, class Use>
+HWY_INLINE void spring_forces(Lanes l, const SpringRun<Real>& r, std::size_t e, Use use) {
   const auto d = l.d;
   const auto dx = hn::Sub(l.load(r.ax + e), l.load(r.bx + e));
   const auto dy = hn::Sub(l.load(r.ay + e), l.load(r.by + e));
@@ -115,27 +115,34 @@ HWY_INLINE void springs_at(Lanes l, const SpringRun<Real>& r, std::size_t e) {
   // a zero-length spring has no direction: its lane's 1/0 is dropped, not used
   const auto inv = hn::IfThenElseZero(hn::Gt(len, hn::Zero(d)), hn::Div(hn::Set(d, Real(1)), len));
   const auto s = hn::Mul(hn::Mul(hn::Neg(k), hn::Sub(len, rest)), inv);
-  const auto fx = hn::Mul(s, dx), fy = hn::Mul(s, dy), fz = hn::Mul(s, dz);
-  if constexpr (Store) {
-    l.store(fx, r.store_x + e);
-    l.store(fy, r.store_y + e);
-    l.store(fz, r.store_z + e);
-  }
-  if constexpr (Add) {
-    l.store(hn::Add(l.load(r.add_x + e), fx), r.add_x + e);
-    l.store(hn::Add(l.load(r.add_y + e), fy), r.add_y + e);
-    l.store(hn::Add(l.load(r.add_z + e), fz), r.add_z + e);
-  }
-  if constexpr (Sub) {
-    // what the forces are taken from: sub itself, or the netted row (SpringRun::netted)
-    auto from = [&](const Real* sub, const Real* net) __attribute__((always_inline)) {
-      if constexpr (Net) return hn::Sub(l.load(net + e), l.load(net + e - 1));
-      return l.load(sub + e);
-    };
-    l.store(hn::Sub(from(r.sub_x, r.net_x), fx), r.sub_x + e);
-    l.store(hn::Sub(from(r.sub_y, r.net_y), fy), r.sub_y + e);
-    l.store(hn::Sub(from(r.sub_z, r.net_z), fz), r.sub_z + e);
-  }
+  use(hn::Mul(s, dx), hn::Mul(s, dy), hn::Mul(s, dz));
+}
+
+// eq (6) on the springs of one vector from e, into the run's outputs.
+template <bool PerSpring, bool Store, bool Add, bool Sub, bool Net, class Real, class Lanes>
+HWY_INLINE void springs_at(Lanes l, const SpringRun<Real>& r, std::size_t e) {
+  spring_forces<PerSpring>(l, r, e, [&](auto fx, auto fy, auto fz) __attribute__((always_inline)) {
+    if constexpr (Store) {
+      l.store(fx, r.store_x + e);
+      l.store(fy, r.store_y + e);
+      l.store(fz, r.store_z + e);
+    }
+    if constexpr (Add) {
+      l.store(hn::Add(l.load(r.add_x + e), fx), r.add_x + e);
+      l.store(hn::Add(l.load(r.add_y + e), fy), r.add_y + e);
+      l.store(hn::Add(l.load(r.add_z + e), fz), r.add_z + e);
+    }
+    if constexpr (Sub) {
+      // what the forces are taken from: sub itself, or the netted row (SpringRun::netted)
+      auto from = [&](const Real* sub, const Real* net) __attribute__((always_inline)) {
+        if constexpr (Net) return hn::Sub(l.load(net + e), l.load(net + e - 1));
+        return l.load(sub + e);
+      };
+      l.store(hn::Sub(from(r.sub_x, r.net_x), fx), r.sub_x + e);
+      l.store(hn::Sub(from(r.sub_y, r.net_y), fy), r.sub_y + e);
+      l.store(hn::Sub(from(r.sub_z, r.net_z), fz), r.sub_z + e);
+    }
+  });
 }
 
 template <bool PerSpring, bool Store, bool Add, bool Sub, bool Net = false, class Real>
@@ -173,6 +180,80 @@ HWY_INLINE void springs_run(const SpringRun<Real>& r) {
     with_outputs.template operator()<true>();
   else
     with_outputs.template operator()<false>();
+}
+
+// A vector whose lane i holds lane i − 1 of v, and lane 0 the last lane of prev: each
+// element's left neighbour, when v follows prev in a row (rows_joined). AVX-512 only, one
+// valign: with AVX2's 16 registers the joined pass ran the 1024-point step 5 % slower than
+// the netted one (its shift two shuffles, and three more vectors live across the loop),
+// and 48 sheets no faster; other targets take the netted pass.
+#if HWY_ARCH_X86 && HWY_TARGET <= HWY_AVX3
+template <class D, class V>
+HWY_INLINE V shift_in(D d, V prev, V v) {
+  const hn::RebindToUnsigned<D> du;
+  const auto a = hn::BitCast(du, v).raw, b = hn::BitCast(du, prev).raw;
+  if constexpr (sizeof(hn::TFromD<D>) == 8)
+    return hn::BitCast(d, hn::VFromD<decltype(du)>{_mm512_alignr_epi64(a, b, 7)});
+  else
+    return hn::BitCast(d, hn::VFromD<decltype(du)>{_mm512_alignr_epi32(a, b, 15)});
+}
+#endif
+
+// v in the lanes l loads and stores, +0 in the others.
+template <class D, class V>
+HWY_INLINE V lanes_only(Whole<D>, V v) {
+  return v;
+}
+template <class D, class V>
+HWY_INLINE V lanes_only(FirstLanes<D> l, V v) {
+  return hn::IfThenElseZero(l.mask, v);
+}
+
+// A row's horizontal springs h (spring j joins its points j and j + 1; h.count of them, one
+// fewer than the row's points) and the vertical springs v between the row above and it
+// (v adds to the row above and subtracts from this row's forces, which it writes), in one
+// pass: point j of the row gets (h[j] − h[j − 1]) − v[j], with h[−1] = h[count] = 0, the
+// operands and order of the netted pass (SpringRun::netted), so the same bits. Each
+// vector's h[j − 1] is its own h shifted one lane across from the vector before
+// (shift_in), and the last vector's last spring, past the row's end, is +0, so no spring
+// is stored and loaded again. With AVX-512, on rows of whole vectors; elsewhere it does
+// nothing and returns false, and the caller takes the netted pass.
+template <bool PerSpring, class Real>
+HWY_INLINE bool rows_joined(const SpringRun<Real>& h, const SpringRun<Real>& v) {
+#if HWY_ARCH_X86 && HWY_TARGET <= HWY_AVX3
+  const hn::ScalableTag<Real> d;
+  const std::size_t lanes = hn::Lanes(d), cols = v.count;
+  if (cols % lanes != 0) return false;
+  auto prev_x = hn::Zero(d), prev_y = hn::Zero(d), prev_z = hn::Zero(d);
+  // the vector from e, whose springs of h are those of hl's lanes
+  auto joined = [&](auto hl, std::size_t e) __attribute__((always_inline)) {
+    const Whole<decltype(d)> l{d};
+    spring_forces<PerSpring>(hl, h, e, [&](auto hx, auto hy, auto hz) __attribute__((always_inline)) {
+      hx = lanes_only(hl, hx);  // +0 past the row's end
+      hy = lanes_only(hl, hy);
+      hz = lanes_only(hl, hz);
+      spring_forces<PerSpring>(l, v, e, [&](auto fx, auto fy, auto fz) __attribute__((always_inline)) {
+        l.store(hn::Add(l.load(v.add_x + e), fx), v.add_x + e);
+        l.store(hn::Add(l.load(v.add_y + e), fy), v.add_y + e);
+        l.store(hn::Add(l.load(v.add_z + e), fz), v.add_z + e);
+        l.store(hn::Sub(hn::Sub(hx, shift_in(d, prev_x, hx)), fx), v.sub_x + e);
+        l.store(hn::Sub(hn::Sub(hy, shift_in(d, prev_y, hy)), fy), v.sub_y + e);
+        l.store(hn::Sub(hn::Sub(hz, shift_in(d, prev_z, hz)), fz), v.sub_z + e);
+      });
+      prev_x = hx;
+      prev_y = hy;
+      prev_z = hz;
+    });
+  };
+  const std::size_t last = cols - lanes;
+  for (std::size_t e = 0; e < last; e += lanes) joined(Whole<decltype(d)>{d}, e);
+  joined(FirstLanes<decltype(d)>{d, hn::FirstN(d, lanes - 1)}, last);
+  return true;
+#else
+  (void)h;
+  (void)v;
+  return false;
+#endif
 }
 
 // Air on the cells of one vector from j (AirCells; terms/air.h gives the formula).
