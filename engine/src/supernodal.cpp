@@ -80,13 +80,13 @@ bool fixed_width(Eigen::Index w3, F&& f) {
   }
 }
 
-// The N × N lower triangle L at l (leading dimension ld) → L⁻¹ at out (which may be l), its
-// upper triangle zeroed: column j of L⁻¹ by forward substitution on e_j, all sizes fixed, the
+// The N × N lower triangle L at the top of a panel (leading dimension ld) → L⁻¹, its upper
+// triangle zeroed: column j of L⁻¹ by forward substitution on e_j, all sizes fixed, the
 // pivots' reciprocals first (independent divisions, not a chain of them). Only the solves
 // read a diagonal block once its supernode is factored; with L⁻¹ there, a triangular solve
 // is a product.
 template <int N, class Scalar>
-void invert_lower(const Scalar* l, Eigen::Index ld, Scalar* out, Eigen::Index out_ld) {
+void invert_lower(Scalar* l, Eigen::Index ld) {
   Scalar reciprocal[N];
   for (int i = 0; i < N; ++i) reciprocal[i] = Scalar(1) / l[i + i * ld];
   Scalar inverse[N][N] = {};  // [column][row]
@@ -99,30 +99,7 @@ void invert_lower(const Scalar* l, Eigen::Index ld, Scalar* out, Eigen::Index ou
     }
   }
   for (int j = 0; j < N; ++j)
-    for (int i = 0; i < N; ++i) out[i + j * out_ld] = inverse[j][i];
-}
-
-// below ← below · L⁻ᵀ, L the w3 × w3 lower triangle on top of the panel: in blocks of at
-// most four points' columns, each multiplied by its diagonal triangle's inverse (fixed
-// size) and then subtracted from the later columns (Eigen's product). Eigen's blocked
-// triangular solve spends most of its time in its scalar triangular kernel here.
-template <class Scalar>
-void scale_below(Panel<Scalar> panel, Eigen::Index w3) {
-  constexpr Eigen::Index block = 12;
-  auto below = panel.bottomRows(panel.rows() - w3);
-  Eigen::Matrix<Scalar, block, block> inverse;
-  Dense<Scalar> scaled;
-  for (Eigen::Index j = 0; j < w3; j += block) {
-    const Eigen::Index b = std::min(block, w3 - j);
-    fixed_width(b, [&](auto w) {
-      constexpr int n = 3 * decltype(w)::value;
-      invert_lower<n>(panel.data() + j + j * panel.outerStride(), panel.outerStride(), inverse.data(), block);
-      scaled.noalias() = below.middleCols(j, n) * inverse.template topLeftCorner<n, n>().transpose();
-    });
-    below.middleCols(j, b) = scaled;
-    if (j + b < w3)
-      below.rightCols(w3 - j - b).noalias() -= scaled * panel.block(j + b, j, w3 - j - b, b).transpose();
-  }
+    for (int i = 0; i < N; ++i) l[i + j * ld] = inverse[j][i];
 }
 }  // namespace
 
@@ -183,15 +160,11 @@ bool SupernodalFactor<Scalar>::factor() {
     // LLT refuses a pivot ≤ 0 but passes NaN and ∞ (a matrix beyond float's range)
     if (llt.info() != Eigen::Success || !diagonal.diagonal().allFinite()) return false;
     if (count > width) {
-      if (w3 > 12) {
-        scale_below(panel, w3);
-      } else {
-        auto below = panel.bottomRows(ld - w3);
-        diagonal.template triangularView<Eigen::Lower>().transpose().template solveInPlace<Eigen::OnTheRight>(below);
-      }
+      auto below = panel.bottomRows(ld - w3);
+      diagonal.template triangularView<Eigen::Lower>().transpose().template solveInPlace<Eigen::OnTheRight>(below);
       wait(s, width);
     }
-    fixed_width(w3, [&](auto w) { invert_lower<3 * decltype(w)::value>(panel.data(), ld, panel.data(), ld); });  // for solve()
+    fixed_width(w3, [&](auto w) { invert_lower<3 * decltype(w)::value>(panel.data(), ld); });  // for solve()
   }
   return true;
 }
