@@ -65,6 +65,44 @@ void SupernodalFactor<Scalar>::analyse(const int* column_start, const int* row_i
 template <class Scalar>
 void SupernodalFactor<Scalar>::clear() { std::fill(value_.begin(), value_.end(), Scalar(0)); }
 
+namespace {
+// f(std::integral_constant<int, W>) for a supernode W = w3 / 3 points wide that has fixed-size
+// kernels (one to four points: most supernodes of a grid's ordering); false for a wider one
+// (Eigen's blocked kernels).
+template <class F>
+bool fixed_width(Eigen::Index w3, F&& f) {
+  switch (w3) {
+    case 3: f(std::integral_constant<int, 1>{}); return true;
+    case 6: f(std::integral_constant<int, 2>{}); return true;
+    case 9: f(std::integral_constant<int, 3>{}); return true;
+    case 12: f(std::integral_constant<int, 4>{}); return true;
+    default: return false;
+  }
+}
+
+// The N × N lower triangle L at the top of a panel (leading dimension ld) → L⁻¹, its upper
+// triangle zeroed: column j of L⁻¹ by forward substitution on e_j, all sizes fixed, the
+// pivots' reciprocals first (independent divisions, not a chain of them). Only the solves
+// read a diagonal block once its supernode is factored; with L⁻¹ there, a triangular solve
+// is a product.
+template <int N, class Scalar>
+void invert_lower(Scalar* l, Eigen::Index ld) {
+  Scalar reciprocal[N];
+  for (int i = 0; i < N; ++i) reciprocal[i] = Scalar(1) / l[i + i * ld];
+  Scalar inverse[N][N] = {};  // [column][row]
+  for (int j = 0; j < N; ++j) {
+    inverse[j][j] = reciprocal[j];
+    for (int i = j + 1; i < N; ++i) {
+      Scalar sum = 0;
+      for (int k = j; k < i; ++k) sum += l[i + k * ld] * inverse[j][k];
+      inverse[j][i] = -sum * reciprocal[i];
+    }
+  }
+  for (int j = 0; j < N; ++j)
+    for (int i = 0; i < N; ++i) l[i + j * ld] = inverse[j][i];
+}
+}  // namespace
+
 template <class Scalar>
 bool SupernodalFactor<Scalar>::factor() {
   const std::size_t supernodes = first_.size() - 1;
@@ -126,6 +164,7 @@ bool SupernodalFactor<Scalar>::factor() {
       diagonal.template triangularView<Eigen::Lower>().transpose().template solveInPlace<Eigen::OnTheRight>(below);
       wait(s, width);
     }
+    fixed_width(w3, [&](auto w) { invert_lower<3 * decltype(w)::value>(panel.data(), ld); });  // for solve()
   }
   return true;
 }
@@ -135,7 +174,8 @@ namespace {
 // supernodes of a grid's ordering are one or two points wide, and Eigen's dynamic-size
 // triangular solve and matrix–vector product cost more in dispatch than in arithmetic at
 // that size. Fixed sizes give Eigen's coefficient-wise kernels, vectorised along the panel's
-// rows (forward) or its columns (backward), with nothing dispatched at run time.
+// rows (forward) or its columns (backward), with nothing dispatched at run time. The
+// diagonal block holds its inverse (factor()), so the triangular solve is a product.
 template <int W, class Scalar>
 void forward_fixed(const Scalar* panel, Eigen::Index ld, Scalar* x, Scalar* own_x, const int* rows, int count,
                    Scalar* gathered) {
@@ -143,7 +183,7 @@ void forward_fixed(const Scalar* panel, Eigen::Index ld, Scalar* x, Scalar* own_
   using Diagonal = Eigen::Map<const Eigen::Matrix<Scalar, 3 * W, 3 * W>, 0, Eigen::OuterStride<>>;
   using Below = Eigen::Map<const Eigen::Matrix<Scalar, Eigen::Dynamic, 3 * W>, 0, Eigen::OuterStride<>>;
   Own own(own_x);
-  Diagonal(panel, Eigen::OuterStride<>(ld)).template triangularView<Eigen::Lower>().solveInPlace(own);
+  own = Diagonal(panel, Eigen::OuterStride<>(ld)).lazyProduct(own).eval();  // the diagonal block's inverse (factor())
   if (count == 0) return;
   Column<Scalar> product(gathered, 3 * count);
   product.noalias() = Below(panel + 3 * W, 3 * count, 3 * W, Eigen::OuterStride<>(ld)).lazyProduct(own);
@@ -164,22 +204,9 @@ void backward_fixed(const Scalar* panel, Eigen::Index ld, const Scalar* x, Scala
     const Column<Scalar> values(gathered, 3 * count);
     own.noalias() -= Below(panel + 3 * W, 3 * count, 3 * W, Eigen::OuterStride<>(ld)).transpose().lazyProduct(values);
   }
-  const Diagonal diagonal(panel, Eigen::OuterStride<>(ld));
-  diagonal.template triangularView<Eigen::Lower>().transpose().solveInPlace(own);
+  own = Diagonal(panel, Eigen::OuterStride<>(ld)).transpose().lazyProduct(own).eval();
 }
 
-// f(std::integral_constant<int, W>) for a supernode W = w3 / 3 points wide that has a fixed
-// kernel above; false for a wider one (Eigen's blocked kernels).
-template <class F>
-bool fixed_width(Eigen::Index w3, F&& f) {
-  switch (w3) {
-    case 3: f(std::integral_constant<int, 1>{}); return true;
-    case 6: f(std::integral_constant<int, 2>{}); return true;
-    case 9: f(std::integral_constant<int, 3>{}); return true;
-    case 12: f(std::integral_constant<int, 4>{}); return true;
-    default: return false;
-  }
-}
 }  // namespace
 
 template <class Scalar>

@@ -41,8 +41,9 @@ class SupernodalFactor {
   void clear();
   Scalar* values() { return value_.data(); }
 
-  // A's blocks (written as above) → L in place. False when A is not positive definite in
-  // this precision (a pivot ≤ 0, or not finite: A beyond its range).
+  // A's blocks (written as above) → L in place, except that a panel at most four points
+  // wide holds the inverse of its diagonal block, the form solve reads. False when A is
+  // not positive definite in this precision (a pivot ≤ 0, or not finite: A beyond its range).
   bool factor();
   // x ← (L Lᵀ)⁻¹ x, 3 values per point, in the pattern's (permuted) order; x aligned as Aligned.
   void solve(Scalar* x) const;
