@@ -36,6 +36,9 @@ namespace {
 
 constexpr std::size_t cache_budget = std::size_t(1) << 20;  // bytes: about an L2 cache
 constexpr std::size_t values_per_point = 11;                // x, v, f, 1/m, damping
+// Points a row sweep's update moves per call (sheet_forces_by_rows_with): their 11 arrays in
+// about 20 KiB in double, within the nearest cache beside the sweep's own rows.
+constexpr std::size_t update_run_points = 256;
 
 // The rows a block's wave steps: the block and up to `halo` = levels·R rows beyond each
 // edge. A halo row's neighbours outside the range are missing, so its state goes wrong R
@@ -464,10 +467,7 @@ void sheet_forces_by_rows_with(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Pt
   };
   // Obstacle forces (eq 9) follow the sheet's surface normal, which reads the rows on both
   // sides of a point, so they cannot be added row by row once earlier rows have moved.
-  // A sheet within the cache budget is in cache for the second pass anyway, and one update
-  // over all its points runs whole vectors where rows of a small sheet would run mostly in
-  // their remainders (BM_Fig13 at small sizes, BM_WorldStep10kSheets).
-  if (!s.near_obstacles.empty() || !std::is_sorted(an.point.begin(), an.point.end()) || fits_cache_budget(s)) {
+  if (!s.near_obstacles.empty() || !std::is_sorted(an.point.begin(), an.point.end())) {
     // finish every force first, then update the whole sheet
     sheet_sweep(s, x, v, f, ptr(s.row_scratch), 0, t.rows(),
                 [&](std::uint32_t i) { row_terms(s, std::size_t(i) * t.cols(), t.cols(), v, f); });
@@ -478,17 +478,24 @@ void sheet_forces_by_rows_with(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Pt
     return;
   }
   // Every term of row i is added as soon as its springs are final (same order as above:
-  // springs, damping, contacts, anchors), then the row is updated while it is still in
-  // cache. A new per-point force term belongs in add_point_terms, a row stencil in
-  // terms/terms.h; one that reads all rows' positions, like obstacles, must send its sheets
-  // to the branch above.
-  const std::uint32_t cols = t.cols();
-  std::size_t next_anchor = 0;
-  sheet_sweep(s, x, v, f, ptr(s.row_scratch), 0, t.rows(), [&](std::uint32_t i) {
+  // springs, damping, contacts, anchors), then the rows are updated while they are still in
+  // the nearest cache, in runs of whole rows of at least update_run_points points: one
+  // call per row would run short rows mostly in their remainders and reduce the box's
+  // lanes once per row (BM_Fig13 at small sizes, BM_WorldStep10kSheets), and a sheet's
+  // whole update after its sweep reads every row back from a farther cache. A new
+  // per-point force term belongs in add_point_terms, a row stencil in terms/terms.h; one
+  // that reads all rows' positions, like obstacles, must send its sheets to the branch
+  // above.
+  const std::uint32_t cols = t.cols(), rows = t.rows();
+  std::size_t next_anchor = 0, unmoved = 0;
+  sheet_sweep(s, x, v, f, ptr(s.row_scratch), 0, rows, [&](std::uint32_t i) {
     const std::size_t p = std::size_t(i) * cols;
     row_terms(s, p, cols, v, f);
     for (; next_anchor < an.point.size() && an.point[next_anchor] < p + cols; ++next_anchor) anchor(next_anchor);
-    move(p, cols);
+    if (p + cols - unmoved >= update_run_points || i + 1 == rows) {
+      move(unmoved, p + cols - unmoved);
+      unmoved = p + cols;
+    }
   });
 }
 

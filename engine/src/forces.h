@@ -60,11 +60,11 @@ template <class Real>
 void sheet_forces(Sheet<Real>& sheet, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v, Vec3Ptr<Real> f);
 
 // sheet_forces, then, when `step` is given, that explicit Euler step of the sheet's own
-// points (x and v are then the sheet's position and velocity): each row is moved as soon
-// as its force is final, while it is still in cache, since no later force of this sweep
-// reads it. This saves the integrator a pass over the whole sheet's forces (a sheet beyond
-// the caches streams half the bytes per step). A sheet within the cache budget
-// (fits_cache_budget), or with obstacles near it, is moved in one pass after its forces.
+// points (x and v are then the sheet's position and velocity): rows are moved in runs of
+// at least update_run_points points as soon as their forces are final, while they are
+// still in the nearest cache, since no later force of this sweep reads them. This saves the integrator a pass over the whole sheet's forces, which a sheet
+// beyond the nearest cache would read back from a farther one. A sheet with obstacles near
+// it (or anchors out of order) is moved in one pass after its forces.
 // The sweep and the update run on one instruction set, chosen once per call (forces.cpp).
 // `box`, when given with a step (the sheet's pins sorted by point), grows to contain the
 // sheet's positions after the step and its pins (update_around_pins), from the update's
