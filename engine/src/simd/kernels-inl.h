@@ -186,7 +186,9 @@ HWY_INLINE void springs_run(const SpringRun<Real>& r) {
 // element's left neighbour, when v follows prev in a row (rows_joined). AVX-512 only, one
 // valign: with AVX2's 16 registers the joined pass ran the 1024-point step 5 % slower than
 // the netted one (its shift two shuffles, and three more vectors live across the loop),
-// and 48 sheets no faster; other targets take the netted pass.
+// and 48 sheets no faster; a shift of one vpermpd/vpermps per vector, the previous
+// vector's rotation kept and blended into lane 0, was slower still (the 1024-point step
+// +13 %, 48 sheets +7 % in f64 and +14 % in f32). Other targets take the netted pass.
 #if HWY_ARCH_X86 && HWY_TARGET <= HWY_AVX3
 template <class D, class V>
 HWY_INLINE V shift_in(D d, V prev, V v) {
@@ -197,7 +199,6 @@ HWY_INLINE V shift_in(D d, V prev, V v) {
   else
     return hn::BitCast(d, hn::VFromD<decltype(du)>{_mm512_alignr_epi32(a, b, 15)});
 }
-#endif
 
 // v in the lanes l loads and stores, +0 in the others.
 template <class D, class V>
@@ -208,6 +209,7 @@ template <class D, class V>
 HWY_INLINE V lanes_only(FirstLanes<D> l, V v) {
   return hn::IfThenElseZero(l.mask, v);
 }
+#endif
 
 // A row's horizontal springs h (spring j joins its points j and j + 1; h.count of them, one
 // fewer than the row's points) and the vertical springs v between the row above and it
