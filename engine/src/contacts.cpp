@@ -640,6 +640,10 @@ struct FirstTests {
   alignas(64) Real dist2[kSize], second[kSize], w[3][kSize];
   alignas(64) Real unit[3][kSize];  // p − q, then (force_lanes) divided by the distance
   alignas(64) Real force[kSize];    // the exponent, then (force_lanes) the force f
+  // 1 where the walk ends at this triangle without testing another cell: the closest point
+  // is off the cell's outer edges (points_walking's move test finds no row or column to
+  // cross) and at a positive distance.
+  alignas(64) Real ends[kSize];
 };
 
 template <class Real>
@@ -673,11 +677,20 @@ HWY_INLINE void first_tests(const Sheet<Real>& q, const Sheet<Real>& s, const Ke
     // consider's rule from an empty best: the first triangle unless its distance is not a
     // number, the second if nearer (or the first is not a number)
     const auto second = hn::Or(hn::Lt(d1, d0), hn::And(hn::IsNaN(d0), hn::Not(hn::IsNaN(d1))));
-    hn::Store(hn::IfThenElse(second, d1, d0), d, out.dist2 + k);
+    const V dist2 = hn::IfThenElse(second, d1, d0), u = hn::IfThenElse(second, u1, u0),
+            v = hn::IfThenElse(second, v1, v0), w = hn::IfThenElse(second, w1, w0);
+    hn::Store(dist2, d, out.dist2 + k);
     hn::Store(hn::IfThenElseZero(second, hn::Set(d, Real(1))), d, out.second + k);
-    hn::Store(hn::IfThenElse(second, u1, u0), d, out.w[0] + k);
-    hn::Store(hn::IfThenElse(second, v1, v0), d, out.w[1] + k);
-    hn::Store(hn::IfThenElse(second, w1, w0), d, out.w[2] + k);
+    hn::Store(u, d, out.w[0] + k);
+    hn::Store(v, d, out.w[1] + k);
+    hn::Store(w, d, out.w[2] + k);
+    // points_walking's move test: the weights on corners 00, 01, 11, 10 (triangle 0 is
+    // (00, 01, 11), triangle 1 (00, 11, 10)) and whether a row's or column's two are zero
+    const V zero = hn::Zero(d), w00 = u, w01 = hn::IfThenElse(second, zero, v), w11 = hn::IfThenElse(second, v, w),
+            w10 = hn::IfThenElse(second, w, zero);
+    const auto edge = hn::Or(hn::Or(hn::Eq(hn::Add(w10, w11), zero), hn::Eq(hn::Add(w00, w01), zero)),
+                             hn::Or(hn::Eq(hn::Add(w01, w11), zero), hn::Eq(hn::Add(w00, w10), zero)));
+    hn::Store(hn::IfThenElseZero(hn::AndNot(edge, hn::Gt(dist2, zero)), hn::Set(d, Real(1))), d, out.ends + k);
     hn::Store(hn::IfThenElse(second, g1.x, g0.x), d, out.unit[0] + k);
     hn::Store(hn::IfThenElse(second, g1.y, g0.y), d, out.unit[1] + k);
     hn::Store(hn::IfThenElse(second, g1.z, g0.z), d, out.unit[2] + k);
@@ -742,17 +755,20 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
   FirstTests<Real> first;
   const std::size_t lanes = vectors ? hn::Lanes(hn::ScalableTag<Real>()) : e1 - e0 + 1;
   std::size_t tested = e0, tested_end = e0;
+  // The triangle the lanes found nearest for entry k at `cell` (its corners' positions not
+  // read), as test_cell from an empty best finds it.
+  auto tested_triangle = [&](std::size_t k, std::uint32_t cell, Nearest<Real>& best) {
+    const std::uint32_t p00 = cell, p01 = p00 + 1, p10 = p00 + cols, p11 = p10 + 1;
+    const bool second = first.second[k] != 0;
+    best.dist2 = first.dist2[k];
+    best.key = 2 * p00 + (second ? 1 : 0);
+    best.tri[0] = p00;
+    best.tri[1] = second ? p11 : p01;
+    best.tri[2] = second ? p10 : p11;
+    best.w = {first.w[0][k], first.w[1][k], first.w[2][k]};
+  };
   for (std::size_t e = e0; e < e1; ++e) {
     const std::uint32_t p = kept.point[e];
-    const V3<Real> x = at(q, p);
-    const std::int64_t pi = p / qcols, pj = p % qcols;
-    auto allowed = [&](std::int64_t ci, std::int64_t cj) {
-      if (ci < 0 || cj < 0 || ci >= std::int64_t(m) || cj >= std::int64_t(n)) return false;
-      return ring < 0 || !(ci >= pi - ring && ci < pi + ring && cj >= pj - ring && cj < pj + ring);
-    };
-    Nearest<Real> best{};
-    best.dist2 = std::numeric_limits<Real>::infinity();
-    best.key = ~std::uint32_t(0);
     std::uint32_t cell = kept.cell[e];
     if (e == tested_end) {
       tested = e;
@@ -762,21 +778,36 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
         force_lanes(prm, tested_end - tested, first);
       }
     }
+    if (e < tested_end && first.ends[e - tested] != 0) {  // the walk ends at its first cell: lanes did it all
+      const std::size_t k = e - tested;
+      if (first.dist2[k] < R2) {
+        last[p] = cell;
+        Nearest<Real> best;
+        tested_triangle(k, cell, best);
+        const V3<Real> unit{first.unit[0][k], first.unit[1][k], first.unit[2][k]};
+        push_repulsion(q, p, s, best, unit, first.force[k], prm, on_q, on_s);
+      } else {
+        last[p] = kNoCell;
+      }
+      continue;
+    }
+    const V3<Real> x = at(q, p);
+    const std::int64_t pi = p / qcols, pj = p % qcols;
+    auto allowed = [&](std::int64_t ci, std::int64_t cj) {
+      if (ci < 0 || cj < 0 || ci >= std::int64_t(m) || cj >= std::int64_t(n)) return false;
+      return ring < 0 || !(ci >= pi - ring && ci < pi + ring && cj >= pj - ring && cj < pj + ring);
+    };
+    Nearest<Real> best{};
+    best.dist2 = std::numeric_limits<Real>::infinity();
+    best.key = ~std::uint32_t(0);
     // The key of the triangle tested in lanes, whose force the lanes hold; best's corners
     // are not read for it.
     std::uint32_t lanes_key = ~std::uint32_t(0);
     if (e < tested_end) {
       const std::size_t k = e - tested;
-      const Real dist2 = first.dist2[k];
-      if (dist2 == dist2) {  // else not a number: no triangle (best stays empty)
-        const std::uint32_t p00 = cell, p01 = p00 + 1, p10 = p00 + cols, p11 = p10 + 1;
-        const bool second = first.second[k] != 0;
-        best.dist2 = dist2;
-        best.key = lanes_key = 2 * p00 + (second ? 1 : 0);
-        best.tri[0] = p00;
-        best.tri[1] = second ? p11 : p01;
-        best.tri[2] = second ? p10 : p11;
-        best.w = {first.w[0][k], first.w[1][k], first.w[2][k]};
+      if (first.dist2[k] == first.dist2[k]) {  // else not a number: no triangle (best stays empty)
+        tested_triangle(k, cell, best);
+        lanes_key = best.key;
       }
     } else {
       test_cell(s, cols, x, cell, best);
