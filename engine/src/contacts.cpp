@@ -207,14 +207,13 @@ Real force_exp(Real x) { return static_cast<Real>(lanes::exp_one(double(x))); }
 // The force f along the unit direction d on point q, with friction, pushed to `on_q`, and
 // −w_k times it to corner k of the triangle `best` for each nonzero weight w_k, in that
 // order (best's corners' positions are not read).
-// `rubbed`, if given, is rub's result, computed before (friction_lanes).
 template <class Real>
 void push_repulsion(const Sheet<Real>& qs, std::uint32_t q, const Sheet<Real>& ss, const Nearest<Real>& best,
                     V3<Real> d, Real f, const ContactParams<Real>& prm, ContactForces<Real>& on_q,
-                    ContactForces<Real>& on_s, const V3<Real>* rubbed = nullptr) {
+                    ContactForces<Real>& on_s) {
   V3<Real> F{f * d.x, f * d.y, f * d.z};
   if (prm.friction > 0) {
-    const V3<Real> t = rubbed ? *rubbed : rub(qs, q, ss, best, d, f, prm);
+    const V3<Real> t = rub(qs, q, ss, best, d, f, prm);
     F = {F.x + t.x, F.y + t.y, F.z + t.z};
   }
   on_q.push(q, F.x, F.y, F.z);
@@ -645,7 +644,6 @@ struct FirstTests {
   // is off the cell's outer edges (points_walking's move test finds no row or column to
   // cross) and at a positive distance.
   alignas(64) Real ends[kSize];
-  alignas(64) Real rub[3][kSize];  // with friction (friction_lanes): rub's force
 };
 
 template <class Real>
@@ -730,56 +728,6 @@ HWY_INLINE void force_lanes(const ContactParams<Real>& prm, std::size_t count, F
   }
 }
 
-// With friction: rub's force for entries [e0, e0 + count) of `kept` against the triangle
-// and force of `t` (force_lanes'), count a multiple of the lanes, each lane doing rub's
-// operations in their order (velocities and inverse masses gathered). Lanes nobody reads
-// (no triangle, beyond R) get values nobody reads.
-template <class Real>
-HWY_INLINE void friction_lanes(const Sheet<Real>& q, const Sheet<Real>& s, const KeptContacts& kept, std::size_t e0,
-                               std::size_t count, const ContactParams<Real>& prm, FirstTests<Real>& t) {
-  const hn::ScalableTag<Real> d;
-  using V = hn::Vec<decltype(d)>;
-  const hn::RebindToSigned<decltype(d)> di;
-  using Index = hn::TFromD<decltype(di)>;
-  auto indices = [&](const std::uint32_t* from) {
-    if constexpr (sizeof(Index) == 8)
-      return hn::PromoteTo(di, hn::LoadU(hn::Rebind<std::int32_t, decltype(d)>(), reinterpret_cast<const std::int32_t*>(from)));
-    else
-      return hn::BitCast(di, hn::LoadU(hn::RebindToUnsigned<decltype(d)>(), from));
-  };
-  const auto cols = hn::Set(di, Index(s.topology->cols())), one = hn::Set(di, Index(1));
-  const V zero = hn::Zero(d), mu = hn::Set(d, prm.friction), dt = hn::Set(d, prm.dt), unit = hn::Set(d, Real(1));
-  const std::size_t N = hn::Lanes(d);
-  for (std::size_t k = 0; k < count; k += N) {
-    const auto c00 = indices(kept.cell.data() + e0 + k), c01 = hn::Add(c00, one), c10 = hn::Add(c00, cols),
-               c11 = hn::Add(c10, one);
-    const auto second = hn::RebindMask(di, hn::Ne(hn::Load(d, t.second + k), zero));
-    const decltype(c00) tri[3] = {c00, hn::IfThenElse(second, c11, c01), hn::IfThenElse(second, c10, c11)};
-    const auto pq = indices(kept.point.data() + e0 + k);
-    V rx = hn::GatherIndex(d, q.velocity.x.data(), pq), ry = hn::GatherIndex(d, q.velocity.y.data(), pq),
-      rz = hn::GatherIndex(d, q.velocity.z.data(), pq), inv_mass = hn::GatherIndex(d, q.inv_mass.data(), pq);
-    for (int c = 0; c < 3; ++c) {
-      const V w = hn::Load(d, t.w[c] + k);
-      rx = hn::Sub(rx, hn::Mul(w, hn::GatherIndex(d, s.velocity.x.data(), tri[c])));
-      ry = hn::Sub(ry, hn::Mul(w, hn::GatherIndex(d, s.velocity.y.data(), tri[c])));
-      rz = hn::Sub(rz, hn::Mul(w, hn::GatherIndex(d, s.velocity.z.data(), tri[c])));
-      inv_mass = hn::Add(inv_mass, hn::Mul(hn::Mul(w, w), hn::GatherIndex(d, s.inv_mass.data(), tri[c])));
-    }
-    const V ux = hn::Load(d, t.unit[0] + k), uy = hn::Load(d, t.unit[1] + k), uz = hn::Load(d, t.unit[2] + k);
-    const V normal = hn::Add(hn::Add(hn::Mul(rx, ux), hn::Mul(ry, uy)), hn::Mul(rz, uz));
-    const V sx = hn::Sub(rx, hn::Mul(normal, ux)), sy = hn::Sub(ry, hn::Mul(normal, uy)),
-            sz = hn::Sub(rz, hn::Mul(normal, uz));
-    const V speed = hn::Sqrt(hn::Add(hn::Add(hn::Mul(sx, sx), hn::Mul(sy, sy)), hn::Mul(sz, sz)));
-    const V slide = hn::Div(hn::Mul(mu, hn::Load(d, t.force + k)), speed),
-            stop = hn::Div(unit, hn::Mul(inv_mass, dt));
-    const V minus_k = hn::Neg(hn::IfThenElse(hn::Lt(stop, slide), stop, slide));  // std::min(slide, stop)
-    const auto moving = hn::And(hn::Gt(speed, zero), hn::Gt(inv_mass, zero));
-    hn::Store(hn::IfThenElseZero(moving, hn::Mul(minus_k, sx)), d, t.rub[0] + k);
-    hn::Store(hn::IfThenElseZero(moving, hn::Mul(minus_k, sy)), d, t.rub[1] + k);
-    hn::Store(hn::IfThenElseZero(moving, hn::Mul(minus_k, sz)), d, t.rub[2] + k);
-  }
-}
-
 // The entries [e0, e1) of `kept` (points of q against cells of s), in order: each walks
 // from its cell to a local minimum of the distance (KeptContacts), which becomes its cell,
 // and repels if within R. Self-contact (`ring` ≥ 0): cells within `ring` rows/columns of
@@ -828,7 +776,6 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
       if constexpr (vectors) {
         first_tests(q, s, kept, tested, tested_end - tested, first);
         force_lanes(prm, tested_end - tested, first);
-        if (prm.friction > 0) friction_lanes(q, s, kept, tested, tested_end - tested, prm, first);
       }
     }
     if (e < tested_end && first.ends[e - tested] != 0) {  // the walk ends at its first cell: lanes did it all
@@ -838,8 +785,7 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
         Nearest<Real> best;
         tested_triangle(k, cell, best);
         const V3<Real> unit{first.unit[0][k], first.unit[1][k], first.unit[2][k]};
-        const V3<Real> rubbed{first.rub[0][k], first.rub[1][k], first.rub[2][k]};
-        push_repulsion(q, p, s, best, unit, first.force[k], prm, on_q, on_s, &rubbed);
+        push_repulsion(q, p, s, best, unit, first.force[k], prm, on_q, on_s);
       } else {
         last[p] = kNoCell;
       }
