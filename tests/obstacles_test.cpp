@@ -200,7 +200,7 @@ TEST(Obstacles, CutOffForceStaysWithinItsBoundOfTheExactOne) {
 // The kernel's exp against std::exp (correctly rounded in glibc to within 1 ulp, 2.2·10⁻¹⁶):
 // its polynomial is 3·10⁻¹⁶ from e^r (tools/exp_polynomial.py), the evaluation and the
 // reduction x − k·ln2 add a few ulp, and the bound, 10⁻¹⁵ of e^x, is what obstacles.h
-// promises (the degree-9 polynomial misses it twentyfold). Exact at 0, and e^−700 below −700.
+// promises (the degree-9 polynomial misses it twentyfold). Exact at 0, e^−700 below −700 and e^709 above 709.
 TEST(Obstacles, VectorExpStaysWithinItsBoundOfStdExp) {
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> wide(-700.0, 700.0), used(-17.0, 12.0);  // used: the force's exponents
@@ -214,10 +214,18 @@ TEST(Obstacles, VectorExpStaysWithinItsBoundOfStdExp) {
     const double want = std::exp(x), error = std::abs(drape::detail::vector_exp(x) - want) / want;
     if (error > worst) worst = error, worst_at = x;
   }
+  for (double x = 690.0; x <= 709.0; x += 0.37) {  // up to the top of its range (a contact's uncapped exponent)
+    const double want = std::exp(x), error = std::abs(drape::detail::vector_exp(x) - want) / want;
+    if (error > worst) worst = error, worst_at = x;
+  }
   EXPECT_LE(worst, 1e-15) << "at x = " << worst_at;
   EXPECT_EQ(drape::detail::vector_exp(0.0), 1.0);
   EXPECT_EQ(drape::detail::vector_exp(-800.0), drape::detail::vector_exp(-700.0));
   EXPECT_NEAR(drape::detail::vector_exp(-700.0), std::exp(-700.0), 1e-15 * std::exp(-700.0));
+  // clamped above, so a force never overflows: e^709 for anything beyond
+  EXPECT_NEAR(drape::detail::vector_exp(709.0), std::exp(709.0), 1e-15 * std::exp(709.0));
+  EXPECT_EQ(drape::detail::vector_exp(800.0), drape::detail::vector_exp(709.0));
+  EXPECT_EQ(drape::detail::vector_exp(1e300), drape::detail::vector_exp(709.0));
 }
 
 // The vectorised kernel against eq (9) point by point, written out here with std::exp, the

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Coefficients of the exp polynomial of engine/src/obstacles.cpp (exp_lanes).
+"""Coefficients of the exp polynomial of engine/src/simd/exp-inl.h (exp_lanes: the obstacle term and the contact force).
 
 e^r on [-ln2/2, ln2/2] interpolated at the degree+1 Chebyshev nodes (within a small factor of
 the minimax polynomial), in the monomial basis, rounded to double and printed as hex

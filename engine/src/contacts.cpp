@@ -6,8 +6,10 @@
 // boxes (box_gaps, explicit vectors), the walk of a kept contact set, the triangle tests
 // and the force — once per instruction set (simd/targets.h), and the pair's code dispatches
 // to the widest the CPU has once per direction of a pair. Contraction into FMA is off here
-// (engine/CMakeLists.txt), so every target gives the same bits. The rest (boxes, whether
-// kept lists still hold, the pair's bookkeeping) is compiled once.
+// (engine/CMakeLists.txt), and the force's exp is the obstacle term's polynomial
+// (simd/exp-inl.h), one value or a vector of them at a time, so every target gives the same
+// bits. The rest (boxes, whether kept lists still hold, the pair's bookkeeping) is compiled
+// once.
 #include "simd/targets.h"
 
 #undef HWY_TARGET_INCLUDE
@@ -23,6 +25,7 @@
 #include <limits>
 #include <type_traits>
 
+#include "simd/exp-inl.h"
 #include "simd/kernels.h"
 
 // What every target shares, compiled once.
@@ -48,6 +51,7 @@ namespace drape::detail {
 namespace HWY_NAMESPACE {
 
 namespace hn = hwy::HWY_NAMESPACE;
+namespace lanes = simd::HWY_NAMESPACE;  // exp_lanes, exp_one
 
 namespace {
 
@@ -187,6 +191,37 @@ V3<Real> rub(const Sheet<Real>& qs, std::uint32_t q, const Sheet<Real>& ss, cons
   return {-k * slip.x, -k * slip.y, -k * slip.z};
 }
 
+// The exponent (h − d)/ξ of the force at distance `dist`, capped (contacts.h): min(e, +∞)
+// is e, so an uncapped pair gets the same bits.
+template <class Real>
+Real exponent_at(Real dist, const ContactParams<Real>& prm) {
+  return std::min((prm.thickness - dist) / prm.xi, prm.exponent_cap);
+}
+
+// e^x of the force through the polynomial of simd/exp-inl.h in double (a float's exponent
+// promoted, its e^x rounded back), as the force in lanes (force_lanes) takes it: within
+// 10⁻¹⁵ of std::exp, and the same bits on every target and in every lane.
+template <class Real>
+Real force_exp(Real x) { return static_cast<Real>(lanes::exp_one(double(x))); }
+
+// The force f along the unit direction d on point q, with friction, pushed to `on_q`, and
+// −w_k times it to corner k of the triangle `best` for each nonzero weight w_k, in that
+// order (best's corners' positions are not read).
+template <class Real>
+void push_repulsion(const Sheet<Real>& qs, std::uint32_t q, const Sheet<Real>& ss, const Nearest<Real>& best,
+                    V3<Real> d, Real f, const ContactParams<Real>& prm, ContactForces<Real>& on_q,
+                    ContactForces<Real>& on_s) {
+  V3<Real> F{f * d.x, f * d.y, f * d.z};
+  if (prm.friction > 0) {
+    const V3<Real> t = rub(qs, q, ss, best, d, f, prm);
+    F = {F.x + t.x, F.y + t.y, F.z + t.z};
+  }
+  on_q.push(q, F.x, F.y, F.z);
+  const Real wt[3] = {best.w.x, best.w.y, best.w.z};
+  for (int k = 0; k < 3; ++k)
+    if (wt[k] != 0) on_s.push(best.tri[k], -wt[k] * F.x, -wt[k] * F.y, -wt[k] * F.z);
+}
+
 template <class Real>
 void repel(const Sheet<Real>& qs, std::uint32_t q, V3<Real> p, const Sheet<Real>& ss, const Nearest<Real>& best,
            const ContactParams<Real>& prm, ContactForces<Real>& on_q, ContactForces<Real>& on_s) {
@@ -206,18 +241,9 @@ void repel(const Sheet<Real>& qs, std::uint32_t q, V3<Real> p, const Sheet<Real>
     d = {nrm.x / len, nrm.y / len, nrm.z / len};
   }
   // −dE/dd, shifted to reach 0 at the cut-off; d ≥ 0 bounds it by (c/ξ)·exp(h/ξ), and the
-  // exponent cap by what the substep resolves (min(e, +∞) is e: uncapped, the same bits)
-  const Real f =
-      prm.strength / prm.xi * (std::exp(std::min((prm.thickness - dist) / prm.xi, prm.exponent_cap)) - prm.tail);
-  V3<Real> F{f * d.x, f * d.y, f * d.z};
-  if (prm.friction > 0) {
-    const V3<Real> t = rub(qs, q, ss, best, d, f, prm);
-    F = {F.x + t.x, F.y + t.y, F.z + t.z};
-  }
-  on_q.push(q, F.x, F.y, F.z);
-  const Real wt[3] = {best.w.x, best.w.y, best.w.z};
-  for (int k = 0; k < 3; ++k)
-    if (wt[k] != 0) on_s.push(best.tri[k], -wt[k] * F.x, -wt[k] * F.y, -wt[k] * F.z);
+  // exponent cap by what the substep resolves
+  const Real f = prm.strength / prm.xi * (force_exp(exponent_at(dist, prm)) - prm.tail);
+  push_repulsion(qs, q, ss, best, d, f, prm, on_q, on_s);
 }
 
 
@@ -560,7 +586,7 @@ struct V3s {
 template <class D, class V>
 HWY_INLINE void closest_lanes(D d, const V3s<hn::TFromD<D>, V>& p, const V3s<hn::TFromD<D>, V>& a,
                               const V3s<hn::TFromD<D>, V>& b, const V3s<hn::TFromD<D>, V>& c, V& dist2, V& wa,
-                              V& wb, V& wc) {
+                              V& wb, V& wc, V3s<hn::TFromD<D>, V>& gap) {
   using Real = hn::TFromD<D>;
   auto sub3 = [](const auto& u, const auto& v) { return V3s<Real, V>{hn::Sub(u.x, v.x), hn::Sub(u.y, v.y), hn::Sub(u.z, v.z)}; };
   auto dot3 = [](const auto& u, const auto& v) {
@@ -596,7 +622,7 @@ HWY_INLINE void closest_lanes(D d, const V3s<hn::TFromD<D>, V>& p, const V3s<hn:
   const V3s<Real, V> q{hn::Add(hn::Add(hn::Mul(u, a.x), hn::Mul(v, b.x)), hn::Mul(w, c.x)),
                        hn::Add(hn::Add(hn::Mul(u, a.y), hn::Mul(v, b.y)), hn::Mul(w, c.y)),
                        hn::Add(hn::Add(hn::Mul(u, a.z), hn::Mul(v, b.z)), hn::Mul(w, c.z))};
-  const auto gap = sub3(p, q);
+  gap = sub3(p, q);
   dist2 = dot3(gap, gap);
   wa = u;
   wb = v;
@@ -605,11 +631,19 @@ HWY_INLINE void closest_lanes(D d, const V3s<hn::TFromD<D>, V>& p, const V3s<hn:
 
 // For kept entries [e0, e0 + count), count a multiple of the lanes: the squared distance of
 // the nearer of each entry's cell's two triangles (NaN when neither gives a number: no
-// triangle), 1 where it is the second, and its weights, as test_cell from an empty best.
+// triangle), 1 where it is the second, and its weights, as test_cell from an empty best;
+// then (force_lanes) the repulsion repel would give that triangle: its unit direction and
+// force.
 template <class Real>
 struct FirstTests {
   static constexpr std::size_t kSize = 64;
   alignas(64) Real dist2[kSize], second[kSize], w[3][kSize];
+  alignas(64) Real unit[3][kSize];  // p − q, then (force_lanes) divided by the distance
+  alignas(64) Real force[kSize];    // the exponent, then (force_lanes) the force f
+  // 1 where the walk ends at this triangle without testing another cell: the closest point
+  // is off the cell's outer edges (points_walking's move test finds no row or column to
+  // cross) and at a positive distance.
+  alignas(64) Real ends[kSize];
 };
 
 template <class Real>
@@ -637,16 +671,60 @@ HWY_INLINE void first_tests(const Sheet<Real>& q, const Sheet<Real>& s, const Ke
     const V3s<Real, V> x = gather(q, indices(kept.point.data() + e0 + k));
     const V3s<Real, V> x00 = gather(s, c00), x01 = gather(s, c01), x10 = gather(s, c10), x11 = gather(s, c11);
     V d0, u0, v0, w0, d1, u1, v1, w1;
-    closest_lanes(d, x, x00, x01, x11, d0, u0, v0, w0);
-    closest_lanes(d, x, x00, x11, x10, d1, u1, v1, w1);
+    V3s<Real, V> g0, g1;
+    closest_lanes(d, x, x00, x01, x11, d0, u0, v0, w0, g0);
+    closest_lanes(d, x, x00, x11, x10, d1, u1, v1, w1, g1);
     // consider's rule from an empty best: the first triangle unless its distance is not a
     // number, the second if nearer (or the first is not a number)
     const auto second = hn::Or(hn::Lt(d1, d0), hn::And(hn::IsNaN(d0), hn::Not(hn::IsNaN(d1))));
-    hn::Store(hn::IfThenElse(second, d1, d0), d, out.dist2 + k);
+    const V dist2 = hn::IfThenElse(second, d1, d0), u = hn::IfThenElse(second, u1, u0),
+            v = hn::IfThenElse(second, v1, v0), w = hn::IfThenElse(second, w1, w0);
+    hn::Store(dist2, d, out.dist2 + k);
     hn::Store(hn::IfThenElseZero(second, hn::Set(d, Real(1))), d, out.second + k);
-    hn::Store(hn::IfThenElse(second, u1, u0), d, out.w[0] + k);
-    hn::Store(hn::IfThenElse(second, v1, v0), d, out.w[1] + k);
-    hn::Store(hn::IfThenElse(second, w1, w0), d, out.w[2] + k);
+    hn::Store(u, d, out.w[0] + k);
+    hn::Store(v, d, out.w[1] + k);
+    hn::Store(w, d, out.w[2] + k);
+    // points_walking's move test: the weights on corners 00, 01, 11, 10 (triangle 0 is
+    // (00, 01, 11), triangle 1 (00, 11, 10)) and whether a row's or column's two are zero
+    const V zero = hn::Zero(d), w00 = u, w01 = hn::IfThenElse(second, zero, v), w11 = hn::IfThenElse(second, v, w),
+            w10 = hn::IfThenElse(second, w, zero);
+    const auto edge = hn::Or(hn::Or(hn::Eq(hn::Add(w10, w11), zero), hn::Eq(hn::Add(w00, w01), zero)),
+                             hn::Or(hn::Eq(hn::Add(w01, w11), zero), hn::Eq(hn::Add(w00, w10), zero)));
+    hn::Store(hn::IfThenElseZero(hn::AndNot(edge, hn::Gt(dist2, zero)), hn::Set(d, Real(1))), d, out.ends + k);
+    hn::Store(hn::IfThenElse(second, g1.x, g0.x), d, out.unit[0] + k);
+    hn::Store(hn::IfThenElse(second, g1.y, g0.y), d, out.unit[1] + k);
+    hn::Store(hn::IfThenElse(second, g1.z, g0.z), d, out.unit[2] + k);
+  }
+}
+
+// The repulsion of entries [0, count) of `t` (first_tests'), count a multiple of the lanes,
+// as repel computes it for a point at a positive distance, each lane doing its operations
+// in their order: the distance, the unit direction (p − q)/d, the capped exponent, e^x
+// (force_exp's, in lanes of doubles) and the force f. A lane at distance 0 (repel then
+// takes the triangle's normal), beyond R or not a number gets values nobody reads.
+template <class Real>
+HWY_INLINE void force_lanes(const ContactParams<Real>& prm, std::size_t count, FirstTests<Real>& t) {
+  const hn::ScalableTag<Real> d;
+  const std::size_t N = hn::Lanes(d);
+  const auto h = hn::Set(d, prm.thickness), xi = hn::Set(d, prm.xi), cap = hn::Set(d, prm.exponent_cap);
+  for (std::size_t k = 0; k < count; k += N) {  // exponent_at
+    const auto ratio = hn::Div(hn::Sub(h, hn::Sqrt(hn::Load(d, t.dist2 + k))), xi);
+    hn::Store(hn::IfThenElse(hn::Lt(cap, ratio), cap, ratio), d, t.force + k);
+  }
+  const hn::ScalableTag<double> dd;
+  for (std::size_t k = 0; k < count; k += hn::Lanes(dd)) {  // force_exp
+    if constexpr (std::is_same_v<Real, double>) {
+      hn::Store(lanes::exp_lanes(dd, hn::Load(dd, t.force + k)), dd, t.force + k);
+    } else {
+      const hn::Rebind<float, decltype(dd)> df;
+      hn::Store(hn::DemoteTo(df, lanes::exp_lanes(dd, hn::PromoteTo(dd, hn::Load(df, t.force + k)))), df, t.force + k);
+    }
+  }
+  const auto c_over_xi = hn::Set(d, prm.strength / prm.xi), tail = hn::Set(d, prm.tail);
+  for (std::size_t k = 0; k < count; k += N) {
+    const auto dist = hn::Sqrt(hn::Load(d, t.dist2 + k));
+    for (int c = 0; c < 3; ++c) hn::Store(hn::Div(hn::Load(d, t.unit[c] + k), dist), d, t.unit[c] + k);
+    hn::Store(hn::Mul(c_over_xi, hn::Sub(hn::Load(d, t.force + k), tail)), d, t.force + k);
   }
 }
 
@@ -677,8 +755,42 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
   FirstTests<Real> first;
   const std::size_t lanes = vectors ? hn::Lanes(hn::ScalableTag<Real>()) : e1 - e0 + 1;
   std::size_t tested = e0, tested_end = e0;
+  // The triangle the lanes found nearest for entry k at `cell` (its corners' positions not
+  // read), as test_cell from an empty best finds it.
+  auto tested_triangle = [&](std::size_t k, std::uint32_t cell, Nearest<Real>& best) {
+    const std::uint32_t p00 = cell, p01 = p00 + 1, p10 = p00 + cols, p11 = p10 + 1;
+    const bool second = first.second[k] != 0;
+    best.dist2 = first.dist2[k];
+    best.key = 2 * p00 + (second ? 1 : 0);
+    best.tri[0] = p00;
+    best.tri[1] = second ? p11 : p01;
+    best.tri[2] = second ? p10 : p11;
+    best.w = {first.w[0][k], first.w[1][k], first.w[2][k]};
+  };
   for (std::size_t e = e0; e < e1; ++e) {
     const std::uint32_t p = kept.point[e];
+    std::uint32_t cell = kept.cell[e];
+    if (e == tested_end) {
+      tested = e;
+      tested_end = e + std::min(FirstTests<Real>::kSize, (e1 - e) / lanes * lanes);
+      if constexpr (vectors) {
+        first_tests(q, s, kept, tested, tested_end - tested, first);
+        force_lanes(prm, tested_end - tested, first);
+      }
+    }
+    if (e < tested_end && first.ends[e - tested] != 0) {  // the walk ends at its first cell: lanes did it all
+      const std::size_t k = e - tested;
+      if (first.dist2[k] < R2) {
+        last[p] = cell;
+        Nearest<Real> best;
+        tested_triangle(k, cell, best);
+        const V3<Real> unit{first.unit[0][k], first.unit[1][k], first.unit[2][k]};
+        push_repulsion(q, p, s, best, unit, first.force[k], prm, on_q, on_s);
+      } else {
+        last[p] = kNoCell;
+      }
+      continue;
+    }
     const V3<Real> x = at(q, p);
     const std::int64_t pi = p / qcols, pj = p % qcols;
     auto allowed = [&](std::int64_t ci, std::int64_t cj) {
@@ -688,25 +800,14 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
     Nearest<Real> best{};
     best.dist2 = std::numeric_limits<Real>::infinity();
     best.key = ~std::uint32_t(0);
-    std::uint32_t cell = kept.cell[e];
-    if (e == tested_end) {
-      tested = e;
-      tested_end = e + std::min(FirstTests<Real>::kSize, (e1 - e) / lanes * lanes);
-      if constexpr (vectors) first_tests(q, s, kept, tested, tested_end - tested, first);
-    }
+    // The key of the triangle tested in lanes, whose force the lanes hold; best's corners
+    // are not read for it.
+    std::uint32_t lanes_key = ~std::uint32_t(0);
     if (e < tested_end) {
       const std::size_t k = e - tested;
-      const Real dist2 = first.dist2[k];
-      if (dist2 == dist2) {  // else not a number: no triangle (best stays empty)
-        const std::uint32_t p00 = cell, p01 = p00 + 1, p10 = p00 + cols, p11 = p10 + 1;
-        const bool second = first.second[k] != 0;
-        best.dist2 = dist2;
-        best.key = 2 * p00 + (second ? 1 : 0);
-        best.tri[0] = p00;
-        best.tri[1] = second ? p11 : p01;
-        best.tri[2] = second ? p10 : p11;
-        for (int c = 0; c < 3; ++c) best.v[c] = at(s, best.tri[c]);
-        best.w = {first.w[0][k], first.w[1][k], first.w[2][k]};
+      if (first.dist2[k] == first.dist2[k]) {  // else not a number: no triangle (best stays empty)
+        tested_triangle(k, cell, best);
+        lanes_key = best.key;
       }
     } else {
       test_cell(s, cols, x, cell, best);
@@ -747,7 +848,15 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
     kept.cell[e] = cell;
     if (best.dist2 < R2) {
       last[p] = cell;
-      repel(q, p, x, s, best, prm, on_q, on_s);
+      if (best.key == lanes_key && best.dist2 > 0) {  // the triangle the lanes tested: their force
+        const std::size_t k = e - tested;
+        const V3<Real> unit{first.unit[0][k], first.unit[1][k], first.unit[2][k]};
+        push_repulsion(q, p, s, best, unit, first.force[k], prm, on_q, on_s);
+      } else {  // moved, or on the triangle (its normal): the scalar force, from the corners
+        if (best.key == lanes_key)
+          for (int c = 0; c < 3; ++c) best.v[c] = at(s, best.tri[c]);
+        repel(q, p, x, s, best, prm, on_q, on_s);
+      }
     } else {
       last[p] = kNoCell;
     }

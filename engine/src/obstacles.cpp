@@ -19,6 +19,7 @@
 #include <hwy/highway.h>
 
 #include "obstacles.h"
+#include "simd/exp-inl.h"
 #include "simd/kernels-inl.h"
 
 #include <algorithm>
@@ -33,7 +34,7 @@ namespace drape::detail {
 namespace HWY_NAMESPACE {
 
 namespace hn = hwy::HWY_NAMESPACE;
-namespace lanes = simd::HWY_NAMESPACE;  // over_lanes, Whole, FirstLanes, first_min, first_max
+namespace lanes = simd::HWY_NAMESPACE;  // over_lanes, Whole, FirstLanes, first_min, first_max, exp_lanes
 
 // What f and ∇f read of an obstacle: its pose, its size and the size's reciprocals. The row
 // loop holds a copy (RowForce): it stores into the sheet's forces, which could alias the
@@ -195,36 +196,6 @@ ImplicitSample sample(const Obstacle& o, const double p[3]) {
   return {hn::GetLane(f), {hn::GetLane(gx), hn::GetLane(gy), hn::GetLane(gz)}};
 }
 
-// e^x for x ≥ −700 without a call or a branch, lane by lane (Highway has no exp of its own
-// in this version, and std::exp has no vector form): x = k·ln2 + r with |r| ≤ ln2/2, e^r by
-// a polynomial of degree 10, 2^k put into the exponent bits. The polynomial interpolates e^r
-// at the 11 Chebyshev nodes of [−ln2/2, ln2/2] (tools/exp_polynomial.py prints its
-// coefficients), about 3·10⁻¹⁶ from e^r there, so e^x stays within 10⁻¹⁵ of std::exp
-// (Obstacles.VectorExpStaysWithinItsBoundOfStdExp); Taylor's series needed degree 13 for
-// that. It is evaluated in Estrin's scheme, whose longest chain is 4 multiplications and 3
-// additions where Horner's has 10 of each, for 3 more multiplications.
-template <class D, class V>
-HWY_INLINE V exp_lanes(D d, V x) {
-  const hn::RebindToUnsigned<D> du;
-  const V low = hn::Set(d, -700.0);
-  x = hn::IfThenElse(hn::Lt(x, low), low, x);
-  const V shifter = hn::Set(d, 0x1.8p52);  // adding it rounds to an integer held in the low bits
-  const V shifted = hn::Add(hn::Mul(x, hn::Set(d, 0x1.71547652b82fep0)), shifter);
-  const auto k = hn::BitCast(du, shifted);
-  const V kd = hn::Sub(shifted, shifter);
-  const V r = hn::Sub(hn::Sub(x, hn::Mul(kd, hn::Set(d, 0x1.62e42fefa3800p-1))),
-                      hn::Mul(kd, hn::Set(d, 0x1.ef35793c7673p-45)));  // ln2 in two parts
-  const auto pair = [&](double a, double b, V t) HWY_ATTR { return hn::Add(hn::Set(d, a), hn::Mul(hn::Set(d, b), t)); };
-  const auto join = [&](V a, V b, V t) HWY_ATTR { return hn::Add(a, hn::Mul(b, t)); };
-  const V r2 = hn::Mul(r, r), r4 = hn::Mul(r2, r2), r8 = hn::Mul(r4, r4);
-  const V p01 = pair(0x1.0000000000000p+0, 0x1.000000000001ep+0, r), p23 = pair(0x1.0000000000005p-1, 0x1.555555554b757p-3, r),
-          p45 = pair(0x1.55555555520afp-5, 0x1.1111112dd67c5p-7, r), p67 = pair(0x1.6c16c17f43a58p-10, 0x1.a01978c6baf81p-13, r),
-          p89 = pair(0x1.a019a66a75dd4p-16, 0x1.72faf024b693bp-19, r);
-  const V p8_10 = join(p89, hn::Set(d, 0x1.28a2c0a7209fbp-22), r2);
-  const V p = join(join(join(p01, p23, r2), join(p45, p67, r2), r4), p8_10, r8);
-  return hn::BitCast(d, hn::Add(hn::BitCast(du, p), hn::ShiftLeft<52>(k)));
-}
-
 // The cut-off, shifted eq (9): −dE/df, zero at and beyond the reach.
 struct ForceScale {
   double c_over_xi, minus_inv_xi, cap, tail, reach;  // tail = e^−reach_exponent
@@ -233,7 +204,7 @@ struct ForceScale {
   HWY_INLINE V within(D d, V f) const {
     const V e = lanes::first_min(hn::Mul(f, hn::Set(d, minus_inv_xi)), hn::Set(d, cap));
     // ≥ 0 even for a cap below −reach
-    return hn::Mul(hn::Set(d, c_over_xi), lanes::first_max(hn::Sub(exp_lanes(d, e), hn::Set(d, tail)), hn::Zero(d)));
+    return hn::Mul(hn::Set(d, c_over_xi), lanes::first_max(hn::Sub(lanes::exp_lanes(d, e), hn::Set(d, tail)), hn::Zero(d)));
   }
   template <class D, class V>
   HWY_INLINE V operator()(D d, V f) const {
@@ -244,11 +215,6 @@ struct ForceScale {
     return hn::GetLane((*this)(d, hn::Set(d, f)));
   }
 };
-
-double exp_one(double x) {
-  const hn::CappedTag<double, 1> d;
-  return hn::GetLane(exp_lanes(d, hn::Set(d, x)));
-}
 
 ForceScale force_scale_of(const ObstacleDef& d, double cap) {
   return {d.c / d.xi, -(1.0 / d.xi), cap, std::exp(-reach_exponent), reach_exponent * d.xi};
@@ -641,7 +607,7 @@ double potential_energy(const ObstacleDef& d, double f, double cap) {
 
 double potential_force_scale(const ObstacleDef& d, double f, double cap) { return here::force_scale_of(d, cap)(f); }
 
-double vector_exp(double x) { return here::exp_one(x); }
+double vector_exp(double x) { return simd::HWY_NAMESPACE::exp_one(x); }
 
 bool may_touch(const Obstacle& o, const Aabb& box) {
   if (o.bounded) return overlaps(o.reach, box);

@@ -56,8 +56,9 @@ double stiffness_exponent_cap(double strength, double xi, double lightest_mass, 
 double potential_energy(const ObstacleDef& def, double f, double cap);
 double potential_force_scale(const ObstacleDef& def, double f, double cap);
 
-// The kernel's exp on one value (every instruction set gives the same bits): e^x within
-// 10⁻¹⁵ of it (relative) for x ≥ −700, and e^−700 below.
+// The kernel's exp on one value (every instruction set gives the same bits; the contact
+// force uses it too): e^x within 10⁻¹⁵ of it (relative) for x in [−700, 709], e^−700
+// below and e^709 above.
 double vector_exp(double x);
 
 // Host stage: can a sheet whose bounding box is `box` feel the obstacle at all?
