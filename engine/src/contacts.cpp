@@ -707,8 +707,10 @@ HWY_INLINE void force_lanes(const ContactParams<Real>& prm, std::size_t count, F
   const hn::ScalableTag<Real> d;
   const std::size_t N = hn::Lanes(d);
   const auto h = hn::Set(d, prm.thickness), xi = hn::Set(d, prm.xi), cap = hn::Set(d, prm.exponent_cap);
-  for (std::size_t k = 0; k < count; k += N) {  // exponent_at
-    const auto ratio = hn::Div(hn::Sub(h, hn::Sqrt(hn::Load(d, t.dist2 + k))), xi);
+  for (std::size_t k = 0; k < count; k += N) {  // the unit direction, and exponent_at
+    const auto dist = hn::Sqrt(hn::Load(d, t.dist2 + k));
+    for (int c = 0; c < 3; ++c) hn::Store(hn::Div(hn::Load(d, t.unit[c] + k), dist), d, t.unit[c] + k);
+    const auto ratio = hn::Div(hn::Sub(h, dist), xi);
     hn::Store(hn::IfThenElse(hn::Lt(cap, ratio), cap, ratio), d, t.force + k);
   }
   const hn::ScalableTag<double> dd;
@@ -721,11 +723,8 @@ HWY_INLINE void force_lanes(const ContactParams<Real>& prm, std::size_t count, F
     }
   }
   const auto c_over_xi = hn::Set(d, prm.strength / prm.xi), tail = hn::Set(d, prm.tail);
-  for (std::size_t k = 0; k < count; k += N) {
-    const auto dist = hn::Sqrt(hn::Load(d, t.dist2 + k));
-    for (int c = 0; c < 3; ++c) hn::Store(hn::Div(hn::Load(d, t.unit[c] + k), dist), d, t.unit[c] + k);
+  for (std::size_t k = 0; k < count; k += N)
     hn::Store(hn::Mul(c_over_xi, hn::Sub(hn::Load(d, t.force + k), tail)), d, t.force + k);
-  }
 }
 
 // The entries [e0, e1) of `kept` (points of q against cells of s), in order: each walks
