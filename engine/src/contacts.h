@@ -82,22 +82,31 @@ struct ContactParams {
 // Sparse forces one pair puts on one sheet, in the order the pair found them: entries for
 // the same point are added in this order when the sheet gathers them.
 template <class Real>
+// Entries [0, size()) hold forces; the arrays may be longer (room kept between substeps,
+// so a push is one check and four stores, not four vectors' growth checks).
 struct ContactForces {
   std::vector<std::uint32_t> point;
   std::vector<Real> fx, fy, fz;
-  void clear() {
-    point.clear();
-    fx.clear();
-    fy.clear();
-    fz.clear();
-  }
+  void clear() { count = 0; }
   void push(std::uint32_t p, Real x, Real y, Real z) {
-    point.push_back(p);
-    fx.push_back(x);
-    fy.push_back(y);
-    fz.push_back(z);
+    if (count == point.size()) grow();
+    point[count] = p;
+    fx[count] = x;
+    fy[count] = y;
+    fz[count] = z;
+    ++count;
   }
-  std::size_t size() const { return point.size(); }
+  std::size_t size() const { return count; }
+
+ private:
+  [[gnu::noinline]] void grow() {
+    const std::size_t room = std::max<std::size_t>(64, 2 * point.size());
+    point.resize(room);
+    fx.resize(room);
+    fy.resize(room);
+    fz.resize(room);
+  }
+  std::size_t count = 0;
 };
 
 // The boxes of one sheet's cells and patches (above), made once per substep for a sheet
