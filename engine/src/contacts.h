@@ -42,6 +42,7 @@
 // first triangle), and then the force on the point is the same.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <limits>
 #include <span>
@@ -80,10 +81,10 @@ struct ContactParams {
 };
 
 // Sparse forces one pair puts on one sheet, in the order the pair found them: entries for
-// the same point are added in this order when the sheet gathers them.
+// the same point are added in this order when the sheet gathers them. Entries [0, size())
+// hold forces; the arrays may be longer (room kept between substeps, so a push is one
+// check and four stores, not four vectors' growth checks).
 template <class Real>
-// Entries [0, size()) hold forces; the arrays may be longer (room kept between substeps,
-// so a push is one check and four stores, not four vectors' growth checks).
 struct ContactForces {
   std::vector<std::uint32_t> point;
   std::vector<Real> fx, fy, fz;
