@@ -222,7 +222,8 @@ struct KeptContacts {
 // did not outlive their substep or served more than 32, doubled (up to R/2) when fewer
 // than 4. Lists at R/16 that did not outlive their substep make the pair search without
 // lists for the next 16 substeps (making them costs more than it saves while the sheets
-// move that fast), then start again at R/4.
+// move that fast), then start again at R/4. A kept contact set's skin (below) doubles up
+// to R and never halves below R/2.
 template <class Real>
 struct PairContacts {
   std::uint32_t a = 0, b = 0;  // positions in the world's sheet order
