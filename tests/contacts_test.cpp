@@ -447,6 +447,45 @@ TEST(Contacts, KeptCandidatesFollowTheSheetsRelativeMotionNotTheirAbsoluteOne) {
   EXPECT_GE(kept.searches, before + 1);  // 15 mm closer: more than the skin allows
 }
 
+// The skin follows how long lists served (contacts.h, PairContacts): exact lists that fail
+// their motion test every step narrow to R/16, a kept contact set never below R/2 (its
+// entries beyond R only walk, so a narrow skin buys nothing but searches). Two sheets
+// jostled by up to 6 mm a step along each axis, so that a patch's points spread by more
+// than 0.9 of any skin up to R allows and every step's test fails, the upper one moved
+// 6 cm aside first, so both sheets have points far outside
+// the set (open blocks) and the set's test fails too.
+TEST(Contacts, KeptSetSkinNeverNarrowsBelowHalfTheRangeWhereExactListsDo) {
+  auto [a, b] = close_sheets(11);
+  for (double& x : b.position.x) x += 0.06;
+  std::mt19937 rng(12);
+  std::uniform_real_distribution<double> u(-0.006, 0.006);
+  auto shake = [&](Sheet<double>& s) {
+    for (std::size_t p = 0; p < s.size(); ++p) {
+      s.position.x[p] += u(rng);
+      s.position.y[p] += u(rng);
+      s.position.z[p] += u(rng);
+    }
+  };
+  const double R = kParams.range;
+  PairContacts<double> set, exact;
+  ContactScratch<double> scratch;
+  double least_set = INFINITY, least_exact = INFINITY;
+  for (int step = 0; step < 40; ++step) {
+    shake(a);
+    shake(b);
+    const auto ba = boxes(a), bb = boxes(b);
+    pair_contacts(a, ba, b, bb, kParams, set, scratch);
+    pair_contacts(a, ba, b, bb, kExact, exact, scratch);
+    if (step > 0) {  // the first skin is R/4 for both
+      least_set = std::min(least_set, set.skin);
+      if (exact.skin > 0) least_exact = std::min(least_exact, exact.skin);
+    }
+  }
+  EXPECT_GT(set.searches, 30u);  // the set's test failed most steps
+  EXPECT_GE(least_set, R / 2);
+  EXPECT_LE(least_exact, R / 8);
+}
+
 // The nearest point of triangle abc to p and its barycentric weights, by a route of its
 // own: the plane's foot if its area coordinates are all non-negative, else the nearest
 // point of the three edges (weights 1 − t and t on the edge's ends).
