@@ -356,8 +356,8 @@ void expect_same_forces(const ContactForces<double>& kept, const ContactForces<d
 }
 
 template <class Real>
-void jostle(Sheet<Real>& s, std::mt19937& rng) {
-  std::uniform_real_distribution<double> u(-0.0003, 0.0003);
+void jostle(Sheet<Real>& s, std::mt19937& rng, double amplitude = 0.0003) {
+  std::uniform_real_distribution<double> u(-amplitude, amplitude);
   for (std::size_t p = 0; p < s.size(); ++p) {
     s.position.x[p] += static_cast<Real>(u(rng));
     s.position.y[p] += static_cast<Real>(u(rng));
@@ -452,27 +452,19 @@ TEST(Contacts, KeptCandidatesFollowTheSheetsRelativeMotionNotTheirAbsoluteOne) {
 // entries beyond R only walk, so a narrow skin buys nothing but searches). Two sheets
 // jostled by up to 6 mm a step along each axis, so that a patch's points spread by more
 // than 0.9 of any skin up to R allows and every step's test fails, the upper one moved
-// 6 cm aside first, so both sheets have points far outside
-// the set (open blocks) and the set's test fails too.
+// 6 cm aside first, so both sheets have points far outside the set (open blocks) and the
+// set's test fails too.
 TEST(Contacts, KeptSetSkinNeverNarrowsBelowHalfTheRangeWhereExactListsDo) {
   auto [a, b] = close_sheets(11);
   for (double& x : b.position.x) x += 0.06;
   std::mt19937 rng(12);
-  std::uniform_real_distribution<double> u(-0.006, 0.006);
-  auto shake = [&](Sheet<double>& s) {
-    for (std::size_t p = 0; p < s.size(); ++p) {
-      s.position.x[p] += u(rng);
-      s.position.y[p] += u(rng);
-      s.position.z[p] += u(rng);
-    }
-  };
   const double R = kParams.range;
   PairContacts<double> set, exact;
   ContactScratch<double> scratch;
   double least_set = INFINITY, least_exact = INFINITY;
   for (int step = 0; step < 40; ++step) {
-    shake(a);
-    shake(b);
+    jostle(a, rng, 0.006);
+    jostle(b, rng, 0.006);
     const auto ba = boxes(a), bb = boxes(b);
     pair_contacts(a, ba, b, bb, kParams, set, scratch);
     pair_contacts(a, ba, b, bb, kExact, exact, scratch);

@@ -1170,8 +1170,8 @@ Real next_skin(const PairContacts<Real>& w, const ContactParams<Real>& prm) {
   // Exact lists grow with the skin and are read every substep, so lists that serve long
   // narrow it; a kept contact set costs one entry per point within R + skin, but one beyond
   // R only walks, so its skin never narrows below R/2 (from the first R/4, a widening):
-  // narrower, a settling stack searched again nearly every substep (with the floor its
-  // second runs 16 % faster on one thread, BM_World48SheetsSettling).
+  // narrower, a settling stack searched again nearly every substep and ran slower
+  // (BM_World48SheetsSettling; the figures are in the commit that set the floor).
   if (w.kept_for == 0 || (prm.exact && w.kept_for > 32))
     return std::max(w.skin / 2, prm.exact ? prm.range / 16 : prm.range / 2);
   if (w.kept_for < 4) return std::min(w.skin * 2, prm.exact ? prm.range / 2 : prm.range);
