@@ -134,16 +134,18 @@ def runs_of(data):
 
 
 def times_faster(slow, fast, cpu=False):
-    """How many times faster `fast` ran than `slow` (the same work: time of slow ÷ time of fast).
-    From alternating rounds (both runs carry rounds, as many of each), the median over rounds of
-    the ratio within each round: the two ran side by side there, so a slow spell of the machine
-    slows both, and one lucky round of either side (which the fastest of each side would pick)
-    does not decide it. Otherwise the ratio of the two figures (medians of repetitions)."""
+    """How many times faster `fast` ran than `slow`, per point-step: time of slow ÷ time of fast,
+    scaled by the point-steps of an iteration where the two differ (a scene changed since its
+    baseline). From alternating rounds (both runs carry rounds, as many of each), the median over
+    rounds of the ratio within each round: the two ran side by side there, so a slow spell of the
+    machine slows both, and one lucky round of either side (which the fastest of each side would
+    pick) does not decide it. Otherwise the ratio of the two figures (medians of repetitions)."""
+    work = ((fast.points or 1) * fast.substeps) / ((slow.points or 1) * slow.substeps)
     a, b = (slow.cpu_rounds, fast.cpu_rounds) if cpu else (slow.rounds, fast.rounds)
     if a and b and len(a) == len(b) and all(a) and all(b):
-        return statistics.median(x / y for x, y in zip(a, b))
+        return work * statistics.median(x / y for x, y in zip(a, b))
     s, f = (slow.cpu_seconds, fast.cpu_seconds) if cpu else (slow.seconds, fast.seconds)
-    return s / f if s and f else None
+    return work * s / f if s and f else None
 
 
 PAIRED_TEXT = ("× is the median over the rounds of the ratio within a round, where the two ran one right after "
