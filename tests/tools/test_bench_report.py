@@ -1,0 +1,120 @@
+"""The arithmetic tools/bench_report.py turns benchmark JSON into verdicts with, on inputs whose
+answers are worked out by hand here (no drape build needed)."""
+import math
+import os
+import sys
+import unittest
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "tools"))
+import bench_report  # noqa: E402
+
+
+def single(name, seconds, cpu_seconds=None, points=1024, substeps=1):
+    """One repetition of a benchmark as Google Benchmark writes it, times in ms."""
+    return {"name": name, "run_name": name, "run_type": "iteration", "time_unit": "ms",
+            "real_time": seconds * 1e3, "cpu_time": (cpu_seconds if cpu_seconds is not None else seconds) * 1e3,
+            "points": points, "substeps": substeps}
+
+
+def aggregate(name, kind, seconds):
+    entry = single(name, seconds)
+    entry.update(run_type="aggregate", aggregate_name=kind)
+    return entry
+
+
+def rounds_run(name, seconds, cpu_seconds=None, **kw):
+    """A run of alternating rounds: one single repetition per round, in order."""
+    cpus = cpu_seconds or seconds
+    data = {"benchmarks": [single(name, s, c, **kw) for s, c in zip(seconds, cpus)]}
+    return bench_report.runs_of(data)[name]
+
+
+class TimesFaster(unittest.TestCase):
+    def test_median_of_the_ratio_within_each_round(self):
+        # rounds (slow, fast): (10, 5), (12, 4), (30, 10): ratios 2, 3, 3, median 3. The fastest
+        # of each side would give 10 ÷ 4 = 2.5, a ratio no round saw.
+        slow = rounds_run("BM_A", [0.010, 0.012, 0.030])
+        fast = rounds_run("BM_A", [0.005, 0.004, 0.010])
+        self.assertAlmostEqual(bench_report.times_faster(slow, fast), 3.0, places=12)
+
+    def test_one_lucky_round_does_not_decide(self):
+        # the fast side's second round is 4× quicker than its others; within rounds the ratios
+        # are 1, 4 and 1, so the verdict is 1
+        slow = rounds_run("BM_A", [0.010, 0.010, 0.010])
+        fast = rounds_run("BM_A", [0.010, 0.0025, 0.010])
+        self.assertAlmostEqual(bench_report.times_faster(slow, fast), 1.0, places=12)
+
+    def test_cpu_time_rounds_are_paired_apart_from_wall_time(self):
+        # a /real_time benchmark: wall time stretched by a busy machine in two of the slow
+        # side's rounds, its CPU time not
+        slow = rounds_run("BM_A/real_time", [0.040, 0.040, 0.010], cpu_seconds=[0.010, 0.010, 0.010])
+        fast = rounds_run("BM_A/real_time", [0.005, 0.005, 0.005])
+        self.assertAlmostEqual(bench_report.times_faster(slow, fast), 8.0, places=12)  # median of 8, 8, 2
+        self.assertAlmostEqual(bench_report.times_faster(slow, fast, cpu=True), 2.0, places=12)
+
+    def test_scaled_by_the_work_of_an_iteration(self):
+        # the same time for twice the points and three times the substeps: 6× the point-steps
+        slow = rounds_run("BM_A", [0.010, 0.010], points=1000, substeps=1)
+        fast = rounds_run("BM_A", [0.010, 0.010], points=2000, substeps=3)
+        self.assertAlmostEqual(bench_report.times_faster(slow, fast), 6.0, places=12)
+
+    def test_unequal_rounds_fall_back_to_the_figures(self):
+        # 3 rounds against 2: not paired, so the fastest of each side (8 ms ÷ 2 ms)
+        slow = rounds_run("BM_A", [0.010, 0.008, 0.009])
+        fast = rounds_run("BM_A", [0.002, 0.003])
+        self.assertAlmostEqual(bench_report.times_faster(slow, fast), 4.0, places=12)
+
+    def test_medians_of_repetitions(self):
+        data = {"benchmarks": [aggregate("BM_A", "median", 0.010), aggregate("BM_B", "median", 0.0025)]}
+        runs = bench_report.runs_of(data)
+        self.assertAlmostEqual(bench_report.times_faster(runs["BM_A"], runs["BM_B"]), 4.0, places=12)
+
+    def test_missing_time_gives_none(self):
+        slow = rounds_run("BM_A", [0.010])
+        fast = rounds_run("BM_A", [0.0])
+        self.assertIsNone(bench_report.times_faster(slow, fast))
+
+
+class RunsOf(unittest.TestCase):
+    def test_single_runs_keep_the_fastest_and_every_round(self):
+        run = rounds_run("BM_A/real_time", [0.003, 0.001, 0.002], cpu_seconds=[0.0031, 0.0011, 0.0021])
+        self.assertAlmostEqual(run.seconds, 0.001)
+        for got, want in ((run.rounds, [0.003, 0.001, 0.002]), (run.cpu_rounds, [0.0031, 0.0011, 0.0021])):
+            self.assertEqual(len(got), len(want))
+            for g, w in zip(got, want):
+                self.assertAlmostEqual(g, w, places=15)
+        # sample standard deviation of 1, 2, 3 ms over their mean 2 ms
+        self.assertAlmostEqual(run.cv, 0.5, places=12)
+
+    def test_a_benchmark_without_real_time_is_timed_by_its_cpu_time(self):
+        run = rounds_run("BM_A", [0.003], cpu_seconds=[0.002])
+        self.assertAlmostEqual(run.seconds, 0.002)
+
+    def test_median_wins_over_single_runs_of_the_same_name(self):
+        data = {"benchmarks": [aggregate("BM_A", "median", 0.004), single("BM_A", 0.001)]}
+        run = bench_report.runs_of(data)["BM_A"]
+        self.assertAlmostEqual(run.seconds, 0.004)
+        self.assertIsNone(run.rounds)
+
+    def test_failed_runs_are_left_out(self):
+        bad = single("BM_A", 0.001)
+        bad["error_occurred"] = True
+        self.assertEqual(bench_report.runs_of({"benchmarks": [bad]}), {})
+
+    def test_rate_per_substep(self):
+        run = rounds_run("BM_A", [0.002], points=100, substeps=10)
+        self.assertAlmostEqual(run.step_seconds, 0.0002)
+        self.assertAlmostEqual(run.cpu_rate, 100 * 10 / 0.002)
+
+
+class Slope(unittest.TestCase):
+    def test_power_law(self):
+        xs = [16, 32, 64, 128]
+        self.assertAlmostEqual(bench_report.loglog_slope(xs, [3 * x ** 1.5 for x in xs]), 1.5, places=12)
+
+    def test_one_size_has_no_slope(self):
+        self.assertTrue(math.isnan(bench_report.loglog_slope([8, 8], [1, 2])))
+
+
+if __name__ == "__main__":
+    unittest.main()
