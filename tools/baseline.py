@@ -45,8 +45,8 @@ class Recorder:
     def alternate(self, sides, rounds):
         """Runs each side's drape_bench (sides: name -> (command, environment)) once per round, one
         repetition each, the sides' order turning every round, and returns each side's runs of all
-        rounds as one Google Benchmark JSON (tools/bench_report.py reports the fastest of a
-        benchmark's runs). A virtual machine's slow spell lasts minutes and slows whatever runs in
+        rounds as one Google Benchmark JSON (tools/bench_report.py shows the fastest of a
+        benchmark's runs and divides round by round). A virtual machine's slow spell lasts minutes and slows whatever runs in
         it: two runs minutes apart, one of each binary, can differ by 30 % with no change between
         them, while rounds of the two binaries side by side see the same spells."""
         merged = {name: None for name in sides}

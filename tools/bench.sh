@@ -61,7 +61,7 @@ settle() {
 # or not) moves a ratio as much as a change does. Each script builds its old commit (its
 # default) in a scratch folder, waits for a quiet machine, runs the old binary and today's
 # (the builds above) in alternating rounds, one repetition each, and writes both sides'
-# runs to its docs/*-baseline.json; the report divides the fastest of each side's rounds.
+# runs to its docs/*-baseline.json; the report judges by the median of the ratios within rounds.
 if [[ "${DRAPE_BENCH_BASELINES:-1}" != 0 ]]; then
   "$python" tools/simd_baseline.py --current "$build-portable/bench/drape_bench" --rounds "$rounds"
   "$python" tools/scenes_baseline.py --current "$build/bench/drape_bench" --rounds "$rounds"
@@ -90,7 +90,7 @@ settle "the portable run"
 # BM_Feature_obstacle and BM_Feature_obstacle_friction from the native binary in alternating rounds
 # of one repetition each (tools/floor_pair.py). In the main run they are repetitions minutes apart,
 # and a slow spell during one of them once moved the floor's price from +11 % to +41 %; the report
-# judges the floor by the fastest of each benchmark's rounds here.
+# judges the floor by the median over these rounds of the price within a round.
 floor_json=docs/benchmarks-floor.json
 settle "the floor paired with the bare world"
 "$python" tools/floor_pair.py --bench "$build/bench/drape_bench" --rounds "$rounds" --out "$floor_json" \

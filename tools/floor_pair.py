@@ -9,7 +9,8 @@ docs/BENCHMARKS.md) decides the verdict: two reports in a row read +11 % and +41
 script runs each of the benchmarks (the bare world, the floor, the floor with friction) as its
 own side, one repetition per round, the order turning every round (tools/baseline.py), all from
 the same drape_bench binary, and writes every side's runs into one drape_bench JSON.
-tools/bench_report.py takes the fastest of each benchmark's rounds and judges the floor by them.
+tools/bench_report.py shows the fastest of each benchmark's rounds and judges the floor by the median
+over the rounds of the price within a round.
 
 Usage: tools/floor_pair.py --bench BENCH [--rounds 5] [--out docs/benchmarks-floor.json]
                            [--benchmarks BM_Feature_bare BM_Feature_obstacle ...]

@@ -7,7 +7,7 @@ as much as a virtual machine's slow spell (25-35 % on the machine of docs/BENCHM
 alike their code is; so this script runs the two drape_bench binaries in alternating rounds of
 one repetition each (tools/baseline.py), the order turning every round, and writes the portable
 side's runs as a drape_bench JSON with the native side's runs beside them under "native".
-tools/bench_report.py divides the fastest of each side's rounds.
+tools/bench_report.py judges by the median over the rounds of the ratio within a round.
 
 Usage: tools/portable_pair.py --native BENCH --portable BENCH [--rounds 5] [--out docs/benchmarks-portable.json]
                               [-- drape_bench arguments, e.g. --benchmark_filter=... --benchmark_min_time=0.2]

@@ -19,8 +19,8 @@ are noise). Record it again after such a change to the benchmark, with the same 
 
 With --current BENCH (tools/bench.sh passes its own drape_bench), today's engine runs the same
 scenes in rounds alternating with the baseline's (--rounds, one repetition each), and both sides'
-runs go into the record: the report then divides figures measured side by side, each the
-fastest of its rounds.
+runs go into the record: the report then divides figures measured side by side, round by
+round (the median of the ratios within rounds).
 
 Usage: tools/scenes_baseline.py [--commit 0598513] [--current BENCH] [--rounds 5] [--out docs/scenes-baseline.json]
 tools/bench.sh runs it before its own measurements; it waits for a quiet machine (load < 0.5)

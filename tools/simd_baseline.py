@@ -15,7 +15,7 @@ measured beside them (below), else those of docs/benchmarks-AVX2.json.
 With --current BENCH (tools/bench.sh passes its portable build's drape_bench), that binary held
 to AVX2 (DRAPE_SIMD_TARGET=AVX2) runs the same benchmarks in alternating rounds with the old one
 (--rounds, one repetition each), and both sides' runs go into the record: the report then
-divides figures measured side by side, each the fastest of its rounds.
+divides figures measured side by side, round by round (the median of the ratios within rounds).
 
 Usage: tools/simd_baseline.py [--commit cf9ea80] [--march x86-64-v3] [--current BENCH] [--rounds 5]
                               [--out docs/simd-baseline.json]
