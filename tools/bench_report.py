@@ -140,7 +140,9 @@ def times_faster(slow, fast, cpu=False):
     rounds of the ratio within each round: the two ran side by side there, so a slow spell of the
     machine slows both, and one lucky round of either side (which the fastest of each side would
     pick) does not decide it. Otherwise the ratio of the two figures (medians of repetitions)."""
-    work = ((fast.points or 1) * fast.substeps) / ((slow.points or 1) * slow.substeps)
+    work = fast.substeps / slow.substeps
+    if fast.points and slow.points:  # a run without the counter says nothing about its points
+        work *= fast.points / slow.points
     a, b = (slow.cpu_rounds, fast.cpu_rounds) if cpu else (slow.rounds, fast.rounds)
     if a and b and len(a) == len(b) and all(a) and all(b):
         return work * statistics.median(x / y for x, y in zip(a, b))

@@ -58,6 +58,12 @@ class TimesFaster(unittest.TestCase):
         fast = rounds_run("BM_A", [0.010, 0.010], points=2000, substeps=3)
         self.assertAlmostEqual(bench_report.times_faster(slow, fast), 6.0, places=12)
 
+    def test_a_run_without_points_is_not_scaled_by_the_others(self):
+        # only one side counts its points: the same time is the same speed, not 1024× apart
+        slow = rounds_run("BM_A", [0.010, 0.010], points=None)
+        fast = rounds_run("BM_A", [0.010, 0.010])
+        self.assertAlmostEqual(bench_report.times_faster(slow, fast), 1.0, places=12)
+
     def test_unequal_rounds_fall_back_to_the_figures(self):
         # 3 rounds against 2: not paired, so the fastest of each side (8 ms ÷ 2 ms)
         slow = rounds_run("BM_A", [0.010, 0.008, 0.009])
