@@ -9,6 +9,7 @@
 #include <random>
 #include <string>
 #include <tuple>
+#include <type_traits>
 #include <vector>
 
 #include "bounds.h"
@@ -569,6 +570,20 @@ std::vector<P3> dense(const ContactForces<double>& f, std::size_t points) {
   return out;
 }
 
+// The brute force's forces of a pair in both directions, summed per sheet: on a (points
+// of a against b, and a's corners' share of b's points) and on b.
+struct PairForces {
+  std::vector<P3> on_a, on_b;
+};
+PairForces brute_pair(const Dense& ab, const Dense& ba) {
+  PairForces out{ab.on_q, ab.on_s};
+  for (std::size_t p = 0; p < out.on_a.size(); ++p)
+    for (int k = 0; k < 3; ++k) out.on_a[p][k] += ba.on_s[p][k];
+  for (std::size_t p = 0; p < out.on_b.size(); ++p)
+    for (int k = 0; k < 3; ++k) out.on_b[p][k] += ba.on_q[p][k];
+  return out;
+}
+
 // The same points feel a force, and the same force to rounding. Reports the first few
 // points that differ and how many do.
 void expect_same_forces(const std::vector<P3>& got, const std::vector<P3>& want, const std::string& what) {
@@ -627,11 +642,7 @@ TEST(Contacts, PairMatchesEveryPointAgainstEveryTriangle) {
     pair_contacts(a, boxes(a), b, boxes(b), kParams, work, scratch);
     const Dense ab = brute_contacts(a, b, -1), ba = brute_contacts(b, a, -1);
     ASSERT_GT(ab.entries_q, a.size() / 4) << "seed " << seed;  // most points in contact
-    std::vector<P3> on_a = ab.on_q, on_b = ab.on_s;
-    for (std::size_t p = 0; p < a.size(); ++p)
-      for (int k = 0; k < 3; ++k) on_a[p][k] += ba.on_s[p][k];
-    for (std::size_t p = 0; p < b.size(); ++p)
-      for (int k = 0; k < 3; ++k) on_b[p][k] += ba.on_q[p][k];
+    const auto [on_a, on_b] = brute_pair(ab, ba);
     const std::string tag = "seed " + std::to_string(seed);
     expect_same_forces(dense(work.on_a, a.size()), on_a, tag + " on a");
     expect_same_forces(dense(work.on_b, b.size()), on_b, tag + " on b");
@@ -883,11 +894,7 @@ TEST(Contacts, WalkedForcesBetweenPlanesMatchEveryPointAgainstEveryTriangle) {
         pair_contacts(a, boxes(a), b, boxes(b), kParams, walked, scratch);
         const Dense ab = brute_contacts(a, b, -1), ba = brute_contacts(b, a, -1);
         ASSERT_GT(ab.entries_q, a.size() / 2) << "pair " << pair;  // most points in contact
-        std::vector<P3> on_a = ab.on_q, on_b = ab.on_s;
-        for (std::size_t p = 0; p < a.size(); ++p)
-          for (int k = 0; k < 3; ++k) on_a[p][k] += ba.on_s[p][k];
-        for (std::size_t p = 0; p < b.size(); ++p)
-          for (int k = 0; k < 3; ++k) on_b[p][k] += ba.on_q[p][k];
+        const auto [on_a, on_b] = brute_pair(ab, ba);
         const std::string tag = "pair " + std::to_string(pair) + " step " + std::to_string(step);
         expect_same_forces(dense(walked.on_a, a.size()), on_a, tag + " on a");
         expect_same_forces(dense(walked.on_b, b.size()), on_b, tag + " on b");
@@ -895,6 +902,74 @@ TEST(Contacts, WalkedForcesBetweenPlanesMatchEveryPointAgainstEveryTriangle) {
       EXPECT_LE(walked.searches, std::uint64_t(steps) / 2) << "pair " << pair;  // the walk served most steps
     }
   });
+}
+
+// Two equal grids, one 8 mm straight above the other, carried together along a drift and a
+// turn: every point lies over a vertex of the other sheet, where the triangles around it
+// are equally near, and rounding alone (different for each point, through the turn) makes
+// one of them nearer by an ulp. The walk stays at its vertex (kWalkTie, contacts.cpp)
+// instead of testing the cells around it and moving to whichever rounding favours: no
+// kept cell changes after the search. The forces stay the brute force's to 10⁻¹⁰ of the
+// largest (double). With the exact vertex test the cells move; a fold moved about a tenth
+// of its entries every substep so, and tested three more cells for about half of them.
+template <class Real>
+void expect_walk_stays_at_aligned_vertices() {
+  test::for_each_target([&](std::int64_t) {
+    SheetDef da;
+    da.m = da.n = 16;
+    da.width = da.height = 0.16;
+    SheetDef db = da;
+    db.center = {0.0, 0.0, 0.008};
+    auto a = build_sheet<Real>(da), b = build_sheet<Real>(db);
+    const Vec3Array<Real> a0 = a.position, b0 = b.position;
+    // The same motion for both, turned about the origin or about (ox, oy) and moved back:
+    // equal but for rounding.
+    auto carry = [](Sheet<Real>& s, const Vec3Array<Real>& from, int step, double ox, double oy) {
+      const Real turn = Real(0.003 * step), c = std::cos(turn), sn = std::sin(turn);
+      const Real tx = Real(0.0007 * step) + (c * Real(ox) - sn * Real(oy)) - Real(ox),
+                 ty = Real(-0.0004 * step) + (sn * Real(ox) + c * Real(oy)) - Real(oy);
+      for (std::size_t p = 0; p < s.size(); ++p) {  // in the sheet's precision, as a step rounds
+        const Real x = from.x[p] - Real(ox), y = from.y[p] - Real(oy);
+        s.position.x[p] = x * c - y * sn + Real(ox) + tx;
+        s.position.y[p] = x * sn + y * c + Real(oy) + ty;
+      }
+    };
+    ContactParams<Real> prm = ContactParams<Real>::make(0.005, 0.002, 1e-4, 6.0);
+    PairContacts<Real> walked;
+    ContactScratch<Real> scratch;
+    std::vector<std::uint32_t> cells_ab, cells_ba;
+    for (int step = 0; step < 12; ++step) {
+      carry(a, a0, step, 0.0, 0.0);
+      carry(b, b0, step, 0.0137, -0.0291);
+      SheetBoxes<Real> ba, bb;
+      build_boxes(a, ba);
+      build_boxes(b, bb);
+      pair_contacts(a, ba, b, bb, prm, walked, scratch);
+      if (step == 0) {
+        cells_ab = walked.a_on_b.cell;
+        cells_ba = walked.b_on_a.cell;
+        ASSERT_EQ(cells_ab.size(), a.size());  // every point in the set
+        continue;
+      }
+      EXPECT_EQ(walked.a_on_b.cell, cells_ab) << "step " << step;
+      EXPECT_EQ(walked.b_on_a.cell, cells_ba) << "step " << step;
+      if constexpr (std::is_same_v<Real, double>) {
+        const Dense ab = brute_contacts(a, b, -1), ba_ = brute_contacts(b, a, -1);
+        const auto [on_a, on_b] = brute_pair(ab, ba_);
+        const std::string tag = "step " + std::to_string(step);
+        expect_same_forces(dense(walked.on_a, a.size()), on_a, tag + " on a");
+        expect_same_forces(dense(walked.on_b, b.size()), on_b, tag + " on b");
+      }
+    }
+    EXPECT_EQ(walked.searches, 1u);  // the walk served every later step
+  });
+}
+
+TEST(Contacts, WalkOverAnAlignedGridStaysAtItsVertexThroughRounding) {
+  expect_walk_stays_at_aligned_vertices<double>();
+}
+TEST(Contacts, WalkOverAnAlignedGridStaysAtItsVertexThroughRoundingInFloat) {
+  expect_walk_stays_at_aligned_vertices<float>();
 }
 
 // The same over whole runs of a World, where a different force changes the trajectory:

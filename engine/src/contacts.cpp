@@ -552,22 +552,37 @@ void points_against_lists(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
     }
 }
 
+// Within this of zero, a closest point's weight or the cosine between x − v and an edge
+// of v is zero for the walk: √ε of the precision. Sheets whose grids are aligned (a stack
+// of equal sheets, a sheet folded along a grid line) put points straight over the other
+// sheet's vertices, where the exact tests below decide by rounding alone which cell is
+// nearer; measured on a fold, nearly every vertex test that failed did so with a cosine
+// under 10⁻¹⁰, and each failure cost three more cells' tests and often a move back and forth.
+// Taking v where x − v leans at most √ε past 90° from its edges moves the closest point by
+// at most about √ε·|x − v| (a force direction off by as much) and the distance by about
+// ε·|x − v|, its own rounding (contacts_test.cpp holds walked forces to the exact search).
+template <class Real>
+constexpr Real kWalkTie = std::is_same_v<Real, float> ? Real(3.5e-4) : Real(1.5e-8);
+
 // Whether grid point (vi, vj) of s is the point of every triangle around it nearest to x:
-// x − v makes an angle of at least 90° with each of its edges (to its four grid neighbours
-// and, along the cells' diagonals, to (vi ± 1, vj ± 1)), which puts x in v's vertex region
-// of each triangle (closest_weights). Then no cell around v holds a nearer point, and a walk
-// that reached v stops without testing their triangles.
+// x − v makes an angle of at least 90° (less kWalkTie's cosine) with each of its edges (to
+// its four grid neighbours and, along the cells' diagonals, to (vi ± 1, vj ± 1)), which
+// puts x in v's vertex region of each triangle (closest_weights). Then no cell around v
+// holds a nearer point, and a walk that reached v stops without testing their triangles.
 template <class Real>
 bool vertex_is_nearest(const Sheet<Real>& s, V3<Real> x, std::int64_t vi, std::int64_t vj) {
   const std::int64_t rows = s.topology->m + 1, cols = s.topology->n + 1;
   const V3<Real> v = at(s, std::uint32_t(vi * cols + vj));
   const V3<Real> d = sub(x, v);
+  const Real tie2 = kWalkTie<Real> * kWalkTie<Real> * dot(d, d);
   constexpr int kEdges[6][2] = {{-1, 0}, {1, 0}, {0, -1}, {0, 1}, {1, 1}, {-1, -1}};
   unsigned outside = 1;
   for (const auto& e : kEdges) {
     const std::int64_t ui = vi + e[0], uj = vj + e[1];
     if (ui < 0 || uj < 0 || ui >= rows || uj >= cols) continue;
-    outside &= unsigned(dot(d, sub(at(s, std::uint32_t(ui * cols + uj)), v)) <= 0);
+    const V3<Real> edge = sub(at(s, std::uint32_t(ui * cols + uj)), v);
+    const Real along = dot(d, edge);  // cos·|d|·|edge|
+    outside &= unsigned(along <= 0) | unsigned(along * along <= tie2 * dot(edge, edge));
   }
   return outside != 0;
 }
@@ -686,10 +701,12 @@ HWY_INLINE void first_tests(const Sheet<Real>& q, const Sheet<Real>& s, const Ke
     hn::Store(w, d, out.w[2] + k);
     // points_walking's move test: the weights on corners 00, 01, 11, 10 (triangle 0 is
     // (00, 01, 11), triangle 1 (00, 11, 10)) and whether a row's or column's two are zero
+    // (within kWalkTie)
     const V zero = hn::Zero(d), w00 = u, w01 = hn::IfThenElse(second, zero, v), w11 = hn::IfThenElse(second, v, w),
             w10 = hn::IfThenElse(second, w, zero);
-    const auto edge = hn::Or(hn::Or(hn::Eq(hn::Add(w10, w11), zero), hn::Eq(hn::Add(w00, w01), zero)),
-                             hn::Or(hn::Eq(hn::Add(w01, w11), zero), hn::Eq(hn::Add(w00, w10), zero)));
+    const V tie = hn::Set(d, kWalkTie<Real>);
+    const auto edge = hn::Or(hn::Or(hn::Le(hn::Add(w10, w11), tie), hn::Le(hn::Add(w00, w01), tie)),
+                             hn::Or(hn::Le(hn::Add(w01, w11), tie), hn::Le(hn::Add(w00, w10), tie)));
     hn::Store(hn::IfThenElseZero(hn::AndNot(edge, hn::Gt(dist2, zero)), hn::Set(d, Real(1))), d, out.ends + k);
     hn::Store(hn::IfThenElse(second, g1.x, g0.x), d, out.unit[0] + k);
     hn::Store(hn::IfThenElse(second, g1.y, g0.y), d, out.unit[1] + k);
@@ -818,7 +835,8 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
     for (int move = 0; move < kMaxMoves; ++move) {
       // The closest point's weights on the cell's corners 00, 01, 10, 11: triangle 0 is
       // (00, 01, 11), triangle 1 (00, 11, 10). Zero weight on a row's (column's) two
-      // corners puts it on the opposite row (column) edge of the cell.
+      // corners (within kWalkTie: a closest point within rounding of a corner is taken
+      // there, and the corner's test decides) puts it on the opposite row (column) edge.
       Real w00 = best.w.x, w01, w10, w11;
       if (best.key & 1) {
         w01 = 0;
@@ -829,13 +847,14 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
         w11 = best.w.z;
         w10 = 0;
       }
-      const int di = w10 + w11 == 0 ? -1 : (w00 + w01 == 0 ? 1 : 0);
-      const int dj = w01 + w11 == 0 ? -1 : (w00 + w10 == 0 ? 1 : 0);
+      constexpr Real tie = kWalkTie<Real>;
+      const int di = w10 + w11 <= tie ? -1 : (w00 + w01 <= tie ? 1 : 0);
+      const int dj = w01 + w11 <= tie ? -1 : (w00 + w10 <= tie ? 1 : 0);
       if (di == 0 && dj == 0) break;
       const std::int64_t ci = cell / cols, cj = cell % cols;
-      if (di != 0 && dj != 0 && allowed(ci + di, cj) && allowed(ci, cj + dj) && allowed(ci + di, cj + dj) &&
-          vertex_is_nearest(s, x, ci + (di > 0), cj + (dj > 0)))
-        break;
+      // At a corner: no cell around it holds a nearer point (of the cells outside the grid
+      // there are none to test; of those in the ring, the test asks more than it needs).
+      if (di != 0 && dj != 0 && vertex_is_nearest(s, x, ci + (di > 0), cj + (dj > 0))) break;
       const std::uint32_t key = best.key;
       auto corner = [&](std::int64_t i, std::int64_t j) { return std::uint32_t(i * cols + j); };
       if (di != 0 && allowed(ci + di, cj)) test_cell(s, cols, x, corner(ci + di, cj), best);
