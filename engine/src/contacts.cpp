@@ -655,9 +655,10 @@ struct FirstTests {
   alignas(64) Real dist2[kSize], second[kSize], w[3][kSize];
   alignas(64) Real unit[3][kSize];  // p − q, then (force_lanes) divided by the distance
   alignas(64) Real force[kSize];    // the exponent, then (force_lanes) the force f
-  // 1 where the walk ends at this triangle without testing another cell: the closest point
-  // is off the cell's outer edges (points_walking's move test finds no row or column to
-  // cross) and at a positive distance.
+  // 1 where the walk ends at this triangle without testing another cell, at a positive
+  // distance: the closest point is off the cell's outer edges (points_walking's move test
+  // finds no row or column to cross), or at a corner inside the grid that vertex_is_nearest
+  // takes.
   alignas(64) Real ends[kSize];
 };
 
@@ -675,6 +676,10 @@ HWY_INLINE void first_tests(const Sheet<Real>& q, const Sheet<Real>& s, const Ke
       return hn::BitCast(di, hn::LoadU(hn::RebindToUnsigned<decltype(d)>(), from));
   };
   const auto cols = hn::Set(di, Index(s.topology->cols())), one = hn::Set(di, Index(1));
+  // A corner's row and column come from a quotient in Real, rounded down exactly while
+  // index + columns stays below 2^24 in float (2^53 in double): larger float sheets leave
+  // their corners to the walk.
+  const bool corners = std::is_same_v<Real, double> || s.size() <= (std::size_t(1) << 23);
   auto gather = [&](const Sheet<Real>& sheet, auto at) {
     return V3s<Real, V>{hn::GatherIndex(d, sheet.position.x.data(), at), hn::GatherIndex(d, sheet.position.y.data(), at),
                         hn::GatherIndex(d, sheet.position.z.data(), at)};
@@ -705,9 +710,53 @@ HWY_INLINE void first_tests(const Sheet<Real>& q, const Sheet<Real>& s, const Ke
     const V zero = hn::Zero(d), w00 = u, w01 = hn::IfThenElse(second, zero, v), w11 = hn::IfThenElse(second, v, w),
             w10 = hn::IfThenElse(second, w, zero);
     const V tie = hn::Set(d, kWalkTie<Real>);
-    const auto edge = hn::Or(hn::Or(hn::Le(hn::Add(w10, w11), tie), hn::Le(hn::Add(w00, w01), tie)),
-                             hn::Or(hn::Le(hn::Add(w01, w11), tie), hn::Le(hn::Add(w00, w10), tie)));
-    hn::Store(hn::IfThenElseZero(hn::AndNot(edge, hn::Gt(dist2, zero)), hn::Set(d, Real(1))), d, out.ends + k);
+    const auto row_lo = hn::Le(hn::Add(w10, w11), tie), row_hi = hn::Le(hn::Add(w00, w01), tie);
+    const auto col_lo = hn::Le(hn::Add(w01, w11), tie), col_hi = hn::Le(hn::Add(w00, w10), tie);
+    const auto edge = hn::Or(hn::Or(row_lo, row_hi), hn::Or(col_lo, col_hi));
+    auto ends = hn::Not(edge);
+    // At a corner (the walk's first move would be diagonal): vertex_is_nearest of that
+    // corner, lane by lane in its operations, where the corner is inside the grid (all six
+    // neighbours exist; at the border the walk tests it). Its row and column neighbours
+    // are this cell's corners, the other four are gathered.
+    const auto at_corner = hn::And(hn::Or(row_lo, row_hi), hn::Or(col_lo, col_hi));
+    if (corners && !hn::AllFalse(d, at_corner)) {
+      const auto a = hn::AndNot(row_lo, row_hi), b = hn::AndNot(col_lo, col_hi);  // the walk's di > 0, dj > 0
+      auto pick = [](auto mask, const V3s<Real, V>& yes, const V3s<Real, V>& no) {
+        return V3s<Real, V>{hn::IfThenElse(mask, yes.x, no.x), hn::IfThenElse(mask, yes.y, no.y),
+                            hn::IfThenElse(mask, yes.z, no.z)};
+      };
+      const V3s<Real, V> v = pick(a, pick(b, x11, x10), pick(b, x01, x00));
+      const V3s<Real, V> in_row = pick(a, pick(b, x01, x00), pick(b, x11, x10));  // (vi ∓ 1, vj)
+      const V3s<Real, V> in_col = pick(b, pick(a, x10, x00), pick(a, x11, x01));  // (vi, vj ∓ 1)
+      const auto ai = hn::RebindMask(di, a), bi = hn::RebindMask(di, b);
+      const auto vi = hn::Add(hn::Add(c00, hn::IfThenElseZero(ai, cols)), hn::IfThenElseZero(bi, one));
+      // The corner's row and column, in Real: exact below `corners`' bound.
+      const V index = hn::ConvertTo(d, vi), width = hn::Set(d, Real(s.topology->cols()));
+      const V row = hn::Floor(hn::Div(index, width)), col = hn::Sub(index, hn::Mul(row, width));
+      const V first = hn::Set(d, Real(1));
+      const auto inside = hn::And(hn::And(hn::Ge(row, first), hn::Lt(row, hn::Set(d, Real(s.topology->m)))),
+                                  hn::And(hn::Ge(col, first), hn::Lt(col, hn::Set(d, Real(s.topology->n)))));
+      const auto last_point = hn::Set(di, Index(s.size() - 1));
+      auto near = [&](auto index) { return gather(s, hn::Min(hn::Max(index, hn::Zero(di)), last_point)); };
+      const V3s<Real, V> out_row = near(hn::IfThenElse(bi, hn::Add(vi, one), hn::Sub(vi, one)));
+      const V3s<Real, V> out_col = near(hn::IfThenElse(ai, hn::Add(vi, cols), hn::Sub(vi, cols)));
+      const V3s<Real, V> up_left = near(hn::Sub(hn::Sub(vi, cols), one)),
+                         down_right = near(hn::Add(hn::Add(vi, cols), one));
+      const V3s<Real, V> dv{hn::Sub(x.x, v.x), hn::Sub(x.y, v.y), hn::Sub(x.z, v.z)};
+      auto dot3 = [](const V3s<Real, V>& p, const V3s<Real, V>& q) {
+        return hn::Add(hn::Add(hn::Mul(p.x, q.x), hn::Mul(p.y, q.y)), hn::Mul(p.z, q.z));
+      };
+      const V tie2 = hn::Mul(hn::Mul(tie, tie), dot3(dv, dv));
+      auto away = [&](const V3s<Real, V>& u) {  // vertex_is_nearest's test of the edge to u
+        const V3s<Real, V> e{hn::Sub(u.x, v.x), hn::Sub(u.y, v.y), hn::Sub(u.z, v.z)};
+        const V along = dot3(dv, e);
+        return hn::Or(hn::Le(along, zero), hn::Le(hn::Mul(along, along), hn::Mul(tie2, dot3(e, e))));
+      };
+      const auto nearest = hn::And(hn::And(hn::And(away(in_row), away(in_col)), hn::And(away(out_row), away(out_col))),
+                                   hn::And(away(up_left), away(down_right)));
+      ends = hn::Or(ends, hn::And(hn::And(at_corner, nearest), inside));
+    }
+    hn::Store(hn::IfThenElseZero(hn::And(ends, hn::Gt(dist2, zero)), hn::Set(d, Real(1))), d, out.ends + k);
     hn::Store(hn::IfThenElse(second, g1.x, g0.x), d, out.unit[0] + k);
     hn::Store(hn::IfThenElse(second, g1.y, g0.y), d, out.unit[1] + k);
     hn::Store(hn::IfThenElse(second, g1.z, g0.z), d, out.unit[2] + k);

@@ -187,7 +187,7 @@ struct Candidates {
 // partial search; every point in the set walks); every 64 substeps every block is searched. The contact gap test of a walk
 // is two triangles per entry (a local-minimum grid point needs none of its neighbours'),
 // read straight from the sheet's position arrays by point index; with AVX2 or AVX-512 an
-// entry's first cell, the move test there and its force go a vector of entries at a time
+// entry's first cell, the move test there (a corner's test too) and its force go a vector of entries at a time
 // (contacts.cpp, points_walking), the rest one entry at a time.
 struct KeptContacts {
   std::vector<std::uint32_t> point, cell;
