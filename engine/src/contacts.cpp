@@ -598,19 +598,26 @@ struct V3s {
   V x, y, z;
 };
 
+// u − v and u·v lane by lane, in sub's and dot's order (functions, not lambdas, as
+// positive_lanes).
+template <class Real, class V>
+HWY_INLINE V3s<Real, V> sub_lanes(const V3s<Real, V>& u, const V3s<Real, V>& v) {
+  return {hn::Sub(u.x, v.x), hn::Sub(u.y, v.y), hn::Sub(u.z, v.z)};
+}
+template <class Real, class V>
+HWY_INLINE V dot_lanes(const V3s<Real, V>& u, const V3s<Real, V>& v) {
+  return hn::Add(hn::Add(hn::Mul(u.x, v.x), hn::Mul(u.y, v.y)), hn::Mul(u.z, v.z));
+}
+
 template <class D, class V>
 HWY_INLINE void closest_lanes(D d, const V3s<hn::TFromD<D>, V>& p, const V3s<hn::TFromD<D>, V>& a,
                               const V3s<hn::TFromD<D>, V>& b, const V3s<hn::TFromD<D>, V>& c, V& dist2, V& wa,
                               V& wb, V& wc, V3s<hn::TFromD<D>, V>& gap) {
   using Real = hn::TFromD<D>;
-  auto sub3 = [](const auto& u, const auto& v) { return V3s<Real, V>{hn::Sub(u.x, v.x), hn::Sub(u.y, v.y), hn::Sub(u.z, v.z)}; };
-  auto dot3 = [](const auto& u, const auto& v) {
-    return hn::Add(hn::Add(hn::Mul(u.x, v.x), hn::Mul(u.y, v.y)), hn::Mul(u.z, v.z));
-  };
   const V zero = hn::Zero(d), one = hn::Set(d, Real(1));
-  const auto ab = sub3(b, a), ac = sub3(c, a), ap = sub3(p, a), bp = sub3(p, b), cp = sub3(p, c);
-  const V d1 = dot3(ab, ap), d2 = dot3(ac, ap), d3 = dot3(ab, bp), d4 = dot3(ac, bp), d5 = dot3(ab, cp),
-          d6 = dot3(ac, cp);
+  const auto ab = sub_lanes(b, a), ac = sub_lanes(c, a), ap = sub_lanes(p, a), bp = sub_lanes(p, b), cp = sub_lanes(p, c);
+  const V d1 = dot_lanes(ab, ap), d2 = dot_lanes(ac, ap), d3 = dot_lanes(ab, bp), d4 = dot_lanes(ac, bp), d5 = dot_lanes(ab, cp),
+          d6 = dot_lanes(ac, cp);
   const V vc = hn::Sub(hn::Mul(d1, d4), hn::Mul(d3, d2));
   const V vb = hn::Sub(hn::Mul(d5, d2), hn::Mul(d1, d6));
   const V va = hn::Sub(hn::Mul(d3, d6), hn::Mul(d5, d4));
@@ -637,8 +644,8 @@ HWY_INLINE void closest_lanes(D d, const V3s<hn::TFromD<D>, V>& p, const V3s<hn:
   const V3s<Real, V> q{hn::Add(hn::Add(hn::Mul(u, a.x), hn::Mul(v, b.x)), hn::Mul(w, c.x)),
                        hn::Add(hn::Add(hn::Mul(u, a.y), hn::Mul(v, b.y)), hn::Mul(w, c.y)),
                        hn::Add(hn::Add(hn::Mul(u, a.z), hn::Mul(v, b.z)), hn::Mul(w, c.z))};
-  gap = sub3(p, q);
-  dist2 = dot3(gap, gap);
+  gap = sub_lanes(p, q);
+  dist2 = dot_lanes(gap, gap);
   wa = u;
   wb = v;
   wc = w;
@@ -742,15 +749,12 @@ HWY_INLINE void first_tests(const Sheet<Real>& q, const Sheet<Real>& s, const Ke
       const V3s<Real, V> out_col = near(hn::IfThenElse(ai, hn::Add(vi, cols), hn::Sub(vi, cols)));
       const V3s<Real, V> up_left = near(hn::Sub(hn::Sub(vi, cols), one)),
                          down_right = near(hn::Add(hn::Add(vi, cols), one));
-      const V3s<Real, V> dv{hn::Sub(x.x, v.x), hn::Sub(x.y, v.y), hn::Sub(x.z, v.z)};
-      auto dot3 = [](const V3s<Real, V>& p, const V3s<Real, V>& q) {
-        return hn::Add(hn::Add(hn::Mul(p.x, q.x), hn::Mul(p.y, q.y)), hn::Mul(p.z, q.z));
-      };
-      const V tie2 = hn::Mul(hn::Mul(tie, tie), dot3(dv, dv));
+      const V3s<Real, V> dv = sub_lanes(x, v);
+      const V tie2 = hn::Mul(hn::Mul(tie, tie), dot_lanes(dv, dv));
       auto away = [&](const V3s<Real, V>& u) {  // vertex_is_nearest's test of the edge to u
-        const V3s<Real, V> e{hn::Sub(u.x, v.x), hn::Sub(u.y, v.y), hn::Sub(u.z, v.z)};
-        const V along = dot3(dv, e);
-        return hn::Or(hn::Le(along, zero), hn::Le(hn::Mul(along, along), hn::Mul(tie2, dot3(e, e))));
+        const V3s<Real, V> e = sub_lanes(u, v);
+        const V along = dot_lanes(dv, e);
+        return hn::Or(hn::Le(along, zero), hn::Le(hn::Mul(along, along), hn::Mul(tie2, dot_lanes(e, e))));
       };
       const auto nearest = hn::And(hn::And(hn::And(away(in_row), away(in_col)), hn::And(away(out_row), away(out_col))),
                                    hn::And(away(up_left), away(down_right)));
