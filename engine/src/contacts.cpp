@@ -1045,8 +1045,11 @@ bool within(const Sheet<Real>& s, const Vec3Array<Real>& then, Real limit2) {
 // How the points of each patch of s moved since `then`: per patch, the centre of the box
 // of its points' displacements and that box's half-diagonal, which no displacement is
 // farther from the centre than (rows and columns 8p … 8p + 8, as their boxes). A patch row
-// at a time: its point rows are folded into per-column extremes along whole rows (long
-// vector loops), then each patch takes the extremes of its 9 columns.
+// at a time: its point rows are folded into per-column extremes along whole rows, the
+// three axes in one pass (long vector loops; the scenes of many small sheets spent more
+// in per-row overhead than in arithmetic), then each patch takes the extremes of its 9
+// columns. The first row sets the extremes as a fold from ±∞ would, so a NaN is lost in
+// them the same way (and kept in `nan`).
 template <class Real>
 void patch_motion(const Sheet<Real>& s, const Vec3Array<Real>& then, std::vector<Real> (&mid)[3],
                   std::vector<Real>& radius, ContactScratch<Real>& sc) {
@@ -1064,23 +1067,47 @@ void patch_motion(const Sheet<Real>& s, const Vec3Array<Real>& then, std::vector
   }
   sc.column_nan.resize(cols);
   Real* __restrict nan = sc.column_nan.data();  // NaN where a displacement is (not a number, or infinite)
+  Real* __restrict lo_x = sc.column_lo[0].data();
+  Real* __restrict lo_y = sc.column_lo[1].data();
+  Real* __restrict lo_z = sc.column_lo[2].data();
+  Real* __restrict hi_x = sc.column_hi[0].data();
+  Real* __restrict hi_y = sc.column_hi[1].data();
+  Real* __restrict hi_z = sc.column_hi[2].data();
+  constexpr Real inf = std::numeric_limits<Real>::infinity();
   for (std::uint32_t pi = 0; pi < patch_rows; ++pi) {
     const std::uint32_t i0 = pi * P, i1 = std::min(i0 + P, m);
-    std::fill(nan, nan + cols, Real(0));
-    for (int k = 0; k < 3; ++k) {
-      Real* __restrict lo = sc.column_lo[k].data();
-      Real* __restrict hi = sc.column_hi[k].data();
-      std::fill(lo, lo + cols, std::numeric_limits<Real>::infinity());
-      std::fill(hi, hi + cols, -std::numeric_limits<Real>::infinity());
-      for (std::uint32_t i = i0; i <= i1; ++i) {
-        const Real* __restrict a = now[k] + std::size_t(i) * cols;
-        const Real* __restrict b = old[k] + std::size_t(i) * cols;
+    for (std::uint32_t i = i0; i <= i1; ++i) {
+      const std::size_t r = std::size_t(i) * cols;
+      const Real* __restrict ax = now[0] + r;
+      const Real* __restrict ay = now[1] + r;
+      const Real* __restrict az = now[2] + r;
+      const Real* __restrict bx = old[0] + r;
+      const Real* __restrict by = old[1] + r;
+      const Real* __restrict bz = old[2] + r;
+      if (i == i0) {
+#pragma omp simd
         for (std::uint32_t j = 0; j < cols; ++j) {
-          const Real d = a[j] - b[j];
-          lo[j] = d < lo[j] ? d : lo[j];  // a NaN is lost here, but not in `nan`
-          hi[j] = d > hi[j] ? d : hi[j];
-          nan[j] += d * Real(0);
+          const Real dx = ax[j] - bx[j], dy = ay[j] - by[j], dz = az[j] - bz[j];
+          lo_x[j] = dx < inf ? dx : inf;  // a NaN is lost here, but not in `nan`
+          lo_y[j] = dy < inf ? dy : inf;
+          lo_z[j] = dz < inf ? dz : inf;
+          hi_x[j] = dx > -inf ? dx : -inf;
+          hi_y[j] = dy > -inf ? dy : -inf;
+          hi_z[j] = dz > -inf ? dz : -inf;
+          nan[j] = ((Real(0) + dx * Real(0)) + dy * Real(0)) + dz * Real(0);
         }
+        continue;
+      }
+#pragma omp simd
+      for (std::uint32_t j = 0; j < cols; ++j) {
+        const Real dx = ax[j] - bx[j], dy = ay[j] - by[j], dz = az[j] - bz[j];
+        lo_x[j] = dx < lo_x[j] ? dx : lo_x[j];
+        lo_y[j] = dy < lo_y[j] ? dy : lo_y[j];
+        lo_z[j] = dz < lo_z[j] ? dz : lo_z[j];
+        hi_x[j] = dx > hi_x[j] ? dx : hi_x[j];
+        hi_y[j] = dy > hi_y[j] ? dy : hi_y[j];
+        hi_z[j] = dz > hi_z[j] ? dz : hi_z[j];
+        nan[j] = ((nan[j] + dx * Real(0)) + dy * Real(0)) + dz * Real(0);
       }
     }
     for (std::uint32_t pj = 0; pj < patch_cols; ++pj) {
