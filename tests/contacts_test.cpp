@@ -692,7 +692,8 @@ TEST(Contacts, SelfContactMatchesEveryPointAgainstEveryTriangleOutsideTheRing) {
 // is compiled per target, contraction off), and each gives the same forces, entry for entry
 // and bit for bit, as the first (the widest): a crumpled pair with friction and a jostled
 // fold against itself, over steps that search, keep lists (exact) or walk a kept set, and a
-// stack of two equal grids walking, in both precisions. It fails if a target's vector gap test or tail rounds differently, or
+// stack of two equal grids walking with friction, sliding past each other (the force and
+// its friction in lanes where there are vectors), in both precisions. It fails if a target's vector gap test or tail rounds differently, or
 // finds a different set of cells.
 template <class Real>
 std::vector<double> contact_forces_over_steps() {
@@ -723,6 +724,11 @@ std::vector<double> contact_forces_over_steps() {
   auto lower = build_sheet<Real>(layer);
   layer.center = {0.0, 0.0, 0.006};
   auto upper = build_sheet<Real>(layer);
+  upper.friction = Real(0.5);
+  for (std::size_t p = 0; p < upper.size(); ++p) {  // some points slip, some are held
+    upper.velocity.x[p] = Real(0.02 * std::cos(double(p)));
+    lower.velocity.y[p] = Real(p % 3 == 0 ? 0.0 : 0.01 * std::sin(double(p)));
+  }
   ContactScratch<Real> scratch;
   PairContacts<Real> pair_walked, pair_exact, fold_walked, fold_exact, stack_walked;
   for (int step = 0; step < 6; ++step) {
