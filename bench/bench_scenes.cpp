@@ -18,6 +18,7 @@
 #include <cstdlib>
 #include <exception>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -81,19 +82,42 @@ void step_scene(benchmark::State& state, const drape::app::Scene& scene) {
       benchmark::Counter(points * substeps * double(state.iterations()), benchmark::Counter::kIsRate);
 }
 
-void BM_Scene(benchmark::State& state, const std::string& name) {
-  const std::filesystem::path file = scenes_dir() / (name + ".json");
-  drape::app::Scene scene;
+// Scene file `name` as the drape program reads it, or nothing when it cannot be read (the
+// benchmark is then skipped with the loader's message).
+std::optional<drape::app::Scene> load(benchmark::State& state, const std::string& name) {
   try {
-    scene = drape::app::load_scene(file);
+    return drape::app::load_scene(scenes_dir() / (name + ".json"));
   } catch (const std::exception& e) {
     state.SkipWithError(e.what());
-    return;
+    return std::nullopt;
   }
+}
+
+void step_in_its_precision(benchmark::State& state, const drape::app::Scene& scene) {
   if (scene.precision == drape::app::Precision::Float32)
     step_scene<float>(state, scene);
   else
     step_scene<double>(state, scene);
+}
+
+void BM_Scene(benchmark::State& state, const std::string& name) {
+  if (const auto scene = load(state, name)) step_in_its_precision(state, *scene);
+}
+
+// The same scene without what its sheets meet: no contacts (between sheets or of a sheet
+// with itself), no obstacles and no constraint riding on one (a carrier); its sheets, their
+// terms and other constraints as they are. An
+// explicit substep costs the same whatever the sheets' state, so this is the part of the
+// scene's cost that no contact or obstacle work removes: the baseline's time over this one
+// is the most × that work could give (the report's bound beside issue 13's 10×). One thread.
+void BM_SceneSheetsAlone(benchmark::State& state, const std::string& name) {
+  auto scene = load(state, name);
+  if (!scene) return;
+  scene->world.contact_strength = 0;
+  scene->obstacles.clear();
+  std::erase_if(scene->constraints, [](const drape::ConstraintDef& c) { return c.carrier.has_value(); });
+  for (drape::SheetDef& sd : scene->sheets) sd.self_collision = false;
+  step_in_its_precision(state, *scene);
 }
 
 // One thread in CPU time, the engine's cost as free of other jobs on a shared machine as a
@@ -111,6 +135,12 @@ void BM_Scene(benchmark::State& state, const std::string& name) {
         ->ArgName("threads")
         ->MinTime(min_seconds)
         ->UseRealTime()
+        ->Unit(benchmark::kMillisecond);
+    benchmark::RegisterBenchmark((std::string("BM_SceneSheetsAlone/") + name).c_str(), BM_SceneSheetsAlone,
+                                 std::string(name))
+        ->Arg(1)
+        ->ArgName("threads")
+        ->MinTime(min_seconds)
         ->Unit(benchmark::kMillisecond);
   }
   return true;

@@ -113,6 +113,40 @@ class RunsOf(unittest.TestCase):
         self.assertAlmostEqual(run.cpu_rate, 100 * 10 / 0.002)
 
 
+class ScenesAgainstTheirSheetsAlone(unittest.TestCase):
+    """A many-sheet scene's verdict names the most × its sheets alone leave to contact work."""
+
+    SCENE = "BM_Scene/rain_torus/threads:1/min_time:1.000"
+    ALONE = "BM_SceneSheetsAlone/rain_torus/threads:1/min_time:1.000"
+
+    @staticmethod
+    def scene_run(name, seconds):
+        run = single(name, seconds, points=4866, substeps=3330)
+        run.update(sheets=36, simulated_s=0.999, s_per_simulated_s=seconds / 0.999)
+        return run
+
+    def report(self, with_alone=True):
+        today = [self.scene_run(self.SCENE, 0.5)] + ([self.scene_run(self.ALONE, 0.25)] if with_alone else [])
+        baseline = {"commit": "0598513000", "results": {"benchmarks": [self.scene_run(self.SCENE, 0.6)]}}
+        report = bench_report.Report({}, bench_report.runs_of({"benchmarks": today}), ".", ".", ".",
+                                     scenes_baseline=baseline)
+        report.scenes()
+        return report
+
+    def test_the_bound_is_the_baseline_over_the_sheets_alone(self):
+        report = self.report()
+        # 0.6 s against 0.5 s is 1.2×, 8.3× short of 10×; 0.6 s over the sheets' 0.25 s is 2.4×
+        [(what, value, goal, verdict, by)] = report.targets
+        self.assertEqual(value, "1.20×")
+        self.assertEqual(by, "8.3× short; its sheets alone allow 2.4×")
+        row = next(line for line in report.lines if line.startswith("| rain_torus | 1 |"))
+        self.assertTrue(row.endswith("| 2.4× |"), row)
+
+    def test_without_the_sheets_alone_no_bound_is_claimed(self):
+        [(_, _, _, _, by)] = self.report(with_alone=False).targets
+        self.assertEqual(by, "8.3× short")
+
+
 class Slope(unittest.TestCase):
     def test_power_law(self):
         xs = [16, 32, 64, 128]
