@@ -353,6 +353,22 @@ TEST(SceneFile, ConstraintsAndMovingObstaclesAreRead) {
   std::vector<drape::SheetId> ids;
   const auto world = drape::app::build_world<double>(s, 1, ids);
   EXPECT_EQ(world.constraint_count(), 4u);
+  // A Scene changed by a program after loading (the benchmarks drop its obstacles) is
+  // checked again: a constraint naming what is gone is an error that names it.
+  Scene without_obstacles = s;
+  without_obstacles.obstacles.clear();
+  ids.clear();
+  try {
+    (void)drape::app::build_world<double>(without_obstacles, 1, ids);
+    ADD_FAILURE() << "a frame constraint on a missing obstacle was taken";
+  } catch (const SceneError& e) {
+    EXPECT_EQ(std::string(e.what()), "c.json: constraints[2] names obstacle 0, but the scene has 0");
+  }
+  EXPECT_TRUE(ids.empty());  // nothing was built
+  Scene one_sheet = s;
+  one_sheet.sheets.pop_back();
+  EXPECT_THROW((void)drape::app::build_world<double>(one_sheet, 1, ids), SceneError);
+  EXPECT_TRUE(ids.empty());
 }
 
 TEST(SceneFile, BadConstraintsNameTheirPath) {

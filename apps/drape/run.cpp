@@ -18,6 +18,20 @@ namespace drape::app {
 
 template <class Real>
 BasicWorld<Real> build_world(const Scene& scene, int threads, std::vector<SheetId>& ids) {
+  // Constraints name sheets and obstacles by their index in the scene. load_scene checks
+  // them; a Scene changed or made by a program after that is checked here, before anything
+  // is built, with the constraint named, rather than read past the lists.
+  for (std::size_t k = 0; k < scene.constraints.size(); ++k) {
+    const ConstraintDef& c = scene.constraints[k];
+    auto check = [&](std::uint32_t index, std::size_t count, const char* what) {
+      if (index >= count)
+        throw SceneError(scene.file + ": constraints[" + std::to_string(k) + "] names " + what + " " +
+                         std::to_string(index) + ", but the scene has " + std::to_string(count));
+    };
+    check(c.sheet.index, scene.sheets.size(), "sheet");
+    if (c.kind == ConstraintKind::PointToPoint) check(c.other_sheet.index, scene.sheets.size(), "other_sheet");
+    if (c.carrier) check(c.carrier->index, scene.obstacles.size(), "obstacle");
+  }
   WorldDef def = scene.world;
   def.threads = threads;
   BasicWorld<Real> world(def);

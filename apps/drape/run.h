@@ -47,6 +47,8 @@ struct RunOptions {
 
 // The scene's world with every sheet and obstacle added; `ids` gets the sheets' ids in the
 // scene's order. Stepping it `substeps` at a time gives exactly the frames `drape run` writes.
+// Throws SceneError, building nothing, when a constraint names a sheet or obstacle the
+// scene lacks (a Scene changed after load_scene checked it).
 template <class Real>
 BasicWorld<Real> build_world(const Scene& scene, int threads, std::vector<SheetId>& ids);
 
