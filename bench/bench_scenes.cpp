@@ -106,10 +106,10 @@ void BM_Scene(benchmark::State& state, const std::string& name) {
 
 // The same scene without what its sheets meet: no contacts (between sheets or of a sheet
 // with itself), no obstacles and no constraint riding on one (a carrier); its sheets, their
-// terms and other constraints as they are. An
-// explicit substep costs the same whatever the sheets' state, so this is the part of the
-// scene's cost that no contact or obstacle work removes: the baseline's time over this one
-// is the most × that work could give (the report's bound beside issue 13's 10×). One thread.
+// terms and other constraints as they are. An explicit substep costs the same whatever the
+// sheets' state, so this is the part of the scene's cost that no contact or obstacle work
+// removes: the baseline's time over this one is the most × that work could give (the
+// report's bound beside issue 13's 10×). One thread.
 void BM_SceneSheetsAlone(benchmark::State& state, const std::string& name) {
   auto scene = load(state, name);
   if (!scene) return;

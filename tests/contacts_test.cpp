@@ -692,8 +692,8 @@ TEST(Contacts, SelfContactMatchesEveryPointAgainstEveryTriangleOutsideTheRing) {
 // is compiled per target, contraction off), and each gives the same forces, entry for entry
 // and bit for bit, as the first (the widest): a crumpled pair with friction and a jostled
 // fold against itself, over steps that search, keep lists (exact) or walk a kept set, and a
-// stack of two equal grids walking with friction, sliding past each other (the force and
-// its friction in lanes where there are vectors), in both precisions. It fails if a target's vector gap test or tail rounds differently, or
+// stack of two equal grids walking with friction, sliding past each other (the force in
+// lanes where there are vectors, its friction entry by entry), in both precisions. It fails if a target's vector gap test or tail rounds differently, or
 // finds a different set of cells.
 template <class Real>
 std::vector<double> contact_forces_over_steps() {

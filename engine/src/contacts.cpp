@@ -1046,10 +1046,8 @@ bool within(const Sheet<Real>& s, const Vec3Array<Real>& then, Real limit2) {
 // of its points' displacements and that box's half-diagonal, which no displacement is
 // farther from the centre than (rows and columns 8p … 8p + 8, as their boxes). A patch row
 // at a time: its point rows are folded into per-column extremes along whole rows, the
-// three axes in one pass (long vector loops; the scenes of many small sheets spent more
-// in per-row overhead than in arithmetic), then each patch takes the extremes of its 9
-// columns. The first row sets the extremes as a fold from ±∞ would, so a NaN is lost in
-// them the same way (and kept in `nan`).
+// three axes in one vector pass (omp simd: GCC left the per-axis loops scalar), then each
+// patch takes the extremes of its 9 columns.
 template <class Real>
 void patch_motion(const Sheet<Real>& s, const Vec3Array<Real>& then, std::vector<Real> (&mid)[3],
                   std::vector<Real>& radius, ContactScratch<Real>& sc) {
@@ -1076,6 +1074,13 @@ void patch_motion(const Sheet<Real>& s, const Vec3Array<Real>& then, std::vector
   constexpr Real inf = std::numeric_limits<Real>::infinity();
   for (std::uint32_t pi = 0; pi < patch_rows; ++pi) {
     const std::uint32_t i0 = pi * P, i1 = std::min(i0 + P, m);
+    std::fill(nan, nan + cols, Real(0));
+    std::fill(lo_x, lo_x + cols, inf);
+    std::fill(lo_y, lo_y + cols, inf);
+    std::fill(lo_z, lo_z + cols, inf);
+    std::fill(hi_x, hi_x + cols, -inf);
+    std::fill(hi_y, hi_y + cols, -inf);
+    std::fill(hi_z, hi_z + cols, -inf);
     for (std::uint32_t i = i0; i <= i1; ++i) {
       const std::size_t r = std::size_t(i) * cols;
       const Real* __restrict ax = now[0] + r;
@@ -1084,24 +1089,10 @@ void patch_motion(const Sheet<Real>& s, const Vec3Array<Real>& then, std::vector
       const Real* __restrict bx = old[0] + r;
       const Real* __restrict by = old[1] + r;
       const Real* __restrict bz = old[2] + r;
-      if (i == i0) {
-#pragma omp simd
-        for (std::uint32_t j = 0; j < cols; ++j) {
-          const Real dx = ax[j] - bx[j], dy = ay[j] - by[j], dz = az[j] - bz[j];
-          lo_x[j] = dx < inf ? dx : inf;  // a NaN is lost here, but not in `nan`
-          lo_y[j] = dy < inf ? dy : inf;
-          lo_z[j] = dz < inf ? dz : inf;
-          hi_x[j] = dx > -inf ? dx : -inf;
-          hi_y[j] = dy > -inf ? dy : -inf;
-          hi_z[j] = dz > -inf ? dz : -inf;
-          nan[j] = ((Real(0) + dx * Real(0)) + dy * Real(0)) + dz * Real(0);
-        }
-        continue;
-      }
 #pragma omp simd
       for (std::uint32_t j = 0; j < cols; ++j) {
         const Real dx = ax[j] - bx[j], dy = ay[j] - by[j], dz = az[j] - bz[j];
-        lo_x[j] = dx < lo_x[j] ? dx : lo_x[j];
+        lo_x[j] = dx < lo_x[j] ? dx : lo_x[j];  // a NaN is lost here, but not in `nan`
         lo_y[j] = dy < lo_y[j] ? dy : lo_y[j];
         lo_z[j] = dz < lo_z[j] ? dz : lo_z[j];
         hi_x[j] = dx > hi_x[j] ? dx : hi_x[j];
