@@ -84,6 +84,43 @@ std::pair<Sheet<double>, Sheet<double>> close_sheets(unsigned seed) {
   return {std::move(a), std::move(b)};
 }
 
+// One pair's forces, from a fresh search.
+PairContacts<double> pair_forces(const Sheet<double>& a, const Sheet<double>& b, const ContactParams<double>& prm) {
+  PairContacts<double> work;
+  ContactScratch<double> scratch;
+  pair_contacts(a, boxes(a), b, boxes(b), prm, work, scratch);
+  return work;
+}
+
+// The pair's forces (the point's in on_a) of a 1 kg point moving at `velocity`, 5 mm (= h)
+// above triangle (0,0)(0,1)(1,1) of a static 2×2-cell sheet of 1 m cells and 1 kg, at
+// weights (¼, ½, ¼).
+PairContacts<double> point_over_surface(Vec3 velocity, double friction, const ContactParams<double>& prm) {
+  SheetDef surface;
+  surface.m = surface.n = 2;
+  surface.width = surface.height = 2.0;
+  SheetDef single;
+  single.m = single.n = 0;
+  single.center = {-1.0 + 0.75, -1.0 + 0.25, 0.005};
+  single.initial_velocity = velocity;
+  single.friction = friction;
+  return pair_forces(build_sheet<double>(single), build_sheet<double>(surface), prm);
+}
+
+// close_sheets(seed) with every point moving every which way, up to 0.5 m/s per axis.
+std::pair<Sheet<double>, Sheet<double>> jostled_sheets(unsigned seed, unsigned velocity_seed) {
+  auto sheets = close_sheets(seed);
+  std::mt19937 rng(velocity_seed);
+  std::uniform_real_distribution<double> u(-0.5, 0.5);
+  for (auto* s : {&sheets.first, &sheets.second})
+    for (std::size_t p = 0; p < s->size(); ++p) {
+      s->velocity.x[p] = u(rng);
+      s->velocity.y[p] = u(rng);
+      s->velocity.z[p] = u(rng);
+    }
+  return sheets;
+}
+
 P3 total(const ContactForces<double>& f) {
   P3 s{0, 0, 0};
   for (std::size_t e = 0; e < f.size(); ++e) s = {s[0] + f.fx[e], s[1] + f.fy[e], s[2] + f.fz[e]};
@@ -183,22 +220,11 @@ TEST(Contacts, ForceOnAPointLyingOnTheSurfaceIsFiniteAndMatchesTheBound) {
 // N = (c/ξ)·(1 − tail). Sliding at 1 m/s it meets μ·N against its motion; at 1 µm/s, less
 // than μ·N stops it within dt: v / (dt·(1/m_p + Σ w_k²/m_k)) = v / (dt · 4.375 kg⁻¹).
 TEST(Contacts, FrictionOnAPointIsMuTimesLoadOrWhatStopsItsSlipWithinTheStep) {
-  SheetDef surface;
-  surface.m = surface.n = 2;
-  surface.width = surface.height = 2.0;
-  SheetDef single;
-  single.m = single.n = 0;
-  single.center = {-1.0 + 0.75, -1.0 + 0.25, 0.005};
-  single.friction = 0.3;
   ContactParams<double> prm = kParams;
   prm.dt = 1e-3;
   const double load = prm.strength / prm.xi * (1 - prm.tail);
   for (double speed : {1.0, 1e-6}) {
-    single.initial_velocity = {speed, 0, 0};
-    const auto s = build_sheet<double>(surface), q = build_sheet<double>(single);
-    PairContacts<double> work;
-    ContactScratch<double> scratch;
-    pair_contacts(q, boxes(q), s, boxes(s), prm, work, scratch);
+    const PairContacts<double> work = point_over_surface({speed, 0, 0}, 0.3, prm);
     ASSERT_EQ(work.on_a.size(), 1u);
     const double expected = speed > 0.5 ? 0.3 * load : speed / (prm.dt * (1.0 + 9.0 * (0.0625 + 0.25 + 0.0625)));
     EXPECT_NEAR(work.on_a.fx[0], -expected, 1e-12 * load) << "speed " << speed;
@@ -215,23 +241,13 @@ TEST(Contacts, FrictionOnAPointIsMuTimesLoadOrWhatStopsItsSlipWithinTheStep) {
 // friction never adds energy: its power Σ F·v over both sheets is ≤ 0.
 TEST(Contacts, FrictionBetweenSheetsIsEqualAndOppositeAndOnlyDissipates) {
   for (unsigned seed = 1; seed <= 5; ++seed) {
-    auto [a, b] = close_sheets(seed);
-    std::mt19937 rng(seed + 100);
-    std::uniform_real_distribution<double> u(-0.5, 0.5);
-    for (auto* s : {&a, &b})
-      for (std::size_t p = 0; p < s->size(); ++p) {
-        s->velocity.x[p] = u(rng);
-        s->velocity.y[p] = u(rng);
-        s->velocity.z[p] = u(rng);
-      }
+    auto [a, b] = jostled_sheets(seed, seed + 100);
     ContactParams<double> prm = kParams;
     prm.dt = 1e-3;
-    PairContacts<double> plain, rubbing;
-    ContactScratch<double> scratch;
-    pair_contacts(a, boxes(a), b, boxes(b), prm, plain, scratch);
+    const PairContacts<double> plain = pair_forces(a, b, prm);
     b.friction = 0.4;  // the larger of the two coefficients acts
     a.friction = 0.1;
-    pair_contacts(a, boxes(a), b, boxes(b), prm, rubbing, scratch);
+    const PairContacts<double> rubbing = pair_forces(a, b, prm);
     ASSERT_EQ(plain.on_a.size(), rubbing.on_a.size());
     ASSERT_EQ(plain.on_b.size(), rubbing.on_b.size());
     P3 sum{0, 0, 0};
@@ -255,6 +271,130 @@ TEST(Contacts, FrictionBetweenSheetsIsEqualAndOppositeAndOnlyDissipates) {
     for (int k = 0; k < 3; ++k) EXPECT_NEAR(sum[k], 0.0, 1e-13 * scale) << "seed " << seed;
     EXPECT_GT(friction_size, 0.0);
     EXPECT_LT(power, 0.0) << "seed " << seed;
+  }
+}
+
+// Hunt–Crossley damping on one point resting at d = h over a surface, by hand: the
+// repulsion `load` times (1 − α·ḋ) while uncapped, never below zero, and capped at the
+// coefficient ¼·m_eff/dt (m_eff from the weights, as friction's); the reaction is equal and
+// opposite.
+TEST(Contacts, DampingOnAPointScalesTheLoadByOneMinusAlphaTimesTheGapRate) {
+  ContactParams<double> prm = kParams;
+  prm.dt = 1e-3;
+  const double load = prm.strength / prm.xi * (1 - prm.tail);
+  const double inv_mass = 1.0 + 9.0 * (0.0625 + 0.25 + 0.0625);  // the point's 1 kg, the corners' 1/9 kg
+  const double cap = 0.25 / (inv_mass * prm.dt);
+  struct Case {
+    double alpha, gap_rate, expected;
+  };
+  const Case cases[] = {
+      {2.0, -0.3, load * (1 + 2.0 * 0.3)},  // approaching: pressed harder
+      {2.0, 0.3, load * (1 - 2.0 * 0.3)},   // parting: weaker
+      {2.0, 1.0, 0.0},                      // parting faster than 1/α: no pull
+      {1e6, -0.3, load + cap * 0.3},        // a coefficient the substep cannot hold: capped
+      {0.0, -0.3, load},                    // off: the repulsion alone
+  };
+  for (const Case& c : cases) {
+    prm.damping = c.alpha;
+    const PairContacts<double> work = point_over_surface({0, 0, c.gap_rate}, 0.0, prm);
+    ASSERT_EQ(work.on_a.size(), 1u);
+    EXPECT_NEAR(work.on_a.fz[0], c.expected, 1e-12 * load) << "alpha " << c.alpha << ", gap rate " << c.gap_rate;
+    EXPECT_EQ(work.on_a.fx[0], 0.0);
+    EXPECT_EQ(work.on_a.fy[0], 0.0);
+    EXPECT_NEAR(total(work.on_b)[2], -c.expected, 1e-12 * load);
+  }
+}
+
+// Damping (with and without friction) between two rumpled sheets moving every which way:
+// the pair's forces still sum to zero, and what damping and friction add to the repulsion
+// never adds energy: its power Σ (F − F_repulsion)·v over both sheets is < 0.
+TEST(Contacts, DampingBetweenSheetsIsEqualAndOppositeAndOnlyDissipates) {
+  for (double mu : {0.0, 0.3})
+    for (unsigned seed = 1; seed <= 5; ++seed) {
+      auto [a, b] = jostled_sheets(seed, seed + 200);
+      ContactParams<double> prm = kParams;
+      prm.dt = 1e-3;
+      const PairContacts<double> plain = pair_forces(a, b, prm);
+      a.friction = mu;
+      prm.damping = 3.0;
+      const PairContacts<double> damped = pair_forces(a, b, prm);
+      ASSERT_EQ(plain.on_a.size(), damped.on_a.size());
+      ASSERT_EQ(plain.on_b.size(), damped.on_b.size());
+      P3 sum{0, 0, 0};
+      double scale = 0, power = 0;
+      for (const auto& [sheet, with, without] : {std::tuple{&a, &damped.on_a, &plain.on_a}, std::tuple{&b, &damped.on_b, &plain.on_b}})
+        for (std::size_t e = 0; e < with->size(); ++e) {
+          ASSERT_EQ(with->point[e], without->point[e]);
+          const P3 F{with->fx[e], with->fy[e], with->fz[e]}, N{without->fx[e], without->fy[e], without->fz[e]};
+          const std::uint32_t p = with->point[e];
+          const P3 v{sheet->velocity.x[p], sheet->velocity.y[p], sheet->velocity.z[p]};
+          for (int k = 0; k < 3; ++k) sum[k] += F[k];
+          scale += std::sqrt(dot(F, F));
+          power += dot(sub(F, N), v);
+        }
+      for (int k = 0; k < 3; ++k) EXPECT_NEAR(sum[k], 0.0, 1e-13 * scale) << "seed " << seed << ", mu " << mu;
+      EXPECT_LT(power, 0.0) << "seed " << seed << ", mu " << mu;
+    }
+}
+
+// Two equal, aligned 4×4-cell sheets meeting face-on in free space at 1 m/s. Every point
+// lies over a grid point of the other sheet, so each is pushed by its own entry and by the
+// reaction of the point facing it: 2F each, F the documented force of one entry at the gap d
+// (contacts.h) times (1 − α·ḋ). Their gap then follows the 1-D equation
+// d̈ = (4/m)·F(d)·(1 − α·ḋ) (m a point's mass), integrated here by RK4 at a hundredth of the
+// world's step: the rebound speed of the world must match it, 0 for α = 0 to the step's
+// error (energy conserved), and fall with α.
+TEST(Contacts, HeadOnSheetsReboundAtTheSpeedOfTheOneDimensionalDampedModel) {
+  WorldDef wd;
+  wd.gravity = {0, 0, 0};
+  wd.dt = 1e-4;
+  const double h = wd.contact_thickness, xi = wd.contact_xi, c = wd.contact_strength;
+  const double R = h + wd.contact_range * xi, tail = std::exp(-wd.contact_range);
+  SheetDef d;
+  d.m = d.n = 4;
+  d.width = d.height = 0.1;
+  d.mass = 0.025;
+  const double m = d.mass / 25, approach = 1.0, start = R + 0.003, seconds = 0.05;
+  double previous = 2 * approach;
+  for (double alpha : {0.0, 0.5, 2.0}) {
+    // the reference: y = (d, ḋ)
+    auto accel = [&](double gap, double rate) {
+      if (gap >= R) return 0.0;
+      const double f = c / xi * (std::exp((h - gap) / xi) - tail);
+      return 4.0 / m * std::max(f * (1 - alpha * rate), 0.0);
+    };
+    double gap = start, rate = -approach;
+    const double step = wd.dt / 100;
+    for (double t = 0; t < seconds; t += step) {
+      const double k1x = rate, k1v = accel(gap, rate);
+      const double k2x = rate + 0.5 * step * k1v, k2v = accel(gap + 0.5 * step * k1x, k2x);
+      const double k3x = rate + 0.5 * step * k2v, k3v = accel(gap + 0.5 * step * k2x, k3x);
+      const double k4x = rate + step * k3v, k4v = accel(gap + step * k3x, k4x);
+      gap += step / 6 * (k1x + 2 * k2x + 2 * k3x + k4x);
+      rate += step / 6 * (k1v + 2 * k2v + 2 * k3v + k4v);
+    }
+    ASSERT_GT(gap, R) << "the reference has not parted within the run";
+    WorldDef w = wd;
+    w.contact_damping = alpha;
+    World world(w);
+    d.center = {0, 0, start / 2};
+    d.initial_velocity = {0, 0, -approach / 2};
+    const SheetId top = world.add_sheet(d);
+    d.center = {0, 0, -start / 2};
+    d.initial_velocity = {0, 0, approach / 2};
+    const SheetId bottom = world.add_sheet(d);
+    ASSERT_TRUE(world.step(std::uint32_t(std::lround(seconds / wd.dt))).ok());
+    const auto a = world.view(top), b = world.view(bottom);
+    double rebound = 0, spread = 0;
+    for (std::size_t p = 0; p < a.size(); ++p) rebound += (a.vz[p] - b.vz[p]) / double(a.size());
+    for (std::size_t p = 0; p < a.size(); ++p) spread = std::max(spread, std::abs(a.vz[p] - b.vz[p] - rebound));
+    EXPECT_LT(spread, 1e-9) << "the sheets did not stay flat, alpha " << alpha;
+    EXPECT_NEAR(rebound, rate, 0.01 * approach) << "alpha " << alpha;
+    if (alpha == 0) {
+      EXPECT_NEAR(rebound, approach, 0.01 * approach);
+    }
+    EXPECT_LT(rebound, previous);
+    previous = rebound;
   }
 }
 

@@ -139,13 +139,14 @@ TEST(SceneFile, EngineKnobsReachTheWorldAndSheetDefinitions) {
   EXPECT_EQ(d.world.contact_xi, engine.contact_xi);
   EXPECT_EQ(d.world.contact_strength, engine.contact_strength);
   EXPECT_EQ(d.world.contact_range, engine.contact_range);
+  EXPECT_EQ(d.world.contact_damping, engine.contact_damping);
   EXPECT_EQ(d.world.contact_exact, engine.contact_exact);
   EXPECT_EQ(d.world.block_points, engine.block_points);
   EXPECT_FALSE(d.sheets[0].self_collision);
 
   const Scene s = parse_scene(R"({"frames": 1, "cg_tolerance": 1e-9, "cg_max_iterations": 17, "cg_preconditioner": "cholesky", "local_global_iterations": 7, "vertex_block_iterations": 9, "adaptive": true,
     "adaptive_safety": 0.5, "guard": false, "guard_energy_growth": 3.5, "contact_thickness": 0.01,
-    "contact_xi": 0.004, "contact_strength": 0, "contact_range": 4, "contact_exact": true, "block_points": 1000,
+    "contact_xi": 0.004, "contact_strength": 0, "contact_range": 4, "contact_damping": 1.5, "contact_exact": true, "block_points": 1000,
     "sheets": [{"grid": [2, 2], "size": [1, 1], "stiffness": 5, "self_collision": true, "friction": 0.4},
                {"grid": [2, 2], "size": [1, 1], "stiffness": 5, "self_collision": false}],
     "obstacles": [{"type": "plane", "friction": 0.7}]})", "k.json");
@@ -162,6 +163,7 @@ TEST(SceneFile, EngineKnobsReachTheWorldAndSheetDefinitions) {
   EXPECT_EQ(s.world.contact_xi, 0.004);
   EXPECT_EQ(s.world.contact_strength, 0.0);
   EXPECT_EQ(s.world.contact_range, 4.0);
+  EXPECT_EQ(s.world.contact_damping, 1.5);
   EXPECT_TRUE(s.world.contact_exact);
   EXPECT_EQ(s.world.block_points, 1000u);
   EXPECT_TRUE(s.sheets[0].self_collision);
@@ -190,6 +192,7 @@ TEST(SceneFile, BadEngineKnobsNameTheirPath) {
       {R"("contact_xi": 0)", "test.json: contact_xi: must be positive (got 0)"},
       {R"("contact_strength": -1)", "test.json: contact_strength: must not be negative (got -1)"},
       {R"("contact_range": -6)", "test.json: contact_range: must be positive (got -6)"},
+      {R"("contact_damping": -0.5)", "test.json: contact_damping: must not be negative (got -0.5)"},
       {R"("block_points": 0)", "test.json: block_points: must be between 1 and 4294967295 (got 0)"},
       {R"("contact_thicknes": 0.01)", "test.json: contact_thicknes: unknown key"},
   };

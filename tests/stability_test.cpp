@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -374,6 +375,11 @@ TEST(WorldDefValidation, NamesTheBadKnob) {
   wd = {};
   wd.cg_max_iterations = 0;
   EXPECT_THROW(drape::World{wd}, std::invalid_argument);
+  wd = {};
+  wd.contact_damping = -1;
+  EXPECT_EQ(drape::validate(wd), "contact_damping must be non-negative and finite (got -1)");
+  wd.contact_damping = std::numeric_limits<double>::infinity();
+  EXPECT_NE(drape::validate(wd).find("contact_damping"), std::string::npos);
   wd = {};
   wd.local_global_iterations = 0;
   EXPECT_NE(drape::validate(wd).find("local_global_iterations"), std::string::npos);

@@ -261,9 +261,12 @@ void describe_world(const Scene& scene, std::ostream& out) {
       << (scene.world.adaptive ? ", adaptive substeps" : "") << '\n';
   const WorldDef& w = scene.world;
   if (w.contact_strength > 0 && (scene.sheets.size() > 1 || std::any_of(scene.sheets.begin(), scene.sheets.end(),
-                                                                         [](const SheetDef& s) { return s.self_collision; })))
+                                                                         [](const SheetDef& s) { return s.self_collision; }))) {
     out << "contacts between sheets: thickness " << w.contact_thickness << " m, xi " << w.contact_xi << " m, strength "
-        << w.contact_strength << " J, range " << w.contact_range << " xi\n";
+        << w.contact_strength << " J, range " << w.contact_range << " xi";
+    if (w.contact_damping > 0) out << ", damping " << w.contact_damping << " s/m";
+    out << '\n';
+  }
   if (std::any_of(scene.sheets.begin(), scene.sheets.end(), [](const SheetDef& s) { return s.air.has_value(); }))
     out << "wind: " << w.wind.velocity.x << ", " << w.wind.velocity.y << ", " << w.wind.velocity.z << " m/s, density "
         << w.wind.density << " kg/m^3\n";

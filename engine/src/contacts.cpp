@@ -170,11 +170,20 @@ V3<Real> velocity(const Sheet<Real>& s, std::uint32_t p) {
   return {s.velocity.x[p], s.velocity.y[p], s.velocity.z[p]};
 }
 
-// Coulomb friction on point q of sheet qs against the triangle `best` of sheet ss, whose
-// repulsion on q is `force` along the unit normal d (contacts.h): returns the force to add.
+// The damping coefficient α·f of one entry is capped at this share of m/dt (m the pair's
+// effective mass): an explicit damper is stable while the coefficients acting on a point,
+// summed, stay below 2m/dt, and one contact enters twice (once per direction of its pair)
+// besides the shares a point takes as a corner of other points' triangles. Uncapped, the
+// settling stack of issue 13 blew up at α = 10 s/m within 0.8 s.
 template <class Real>
-V3<Real> rub(const Sheet<Real>& qs, std::uint32_t q, const Sheet<Real>& ss, const Nearest<Real>& best, V3<Real> d,
-             Real force, const ContactParams<Real>& prm) {
+constexpr Real kDampingShare = Real(0.25);
+
+// Damping and Coulomb friction on point q of sheet qs against the triangle `best` of sheet
+// ss, whose repulsion on q is `force` along the unit normal d (contacts.h): returns the
+// force to add. Without damping the friction alone, through the same operations.
+template <class Real>
+V3<Real> dissipate(const Sheet<Real>& qs, std::uint32_t q, const Sheet<Real>& ss, const Nearest<Real>& best, V3<Real> d,
+                   Real force, const ContactParams<Real>& prm) {
   const Real w[3] = {best.w.x, best.w.y, best.w.z};
   V3<Real> rel = velocity(qs, q);
   Real inv_mass = qs.inv_mass[q];
@@ -183,12 +192,22 @@ V3<Real> rub(const Sheet<Real>& qs, std::uint32_t q, const Sheet<Real>& ss, cons
     rel = {rel.x - w[k] * u.x, rel.y - w[k] * u.y, rel.z - w[k] * u.z};
     inv_mass += w[k] * w[k] * ss.inv_mass[best.tri[k]];
   }
-  const Real normal = dot(rel, d);
+  if (!(inv_mass > 0)) return {0, 0, 0};
+  const Real normal = dot(rel, d);  // ḋ: > 0 parting, < 0 approaching
+  V3<Real> damped{0, 0, 0};
+  if (prm.damping > 0) {
+    const Real b = std::min(prm.damping * force, kDampingShare<Real> / (inv_mass * prm.dt));
+    const Real change = std::max(-b * normal, -force);
+    damped = {change * d.x, change * d.y, change * d.z};
+    force += change;
+  }
+  if (!(prm.friction > 0)) return damped;
   const V3<Real> slip{rel.x - normal * d.x, rel.y - normal * d.y, rel.z - normal * d.z};
   const Real speed = std::sqrt(dot(slip, slip));
-  if (!(speed > 0) || !(inv_mass > 0)) return {0, 0, 0};
+  if (!(speed > 0)) return damped;
   const Real k = std::min(prm.friction * force / speed, Real(1) / (inv_mass * prm.dt));
-  return {-k * slip.x, -k * slip.y, -k * slip.z};
+  if (!(prm.damping > 0)) return {-k * slip.x, -k * slip.y, -k * slip.z};
+  return {damped.x - k * slip.x, damped.y - k * slip.y, damped.z - k * slip.z};
 }
 
 // The exponent (h − d)/ξ of the force at distance `dist`, capped (contacts.h): min(e, +∞)
@@ -204,7 +223,7 @@ Real exponent_at(Real dist, const ContactParams<Real>& prm) {
 template <class Real>
 Real force_exp(Real x) { return static_cast<Real>(lanes::exp_one(double(x))); }
 
-// The force f along the unit direction d on point q, with friction, pushed to `on_q`, and
+// The force f along the unit direction d on point q, with damping and friction, pushed to `on_q`, and
 // −w_k times it to corner k of the triangle `best` for each nonzero weight w_k, in that
 // order (best's corners' positions are not read).
 template <class Real>
@@ -212,8 +231,8 @@ void push_repulsion(const Sheet<Real>& qs, std::uint32_t q, const Sheet<Real>& s
                     V3<Real> d, Real f, const ContactParams<Real>& prm, ContactForces<Real>& on_q,
                     ContactForces<Real>& on_s) {
   V3<Real> F{f * d.x, f * d.y, f * d.z};
-  if (prm.friction > 0) {
-    const V3<Real> t = rub(qs, q, ss, best, d, f, prm);
+  if (prm.friction > 0 || prm.damping > 0) {
+    const V3<Real> t = dissipate(qs, q, ss, best, d, f, prm);
     F = {F.x + t.x, F.y + t.y, F.z + t.z};
   }
   on_q.push(q, F.x, F.y, F.z);

@@ -62,6 +62,7 @@ struct ContactParams {
   Real tail;       // exp(−(R − h)/ξ): the shift that makes the force vanish at R
   Real dt = 0;        // s, the substep (friction stops at most the slip of one)
   Real friction = 0;  // μ of the pair, max of the two sheets' (pair_contacts sets it)
+  Real damping = 0;   // α, s/m: Hunt–Crossley damping of the repulsion (above); 0: none
   Real skin;          // m, the first skin of kept candidate lists (PairContacts): R/4
   // The largest exponent (h − d)/ξ the force uses: nearer than h − exponent_cap·ξ the force
   // stops growing, so its stiffness (c/ξ²)·e^((h − d)/ξ) stays at or below m/dt² for the

@@ -74,6 +74,7 @@ detail::ContactParams<Real> BasicWorld<Real>::Impl::contact_params(double h) con
                                                   def.contact_range);
   params.dt = static_cast<Real>(h);
   params.exact = def.contact_exact;
+  params.damping = static_cast<Real>(def.contact_damping);
   return params;
 }
 

@@ -49,6 +49,8 @@ std::string validate(const WorldDef& d) {
     return problem("contact_strength", "must be non-negative and finite", d.contact_strength);
   if (!(d.contact_range > 0) || !finite(d.contact_range))
     return problem("contact_range", "must be positive and finite", d.contact_range);
+  if (!(d.contact_damping >= 0) || !finite(d.contact_damping))
+    return problem("contact_damping", "must be non-negative and finite", d.contact_damping);
   if (d.block_points == 0) return problem("block_points", "must be positive", d.block_points);
   return {};
 }

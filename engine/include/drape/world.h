@@ -66,6 +66,12 @@ struct WorldDef {
   double contact_xi = 0.002;         // ξ, m: how fast the repulsion decays with distance
   double contact_strength = 1e-3;    // c, J: the barrier at d = 0 is c·exp(h/ξ) ≈ 0.012 J
   double contact_range = 6.0;        // cut-off beyond h, in units of ξ
+  // α, s/m: Hunt–Crossley damping of the repulsion, which becomes F·(1 − α·ḋ) with ḋ the
+  // rate at which the gap grows: surfaces that meet at speed v lose about a fraction of their
+  // approach energy that grows with α·v, and layers resting on each other stop bouncing. The
+  // damping coefficient α·F is capped where the substep could not resolve it, and the force
+  // is never attractive. 0: the repulsion alone, which conserves energy.
+  double contact_damping = 0.0;
   // Between two searches for contacts, each point near another sheet follows its nearest
   // triangle by walking across that sheet's grid from the triangle it had (fast, and the
   // nearest triangle wherever the other sheet is not folded within contact range of the
