@@ -497,6 +497,7 @@ PYBIND11_MODULE(drape, m) {
       .field("full_gradient", &ObstacleDef::full_gradient, "use -grad E instead of its normal projection")
       .field("max_exponent", &ObstacleDef::max_exponent, "cap of -f/xi")
       .field("friction", &ObstacleDef::friction, "mu, Coulomb")
+      .field("damping", &ObstacleDef::damping, "alpha, s/m: Hunt-Crossley damping of the repulsion; 0: none")
       .field("motion", &ObstacleDef::motion, "Motion or None: a rigid part that moves")
       .done();
 

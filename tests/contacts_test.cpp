@@ -14,6 +14,7 @@
 
 #include "bounds.h"
 #include "contacts.h"
+#include "damped_rebound.h"
 #include "each_target.h"
 #include "sheet_data.h"
 #include "surface_distance.h"
@@ -341,7 +342,7 @@ TEST(Contacts, DampingBetweenSheetsIsEqualAndOppositeAndOnlyDissipates) {
 // lies over a grid point of the other sheet, so each is pushed by its own entry and by the
 // reaction of the point facing it: 2F each, F the documented force of one entry at the gap d
 // (contacts.h) times (1 − α·ḋ). Their gap then follows the 1-D equation
-// d̈ = (4/m)·F(d)·(1 − α·ḋ) (m a point's mass), integrated here by RK4 at a hundredth of the
+// d̈ = (4/m)·F(d)·(1 − α·ḋ) (m a point's mass), integrated by RK4 (damped_rebound.h) at a hundredth of the
 // world's step: the rebound speed of the world must match it, 0 for α = 0 to the step's
 // error (energy conserved), and fall with α.
 TEST(Contacts, HeadOnSheetsReboundAtTheSpeedOfTheOneDimensionalDampedModel) {
@@ -357,22 +358,12 @@ TEST(Contacts, HeadOnSheetsReboundAtTheSpeedOfTheOneDimensionalDampedModel) {
   const double m = d.mass / 25, approach = 1.0, start = R + 0.003, seconds = 0.05;
   double previous = 2 * approach;
   for (double alpha : {0.0, 0.5, 2.0}) {
-    // the reference: y = (d, ḋ)
     auto accel = [&](double gap, double rate) {
       if (gap >= R) return 0.0;
       const double f = c / xi * (std::exp((h - gap) / xi) - tail);
       return 4.0 / m * std::max(f * (1 - alpha * rate), 0.0);
     };
-    double gap = start, rate = -approach;
-    const double step = wd.dt / 100;
-    for (double t = 0; t < seconds; t += step) {
-      const double k1x = rate, k1v = accel(gap, rate);
-      const double k2x = rate + 0.5 * step * k1v, k2v = accel(gap + 0.5 * step * k1x, k2x);
-      const double k3x = rate + 0.5 * step * k2v, k3v = accel(gap + 0.5 * step * k2x, k3x);
-      const double k4x = rate + step * k3v, k4v = accel(gap + step * k3x, k4x);
-      gap += step / 6 * (k1x + 2 * k2x + 2 * k3x + k4x);
-      rate += step / 6 * (k1v + 2 * k2v + 2 * k3v + k4v);
-    }
+    const auto [gap, rate] = test::gap_after(accel, start, approach, seconds, wd.dt / 100);
     ASSERT_GT(gap, R) << "the reference has not parted within the run";
     WorldDef w = wd;
     w.contact_damping = alpha;

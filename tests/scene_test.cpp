@@ -114,6 +114,8 @@ TEST(SceneFile, EveryBadInputNamesFilePathAndProblem) {
        "test.json: sheets[0].friction: must not be negative (got -0.2)"},
       {R"({"frames": 1, "sheets": [{)" + sheet + R"(}], "obstacles": [{"type": "box", "half_extents": [1, 1, 1], "friction": "high"}]})",
        "test.json: obstacles[0].friction: must be a number, got a string"},
+      {R"({"frames": 1, "sheets": [{)" + sheet + R"(}], "obstacles": [{"type": "torus", "major_radius": 1, "minor_radius": 0.2, "damping": -3}]})",
+       "test.json: obstacles[0].damping: must not be negative (got -3)"},
   };
   for (const auto& c : cases) {
     const std::string message = error_of(c.text);
@@ -149,7 +151,7 @@ TEST(SceneFile, EngineKnobsReachTheWorldAndSheetDefinitions) {
     "contact_xi": 0.004, "contact_strength": 0, "contact_range": 4, "contact_damping": 1.5, "contact_exact": true, "block_points": 1000,
     "sheets": [{"grid": [2, 2], "size": [1, 1], "stiffness": 5, "self_collision": true, "friction": 0.4},
                {"grid": [2, 2], "size": [1, 1], "stiffness": 5, "self_collision": false}],
-    "obstacles": [{"type": "plane", "friction": 0.7}]})", "k.json");
+    "obstacles": [{"type": "plane", "friction": 0.7, "damping": 4}]})", "k.json");
   EXPECT_EQ(s.world.cg_tolerance, 1e-9);
   EXPECT_EQ(s.world.cg_max_iterations, 17);
   EXPECT_EQ(s.world.cg_preconditioner, drape::Preconditioner::Cholesky);
@@ -171,6 +173,7 @@ TEST(SceneFile, EngineKnobsReachTheWorldAndSheetDefinitions) {
   EXPECT_EQ(s.sheets[0].friction, 0.4);
   EXPECT_EQ(s.sheets[1].friction, 0.0);
   EXPECT_EQ(s.obstacles[0].friction, 0.7);
+  EXPECT_EQ(s.obstacles[0].damping, 4.0);
 }
 
 TEST(SceneFile, BadEngineKnobsNameTheirPath) {

@@ -374,28 +374,28 @@ ObstacleDef read_obstacle(const Node& node) {
   ObstacleDef d;
   if (type == "plane") {
     node.expect_object({"type", "center", "normal", "c", "xi", "full_gradient", "max_exponent",
-                        "friction", "motion"});
+                        "friction", "damping", "motion"});
     d.shape = ObstacleShape::Plane;
     if (node.has("normal")) d.orientation = rotation_to(node.child("normal"), node.child("normal").vec3());
   } else if (type == "sphere") {
     node.expect_object({"type", "center", "orientation", "radius", "c", "xi", "full_gradient", "max_exponent",
-                        "friction", "motion"});
+                        "friction", "damping", "motion"});
     d.shape = ObstacleShape::Sphere;
     d.size = {node.required("radius").positive(), 0, 0};
   } else if (type == "ellipsoid") {
     node.expect_object({"type", "center", "orientation", "semi_axes", "c", "xi", "full_gradient", "max_exponent",
-                        "friction", "motion"});
+                        "friction", "damping", "motion"});
     d.shape = ObstacleShape::Ellipsoid;
     d.size = node.required("semi_axes").vec3();
     node.child("semi_axes").positives(3);
   } else if (type == "torus") {
     node.expect_object({"type", "center", "orientation", "major_radius", "minor_radius", "c", "xi", "full_gradient",
-                        "max_exponent", "friction", "motion"});
+                        "max_exponent", "friction", "damping", "motion"});
     d.shape = ObstacleShape::Torus;
     d.size = {node.required("major_radius").positive(), node.required("minor_radius").positive(), 0};
   } else if (type == "box") {
     node.expect_object({"type", "center", "orientation", "half_extents", "c", "xi", "full_gradient", "max_exponent",
-                        "friction", "motion"});
+                        "friction", "damping", "motion"});
     d.shape = ObstacleShape::Box;
     d.size = node.required("half_extents").vec3();
     node.child("half_extents").positives(3);
@@ -409,6 +409,7 @@ ObstacleDef read_obstacle(const Node& node) {
   if (node.has("full_gradient")) d.full_gradient = node.child("full_gradient").boolean();
   if (node.has("max_exponent")) d.max_exponent = node.child("max_exponent").positive();
   if (node.has("friction")) d.friction = node.child("friction").non_negative();
+  if (node.has("damping")) d.damping = node.child("damping").non_negative();
   if (node.has("motion")) d.motion = read_motion(node.child("motion"));
   if (const std::string problem = validate(d); !problem.empty()) node.fail(problem);
   return d;

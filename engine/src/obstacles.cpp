@@ -327,6 +327,29 @@ struct Rub {
   }
 };
 
+// Hunt–Crossley damping of the force F on the lanes' points (ObstacleDef::damping): F·(1 + c)
+// with c|F| = max(−b·ḋ, −|F|), b = min(α|F|, ¼·m/dt) and ḋ = v·∇f/|∇f| the rate at which the
+// point leaves the surface (v relative to it). The cap keeps the damper well inside what an
+// explicit step resolves; a pinned point (1/m = 0) is not capped and does not move anyway.
+struct Damp {
+  double alpha, dt;
+  template <class D, class V>
+  HWY_INLINE void operator()(D d, V gx, V gy, V gz, V inv_g, V& Fx, V& Fy, V& Fz, V vx, V vy, V vz, V inv_mass) const {
+    const V zero = hn::Zero(d);
+    const V rate = hn::Mul(hn::Add(hn::Add(hn::Mul(vx, gx), hn::Mul(vy, gy)), hn::Mul(vz, gz)), inv_g);
+    const V size = hn::Sqrt(hn::Add(hn::Add(hn::Mul(Fx, Fx), hn::Mul(Fy, Fy)), hn::Mul(Fz, Fz)));
+    const V most = hn::IfThenElse(hn::Gt(inv_mass, zero), hn::Div(hn::Set(d, 0.25), hn::Mul(inv_mass, hn::Set(d, dt))),
+                                  hn::Set(d, std::numeric_limits<double>::infinity()));
+    const V b = lanes::first_min(hn::Mul(hn::Set(d, alpha), size), most);
+    const V change = lanes::first_max(hn::Neg(hn::Mul(b, rate)), hn::Neg(size));
+    const auto pushed = hn::Gt(size, zero);
+    const V scale = hn::IfThenElseZero(pushed, hn::Div(change, hn::IfThenElse(pushed, size, hn::Set(d, 1.0))));
+    Fx = hn::Add(Fx, hn::Mul(scale, Fx));
+    Fy = hn::Add(Fy, hn::Mul(scale, Fy));
+    Fz = hn::Add(Fz, hn::Mul(scale, Fz));
+  }
+};
+
 // The eq (9) term of one obstacle on one row, lanes at a time, in one pass: f (and ∇f) of
 // the lanes' points, and only if one of them is within reach, the force, added to f where
 // the point is within reach (a point beyond keeps its force bit for bit, whichever lanes
@@ -339,13 +362,14 @@ struct RowForce {
   NearObstacle near;
   ForceScale scale;
   Rub friction;
+  Damp damping;
   double inv_g2, inv_g;  // inverse_norms of a constant ∇f (Shape::constant_gradient)
   ConstVec3Ptr<Real> x, v;
   const Real* inv_mass;
   Vec3Ptr<Real> f;
   std::size_t row, up, down;  // first points of the row and of the rows above and below it
   std::uint32_t n;            // the row's last column
-  bool project, rub;          // eq (9)'s projection on the sheet normal; friction
+  bool project, rub, damp;    // eq (9)'s projection on the sheet normal; friction; damping
 
   // Points j, j + 1, ... of the row; their neighbours along it start at columns j − 1 and
   // j + 1 (the caller makes sure both exist in memory). Ends: a lane may be column 0 or n,
@@ -385,8 +409,8 @@ struct RowForce {
                         Fx, Fy, Fz);
     }
     const auto before_x = load_real(l, f.x + p), before_y = load_real(l, f.y + p), before_z = load_real(l, f.z + p);
-    if (rub) {
-      // the slip relative to the obstacle's surface here: v − (linear + angular × (x − center))
+    if (rub || damp) {
+      // the velocity relative to the obstacle's surface here: v − (linear + angular × (x − center))
       const double* w = near.angular;
       const V rx = hn::Sub(px, hn::Set(d, near.center[0]));
       const V ry = hn::Sub(py, hn::Set(d, near.center[1]));
@@ -402,7 +426,9 @@ struct RowForce {
         inv_g2_at = hn::Set(d, inv_g2), inv_g_at = hn::Set(d, inv_g);
       else
         inverse_norms(d, gx, gy, gz, inv_g2_at, inv_g_at);
-      friction(d, gx, gy, gz, inv_g2_at, inv_g_at, Fx, Fy, Fz, hn::Add(widen(l, before_x), Fx), hn::Add(widen(l, before_y), Fy),
+      if (damp) damping(d, gx, gy, gz, inv_g_at, Fx, Fy, Fz, vx, vy, vz, load_wide(l, inv_mass + p));
+      if (rub)
+        friction(d, gx, gy, gz, inv_g2_at, inv_g_at, Fx, Fy, Fz, hn::Add(widen(l, before_x), Fx), hn::Add(widen(l, before_y), Fy),
                hn::Add(widen(l, before_z), Fz), vx, vy, vz, load_wide(l, inv_mass + p));
     }
     store_sum(l, within, before_x, Fx, f.x + p);
@@ -424,6 +450,7 @@ void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near,
   const ForceScale scale = force_scale_of(o.def, near.exponent_cap);
   const Frame frame = frame_of(o);
   const Rub friction{near.friction, near.dt, {near.gravity[0], near.gravity[1], near.gravity[2]}};
+  const Damp damping{near.damping, near.dt};
   const hn::CappedTag<double, 1> one;
   const hn::ScalableTag<double> full;
   hn::Vec<decltype(one)> inv_g2, inv_g;  // used only for a constant ∇f, the local z axis
@@ -436,6 +463,7 @@ void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near,
                                    near,
                                    scale,
                                    friction,
+                                   damping,
                                    hn::GetLane(inv_g2),
                                    hn::GetLane(inv_g),
                                    x,
@@ -447,7 +475,8 @@ void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near,
                                    down,
                                    n,
                                    !o.def.full_gradient,
-                                   near.friction > 0};
+                                   near.friction > 0,
+                                   near.damping > 0};
     const std::uint32_t begin = i == 0 ? 1 : 0, end = i == m ? n : cols;
     if (i == 0) at.template at<false>(lanes::Whole<decltype(one)>{one}, 0, 0, std::min(1u, n));
     if (end > begin)
@@ -512,6 +541,7 @@ std::string validate(const ObstacleDef& d) {
   if (!positive(d.xi)) return fail("xi", "must be positive and finite", d.xi);
   if (!positive(d.max_exponent)) return fail("max_exponent", "must be positive and finite", d.max_exponent);
   if (!(std::isfinite(d.friction) && d.friction >= 0)) return fail("friction", "must be non-negative and finite", d.friction);
+  if (!(std::isfinite(d.damping) && d.damping >= 0)) return fail("damping", "must be non-negative and finite", d.damping);
   if (d.motion)
     if (std::string problem = validate(*d.motion); !problem.empty()) return "motion." + problem;
   switch (d.shape) {

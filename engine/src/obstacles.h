@@ -66,8 +66,9 @@ bool may_touch(const Obstacle& o, const Aabb& box);
 
 // eq (9): adds the obstacle's repulsion to f for every point of the sheet; projected on the
 // sheet's unit normal (from the neighbouring grid points) unless def.full_gradient. With
-// near.friction > 0 also Coulomb friction, which reads the point's velocity v, its inverse
-// mass and the total force f holds so far (call it after every other term).
+// near.damping > 0 the force is damped against the point's normal velocity (reading v and the
+// inverse mass), and with near.friction > 0 Coulomb friction follows, which reads the point's
+// velocity v, its inverse mass and the total force f holds so far (call it after every other term).
 template <class Real>
 void obstacle_forces(const Topology<Real>& topo, const NearObstacle& near, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v,
                      const Real* inv_mass, Vec3Ptr<Real> f);

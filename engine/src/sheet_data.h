@@ -23,9 +23,10 @@ struct NearObstacle {
   const Obstacle* obstacle;
   double exponent_cap;
   double friction = 0;
+  double damping = 0;  // α of ObstacleDef::damping
   double dt = 0;
   double gravity[3] = {0, 0, 0};
-  // The obstacle's rigid velocity over the substep, so friction acts against the slip
+  // The obstacle's rigid velocity over the substep, so friction and damping act against the slip
   // relative to its surface: v_surface(x) = linear + angular × (x − center). All zero for a
   // still obstacle, where subtracting it leaves the point's velocity bit for bit.
   double linear[3] = {0, 0, 0};   // m/s, its centre's motion over [t, t + dt]

@@ -38,9 +38,10 @@ void BasicWorld<Real>::Impl::assign_obstacles(double h) {
       detail::NearObstacle near{.obstacle = &obstacle,
                                 .exponent_cap = detail::exponent_cap(obstacle.def, lightest, h),
                                 .friction = std::max(s.friction, obstacle.def.friction),
+                                .damping = obstacle.def.damping,
                                 .dt = h,
                                 .gravity = {def.gravity.x, def.gravity.y, def.gravity.z}};
-      if (near.friction > 0) detail::set_obstacle_velocity(near, obstacle_slots[o].def, time(), h);
+      if (near.friction > 0 || near.damping > 0) detail::set_obstacle_velocity(near, obstacle_slots[o].def, time(), h);
       s.near_obstacles.push_back(near);
     }
   }

@@ -40,6 +40,12 @@ struct ObstacleDef {
   // μ, Coulomb friction of the surface (static and kinetic, ≥ 0). Against a sheet the larger
   // of this and SheetDef::friction acts; 0 on both: frictionless (docs/scene-format.md).
   double friction = 0.0;
+  // α, s/m: Hunt–Crossley damping of the repulsion, which becomes F·(1 − α·ḋ), ḋ the rate at
+  // which the point's distance from the surface grows (relative to a moving obstacle's
+  // surface); its coefficient α·|F| is capped at a quarter of the point's m/dt, and the force
+  // is never attractive. 0 (default): the potential alone, which conserves energy, so a
+  // sheet dropped on the obstacle bounces off it as far as its own damping allows.
+  double damping = 0.0;
   // A rigid part that moves: at time t the obstacle is turned and moved by pose_at(*motion, t)
   // from the pose above (center, orientation); sheets near it feel it where it is at the
   // start of each substep. Points attached to it: a Frame constraint with this obstacle as
