@@ -170,14 +170,6 @@ V3<Real> velocity(const Sheet<Real>& s, std::uint32_t p) {
   return {s.velocity.x[p], s.velocity.y[p], s.velocity.z[p]};
 }
 
-// The damping coefficient α·f of one entry is capped at this share of m/dt (m the pair's
-// effective mass): an explicit damper is stable while the coefficients acting on a point,
-// summed, stay below 2m/dt, and one contact enters twice (once per direction of its pair)
-// besides the shares a point takes as a corner of other points' triangles. Uncapped, the
-// settling stack of issue 13 blew up at α = 10 s/m within 0.8 s.
-template <class Real>
-constexpr Real kDampingShare = Real(0.25);
-
 // Damping and Coulomb friction on point q of sheet qs against the triangle `best` of sheet
 // ss, whose repulsion on q is `force` along the unit normal d (contacts.h): returns the
 // force to add. Without damping the friction alone, through the same operations.
@@ -196,7 +188,7 @@ V3<Real> dissipate(const Sheet<Real>& qs, std::uint32_t q, const Sheet<Real>& ss
   const Real normal = dot(rel, d);  // ḋ: > 0 parting, < 0 approaching
   V3<Real> damped{0, 0, 0};
   if (prm.damping > 0) {
-    const Real b = std::min(prm.damping * force, kDampingShare<Real> / (inv_mass * prm.dt));
+    const Real b = std::min(prm.damping * force, Real(kDampingShare) / (inv_mass * prm.dt));
     const Real change = std::max(-b * normal, -force);
     damped = {change * d.x, change * d.y, change * d.z};
     force += change;

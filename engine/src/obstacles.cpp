@@ -328,7 +328,7 @@ struct Rub {
 };
 
 // Hunt–Crossley damping of the force F on the lanes' points (ObstacleDef::damping): F·(1 + c)
-// with c|F| = max(−b·ḋ, −|F|), b = min(α|F|, ¼·m/dt) and ḋ = v·∇f/|∇f| the rate at which the
+// with c|F| = max(−b·ḋ, −|F|), b = min(α|F|, kDampingShare·m/dt) and ḋ = v·∇f/|∇f| the rate at which the
 // point leaves the surface (v relative to it). The cap keeps the damper well inside what an
 // explicit step resolves; a pinned point (1/m = 0) is not capped and does not move anyway.
 struct Damp {
@@ -338,7 +338,7 @@ struct Damp {
     const V zero = hn::Zero(d);
     const V rate = hn::Mul(hn::Add(hn::Add(hn::Mul(vx, gx), hn::Mul(vy, gy)), hn::Mul(vz, gz)), inv_g);
     const V size = hn::Sqrt(hn::Add(hn::Add(hn::Mul(Fx, Fx), hn::Mul(Fy, Fy)), hn::Mul(Fz, Fz)));
-    const V most = hn::IfThenElse(hn::Gt(inv_mass, zero), hn::Div(hn::Set(d, 0.25), hn::Mul(inv_mass, hn::Set(d, dt))),
+    const V most = hn::IfThenElse(hn::Gt(inv_mass, zero), hn::Div(hn::Set(d, kDampingShare), hn::Mul(inv_mass, hn::Set(d, dt))),
                                   hn::Set(d, std::numeric_limits<double>::infinity()));
     const V b = lanes::first_min(hn::Mul(hn::Set(d, alpha), size), most);
     const V change = lanes::first_max(hn::Neg(hn::Mul(b, rate)), hn::Neg(size));
@@ -426,10 +426,11 @@ struct RowForce {
         inv_g2_at = hn::Set(d, inv_g2), inv_g_at = hn::Set(d, inv_g);
       else
         inverse_norms(d, gx, gy, gz, inv_g2_at, inv_g_at);
-      if (damp) damping(d, gx, gy, gz, inv_g_at, Fx, Fy, Fz, vx, vy, vz, load_wide(l, inv_mass + p));
+      const V point_inv_mass = load_wide(l, inv_mass + p);
+      if (damp) damping(d, gx, gy, gz, inv_g_at, Fx, Fy, Fz, vx, vy, vz, point_inv_mass);
       if (rub)
         friction(d, gx, gy, gz, inv_g2_at, inv_g_at, Fx, Fy, Fz, hn::Add(widen(l, before_x), Fx), hn::Add(widen(l, before_y), Fy),
-               hn::Add(widen(l, before_z), Fz), vx, vy, vz, load_wide(l, inv_mass + p));
+                 hn::Add(widen(l, before_z), Fz), vx, vy, vz, point_inv_mass);
     }
     store_sum(l, within, before_x, Fx, f.x + p);
     store_sum(l, within, before_y, Fy, f.y + p);

@@ -15,6 +15,15 @@ namespace drape::detail {
 
 struct Obstacle;  // obstacles.h
 
+// Contact damping (WorldDef::contact_damping, ObstacleDef::damping): the damping coefficient
+// of one contact is capped at this share of m/dt (m the point's, or between sheets the
+// pair's effective, mass). An explicit damper is stable while the coefficients acting on a
+// point, summed, stay below 2m/dt, and a point can feel several: a contact between sheets
+// enters twice (once per direction of its pair) besides the shares a point takes as a corner
+// of other points' triangles, and a sheet can touch an obstacle and other sheets at once.
+// Uncapped, issue 13's settling stack blew up (the figures are in the commit that added it).
+inline constexpr double kDampingShare = 0.25;
+
 // An obstacle the host stage found near a sheet, with the exponent cap this sheet uses
 // (obstacles.h, exponent_cap: it depends on the sheet's lightest point and on dt), and what
 // its friction needs: μ (the larger of the sheet's and the obstacle's), the substep's
