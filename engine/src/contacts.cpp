@@ -633,25 +633,40 @@ HWY_INLINE void closest_lanes(D d, const V3s<hn::TFromD<D>, V>& p, const V3s<hn:
   const V vb = hn::Sub(hn::Mul(d5, d2), hn::Mul(d1, d6));
   const V va = hn::Sub(hn::Mul(d3, d6), hn::Mul(d5, d4));
   const V sum = hn::Add(hn::Add(va, vb), vc);
+  const V d43 = hn::Sub(d4, d3), d56 = hn::Sub(d5, d6);
+  // The regions, in closest_weights' order: vertex a, vertex b, edge ab, vertex c, edge ac,
+  // edge bc, a degenerate triangle, the face; the first that holds is the lane's.
+  const auto at_a = hn::And(hn::Le(d1, zero), hn::Le(d2, zero));
+  const auto at_b = hn::And(hn::Ge(d3, zero), hn::Le(d4, d3));
+  const auto on_ab = hn::And(hn::And(hn::Le(vc, zero), hn::Ge(d1, zero)), hn::Le(d3, zero));
+  const auto at_c = hn::And(hn::Ge(d6, zero), hn::Le(d5, d6));
+  const auto on_ac = hn::And(hn::And(hn::Le(vb, zero), hn::Ge(d2, zero)), hn::Le(d6, zero));
+  const auto on_bc = hn::And(hn::And(hn::Le(va, zero), hn::Ge(d43, zero)), hn::Ge(d56, zero));
+  // Two divisions, not five: a lane whose region is an edge divides that edge's operands
+  // (of the edges that hold, the first in that order is the lane's unless a vertex before
+  // it holds, whose weights need no quotient), a face lane vb/sum, and every lane vc/sum,
+  // which only the face uses; each quotient has the operands, so the bits, of
+  // closest_weights' own.
+  const auto edge = hn::Or(hn::Or(on_ab, on_ac), on_bc);
+  const V edge_num = hn::IfThenElse(on_ab, d1, hn::IfThenElse(on_ac, d2, d43));
+  const V edge_den = hn::IfThenElse(on_ab, hn::Sub(d1, d3), hn::IfThenElse(on_ac, hn::Sub(d2, d6), hn::Add(d43, d56)));
+  const V t = hn::Div(hn::IfThenElse(edge, edge_num, vb), hn::IfThenElse(edge, edge_den, sum));
+  const V fw = hn::Div(vc, sum);
   // the face, then each region before it in closest_weights' order overriding it
-  const V fv = hn::Div(vb, sum), fw = hn::Div(vc, sum);
-  V u = hn::Sub(hn::Sub(one, fv), fw), v = fv, w = fw;
+  V u = hn::Sub(hn::Sub(one, t), fw), v = t, w = fw;
   auto take = [&](auto region, V ru, V rv, V rw) {
     u = hn::IfThenElse(region, ru, u);
     v = hn::IfThenElse(region, rv, v);
     w = hn::IfThenElse(region, rw, w);
   };
   take(hn::Not(hn::Gt(sum, zero)), one, zero, zero);  // degenerate: the first vertex
-  const V d43 = hn::Sub(d4, d3), d56 = hn::Sub(d5, d6);
-  const V t_bc = hn::Div(d43, hn::Add(d43, d56));
-  take(hn::And(hn::And(hn::Le(va, zero), hn::Ge(d43, zero)), hn::Ge(d56, zero)), zero, hn::Sub(one, t_bc), t_bc);
-  const V t_ac = hn::Div(d2, hn::Sub(d2, d6));
-  take(hn::And(hn::And(hn::Le(vb, zero), hn::Ge(d2, zero)), hn::Le(d6, zero)), hn::Sub(one, t_ac), zero, t_ac);
-  take(hn::And(hn::Ge(d6, zero), hn::Le(d5, d6)), zero, zero, one);
-  const V t_ab = hn::Div(d1, hn::Sub(d1, d3));
-  take(hn::And(hn::And(hn::Le(vc, zero), hn::Ge(d1, zero)), hn::Le(d3, zero)), hn::Sub(one, t_ab), t_ab, zero);
-  take(hn::And(hn::Ge(d3, zero), hn::Le(d4, d3)), zero, one, zero);
-  take(hn::And(hn::Le(d1, zero), hn::Le(d2, zero)), one, zero, zero);
+  const V rest = hn::Sub(one, t);
+  take(on_bc, zero, rest, t);
+  take(on_ac, rest, zero, t);
+  take(at_c, zero, zero, one);
+  take(on_ab, rest, t, zero);
+  take(at_b, zero, one, zero);
+  take(at_a, one, zero, zero);
   const V3s<Real, V> q{hn::Add(hn::Add(hn::Mul(u, a.x), hn::Mul(v, b.x)), hn::Mul(w, c.x)),
                        hn::Add(hn::Add(hn::Mul(u, a.y), hn::Mul(v, b.y)), hn::Mul(w, c.y)),
                        hn::Add(hn::Add(hn::Mul(u, a.z), hn::Mul(v, b.z)), hn::Mul(w, c.z))};
