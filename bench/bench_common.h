@@ -5,9 +5,12 @@
 #include <benchmark/benchmark.h>
 #include <drape/drape.h>
 
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
+
+#include "obstacles.h"  // detail::reach_exponent
 
 namespace drape::bench {
 
@@ -90,17 +93,44 @@ struct Stack {
   static Vec3 center(int column, int layer, double layer_gap) { return {column_pitch * column, 0.0, layer_gap * layer}; }
 };
 
+// A floor (eq 9, c = 0.01 J, ξ = 0.01 m) under sheets lying flat at z = 0, at the height
+// where its force holds the weight of a point of `point_mass`: such sheets start there at rest
+// and stay, every point within its reach, so eq (9) acts on all of them every substep. (A floor
+// 5 mm under them, as the benchmarks had, threw them metres up: they spent most substeps
+// beyond its reach, where a point costs next to nothing.)
+inline ObstacleDef floor_holding(double point_mass) {
+  ObstacleDef floor;
+  floor.shape = ObstacleShape::Plane;
+  floor.c = 0.01;
+  floor.xi = 0.01;
+  const double weight = point_mass * -WorldDef{}.gravity.z;
+  // (c/ξ)·(e^(−h/ξ) − e^(−reach)) = weight, for the height h of the sheets over the floor
+  const double h = -floor.xi * std::log(weight * floor.xi / floor.c + std::exp(-detail::reach_exponent));
+  floor.center = {0.0, 0.0, -h};
+  return floor;
+}
+
+// How the stack's sheets meet. `exact`: WorldDef::contact_exact, the exact nearest triangle
+// every substep instead of the walk (the reference, priced beside it). `friction`
+// (SheetDef::friction, on every sheet) and `damping` (WorldDef::contact_damping): the
+// dissipative contact terms, priced beside the default frictionless, undamped contact.
+struct StackContact {
+  bool exact = false;
+  double friction = 0.0;
+  double damping = 0.0;
+};
+
 // The stack in drape. `layer_gap` 2 m keeps the sheets apart (no pair within contact range,
 // however far they sag and swing); 0.01 m puts each layer in contact with the next (the
-// contact range is 0.017 m by default). `exact_contacts`: WorldDef::contact_exact, the exact
-// nearest triangle every substep instead of the walk (the reference, priced beside it).
-// `guard`: the stability guard after every step() call, for runs long enough to blow up.
-inline World stack_world(int threads, double layer_gap, bool exact_contacts = false, bool guard = false) {
+// contact range is 0.017 m by default). `guard`: the stability guard after every step()
+// call, for runs long enough to blow up.
+inline World stack_world(int threads, double layer_gap, StackContact contact = {}, bool guard = false) {
   WorldDef wd = world_def();
   wd.guard = guard;
   wd.dt = Stack::dt;
   wd.threads = threads;
-  wd.contact_exact = exact_contacts;
+  wd.contact_exact = contact.exact;
+  wd.contact_damping = contact.damping;
   World world(wd);
   SheetDef sd;
   sd.m = sd.n = Stack::side - 1;
@@ -108,6 +138,7 @@ inline World stack_world(int threads, double layer_gap, bool exact_contacts = fa
   sd.mass = Stack::mass;
   sd.stiffness = Stack::stiffness;
   sd.damping = Stack::damping;
+  sd.friction = contact.friction;
   sd.pins = corner_points(sd.m, sd.n);
   for (int column = 0; column < Stack::columns; ++column)
     for (int layer = 0; layer < Stack::layers; ++layer) {

@@ -36,16 +36,14 @@ drape::WorldDef one_thread() {
 constexpr int demo_frame = 33;
 
 void run(benchmark::State& state, Features f, int finite_check_every = 0, bool obstacle = false,
-         double friction = 0.0) {
+         double friction = 0.0, double damping = 0.0) {
   drape::World world(one_thread());
   add_sheets(world, f);
-  if (obstacle) {  // one floor 5 mm under every sheet: eq (9) acts on all of their points
-    drape::ObstacleDef floor;
-    floor.shape = drape::ObstacleShape::Plane;
-    floor.center = {0.0, 0.0, -0.005};
-    floor.c = 0.01;
-    floor.xi = 0.01;
+  if (obstacle) {  // one floor under every sheet, which rests on it: eq (9) acts on all of their points
+    const drape::SheetDef sheet = drape::bench::square_sheet(side, f);
+    drape::ObstacleDef floor = drape::bench::floor_holding(sheet.mass / double(drape::point_count(sheet.m, sheet.n)));
     floor.friction = friction;
+    floor.damping = damping;
     world.add_obstacle(floor);
   }
   int until_check = finite_check_every;
@@ -69,6 +67,8 @@ void BM_Feature_finite_check_per_substep(benchmark::State& state) { run(state, {
 void BM_Feature_obstacle(benchmark::State& state) { run(state, {false, false, false}, 0, true); }
 // The same floor with Coulomb friction (μ = 0.5): the friction term's price on every point.
 void BM_Feature_obstacle_friction(benchmark::State& state) { run(state, {false, false, false}, 0, true, 0.5); }
+// The same floor with contact damping (α = 2 s/m, ObstacleDef::damping): its price on every point.
+void BM_Feature_obstacle_damping(benchmark::State& state) { run(state, {false, false, false}, 0, true, 0.0, 2.0); }
 void BM_Feature_all(benchmark::State& state) { run(state, {true, true, true}, demo_frame, true); }
 // The cloth terms of issue 12, each alone on the bare sheet, then all three together.
 void BM_Feature_shear(benchmark::State& state) { run(state, {false, false, false, true, false, false}); }
@@ -102,6 +102,7 @@ BENCHMARK(BM_Feature_finite_check_per_frame);
 BENCHMARK(BM_Feature_finite_check_per_substep);
 BENCHMARK(BM_Feature_obstacle);
 BENCHMARK(BM_Feature_obstacle_friction);
+BENCHMARK(BM_Feature_obstacle_damping);
 BENCHMARK(BM_Feature_shear);
 BENCHMARK(BM_Feature_bending);
 BENCHMARK(BM_Feature_air);

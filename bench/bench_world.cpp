@@ -47,13 +47,31 @@ BENCHMARK(BM_World48SheetsInContact)->Arg(1)->Arg(2)->UseRealTime();
 // The same with WorldDef::contact_exact: every point tests every cell within reach each
 // substep, the reference the default walk is held to (docs/architecture.md). One thread.
 void BM_World48SheetsInContactExact(benchmark::State& state) {
-  drape::World world = stack_world(1, 0.01, true);
+  drape::bench::StackContact exact;
+  exact.exact = true;
+  drape::World world = stack_world(1, 0.01, exact);
   world.step(10);
   for (auto _ : state) world.step(1);
   state.counters["pairs"] = double(world.contact_pair_count());
   report(state, 48.0 * 64 * 64);
 }
 BENCHMARK(BM_World48SheetsInContactExact)->UseRealTime();
+
+// Arg: 0 Coulomb friction between the sheets (μ = 0.5), 1 contact damping (α = 2 s/m, which
+// stops the layers rattling beside their pins: docs/scene-format.md), 2 both. One thread,
+// priced against BM_World48SheetsInContact/1, the frictionless, undamped contact
+// (tools/floor_pair.py runs them in alternating rounds).
+void BM_World48SheetsInContactDissipative(benchmark::State& state) {
+  drape::bench::StackContact contact;
+  contact.friction = state.range(0) != 1 ? 0.5 : 0.0;
+  contact.damping = state.range(0) != 0 ? 2.0 : 0.0;
+  drape::World world = stack_world(1, 0.01, contact);
+  world.step(10);
+  for (auto _ : state) world.step(1);
+  state.counters["pairs"] = double(world.contact_pair_count());
+  report(state, 48.0 * 64 * 64);
+}
+BENCHMARK(BM_World48SheetsInContactDissipative)->Arg(0)->Arg(1)->Arg(2)->UseRealTime();
 
 // The same two scenes stepped a frame of substeps per call, as a program steps them: the
 // sheets apart run contact-free frames (each checked afterwards on its swept boxes); the
@@ -84,7 +102,7 @@ void BM_World48SheetsSettling(benchmark::State& state) {
   const bool contact = state.range(0) != 0;
   for (auto _ : state) {
     state.PauseTiming();
-    drape::World world = stack_world(int(state.range(1)), contact ? 0.01 : 2.0, /*exact_contacts=*/false, /*guard=*/true);
+    drape::World world = stack_world(int(state.range(1)), contact ? 0.01 : 2.0, {}, /*guard=*/true);
     state.ResumeTiming();
     for (int frame = 0; frame < 100; ++frame) {
       const drape::StabilityReport report = world.step(10);
