@@ -87,8 +87,9 @@ settle "the portable run"
   --rounds "$rounds" --out "$portable_json" -- "--benchmark_min_time=$min_time" \
   "--benchmark_filter=^BM_(Sheets48_f|Fig13/semi_implicit_euler/f64/|Paper1000Points|CeilingSheets48|ArithmeticBound)"
 # Issue 13's floor against the bare world (docs/benchmarks-floor.json): BM_Feature_bare,
-# BM_Feature_obstacle and BM_Feature_obstacle_friction from the native binary in alternating rounds
-# of one repetition each (tools/floor_pair.py). In the main run they are repetitions minutes apart,
+# BM_Feature_obstacle and its friction and damping variants, and the stacked sheets with and
+# without friction and damping between them, from the native binary in alternating rounds of one
+# repetition each (tools/floor_pair.py). In the main run they are repetitions minutes apart,
 # and a slow spell during one of them once moved the floor's price from +11 % to +41 %; the report
 # judges the floor by the median over these rounds of the price within a round.
 floor_json=docs/benchmarks-floor.json

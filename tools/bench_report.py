@@ -884,8 +884,9 @@ class Report:
             "damping": "+ damping −Cẋ (eq 4)",
             "finite_check_per_frame": "+ all_finite() once per 33 substeps (a 30 frame/s frame)",
             "finite_check_per_substep": "+ all_finite() after every substep",
-            "obstacle": "+ a floor (eq 9) under every sheet, acting on all points",
+            "obstacle": "+ a floor (eq 9) under every sheet, acting on all points (resting on it)",
             "obstacle_friction": "+ the same floor with Coulomb friction (μ = 0.5) on every point",
+            "obstacle_damping": "+ the same floor with contact damping (α = 2 s/m) on every point",
             "contacts": "+ contacts between sheets",
             "all": "pins + anchors + damping + floor + all_finite() per frame",
             "shear": "+ shear springs on both diagonals of every cell (issue 12)",
@@ -1021,6 +1022,7 @@ class Report:
         paired = runs_of(self.floor) if self.floor else {}
         bare, floor = paired.get("BM_Feature_bare"), paired.get("BM_Feature_obstacle")
         rub = paired.get("BM_Feature_obstacle_friction")
+        damp = paired.get("BM_Feature_obstacle_damping")
         if not settle and not all(fold.values()) and "BM_Feature_obstacle" not in self.runs and not (bare and floor):
             return
         self.out("## Contacts, obstacles and self-contact (issue 13)", "")
@@ -1050,16 +1052,21 @@ class Report:
                         f"≤ +{100 * TARGET_FLOOR_PRICE:.0f} %", price <= TARGET_FLOOR_PRICE,
                         "" if price <= TARGET_FLOOR_PRICE else f"{100 * (price - TARGET_FLOOR_PRICE):.0f} points over")
             rounds = self.floor.get("paired", {}).get("rounds", "?")
-            text = (f"- A floor under every point of the 48 sheets (one thread, CPU time), `BM_Feature_bare`, "
-                    f"`BM_Feature_obstacle` and `BM_Feature_obstacle_friction` run from this run's binary in {rounds} "
+            text = (f"- A floor under every point of the 48 sheets (one thread, CPU time; the sheets rest on it at the "
+                    f"height where its force holds their weight, so it acts on every point every substep), "
+                    f"`BM_Feature_bare`, `BM_Feature_obstacle` and its variants with friction and damping run from this "
+                    f"run's binary in {rounds} "
                     f"alternating rounds of one repetition each ([benchmarks-floor.json](benchmarks-floor.json), "
-                    f"tools/floor_pair.py), so that a slow spell of the machine slows all three; each figure is the "
+                    f"tools/floor_pair.py), so that a slow spell of the machine slows them all; each figure is the "
                     f"fastest of its rounds (± their coefficient of variation), and each price the median over the "
                     f"rounds of the price within a round: {us(floor.step_seconds)} µs{cv_text(floor)} per "
                     f"substep against {us(bare.step_seconds)} µs{cv_text(bare)} bare, {100 * price:+.0f} %")
             if rub:
                 text += (f"; with Coulomb friction (μ = 0.5) on every point {us(rub.step_seconds)} µs{cv_text(rub)}, "
                          f"{100 * (times_faster(rub, floor) - 1):+.0f} % over the frictionless floor")
+            if damp:
+                text += (f"; with contact damping (α = 2 s/m) on every point {us(damp.step_seconds)} µs{cv_text(damp)}, "
+                         f"{100 * (times_faster(damp, floor) - 1):+.0f} % over the undamped floor")
             self.out(text + ".")
         elif "BM_Feature_obstacle" in self.runs:
             self.target("A floor (eq 9) under every point, vs bare", "not measured", f"≤ +{100 * TARGET_FLOOR_PRICE:.0f} %",
@@ -1091,8 +1098,25 @@ class Report:
                      f"wall time): {us(walk.step_seconds)} µs per substep with kept contact sets that walk between "
                      f"searches (the default), {us(exact.step_seconds)} µs with the exact search every substep "
                      f"(`contact_exact`), {exact.step_seconds / walk.step_seconds:.2f}×.")
+        self.dissipative_stack(paired)
         self.used.update(r.name for r in settle.values())
         self.out("")
+
+    def dissipative_stack(self, paired):
+        """Issue 13's pricing of the contact terms added beside the repulsion: friction and damping
+        between the stacked sheets, from tools/floor_pair.py's alternating rounds."""
+        plain = paired.get("BM_World48SheetsInContact/1/real_time")
+        kinds = [(0, "Coulomb friction between the sheets (μ = 0.5)"), (1, "contact damping (α = 2 s/m)"),
+                 (2, "both")]
+        found = [(paired.get(f"BM_World48SheetsInContactDissipative/{k}/real_time"), what) for k, what in kinds]
+        found = [(run, what) for run, what in found if run]
+        if not plain or not found:
+            return
+        parts = [f"{what} {us(run.step_seconds)} µs{cv_text(run)}, {100 * (times_faster(run, plain) - 1):+.0f} %"
+                 for run, what in found]
+        self.out(f"- The same 48 sheets in contact with the dissipative contact terms, priced against the plain "
+                 f"repulsion in the floor's alternating rounds (one thread, wall time): {us(plain.step_seconds)} µs "
+                 f"per substep without them; with " + "; with ".join(parts) + ".")
 
     def broad_phase(self):
         what = "Broad-phase for 10,000 sheets, share of the world step"

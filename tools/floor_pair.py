@@ -6,11 +6,13 @@ bare world (BM_Feature_bare and BM_Feature_obstacle in bench/bench_features.cpp,
 64×64 on one thread). In the main run of tools/bench.sh the two are separate repetitions minutes
 apart, and a slow spell of the machine during one of them (25-35 % on the machine of
 docs/BENCHMARKS.md) decides the verdict: two reports in a row read +11 % and +41 %. So this
-script runs each of the benchmarks (the bare world, the floor, the floor with friction) as its
-own side, one repetition per round, the order turning every round (tools/baseline.py), all from
+script runs each of the benchmarks (the bare world, the floor, the floor with friction, with
+damping) as its own side, one repetition per round, the order turning every round (tools/baseline.py), all from
 the same drape_bench binary, and writes every side's runs into one drape_bench JSON.
 tools/bench_report.py shows the fastest of each benchmark's rounds and judges the floor by the median
-over the rounds of the price within a round.
+over the rounds of the price within a round. The stacked sheets in contact with friction and
+damping between them (issue 13's pricing of the contact terms) are paired the same way against
+the plain stack.
 
 Usage: tools/floor_pair.py --bench BENCH [--rounds 5] [--out docs/benchmarks-floor.json]
                            [--benchmarks BM_Feature_bare BM_Feature_obstacle ...]
@@ -25,7 +27,9 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from baseline import Recorder  # noqa: E402
 
 recorder = Recorder("floor_pair")
-BENCHMARKS = ["BM_Feature_bare", "BM_Feature_obstacle", "BM_Feature_obstacle_friction"]
+BENCHMARKS = ["BM_Feature_bare", "BM_Feature_obstacle", "BM_Feature_obstacle_friction", "BM_Feature_obstacle_damping",
+              "BM_World48SheetsInContact/1/real_time", "BM_World48SheetsInContactDissipative/0/real_time",
+              "BM_World48SheetsInContactDissipative/1/real_time", "BM_World48SheetsInContactDissipative/2/real_time"]
 
 
 def main():
@@ -38,13 +42,15 @@ def main():
     args = ap.parse_args()
     recorder.check_sides(args.rounds, args.bench)
     bench = os.path.abspath(args.bench)
-    sides = {name: ([bench, f"--benchmark_filter=^{name}$", *args.bench_args], {}) for name in args.benchmarks}
+    # a side's name names its files: no "/" of a benchmark's arguments in it
+    side = {name: name.replace("/", "_") for name in args.benchmarks}
+    sides = {side[name]: ([bench, f"--benchmark_filter=^{name}$", *args.bench_args], {}) for name in args.benchmarks}
     measured, paired = recorder.pair(sides, args.rounds,
                                      "each round ran every benchmark once, one drape_bench process each, one after "
                                      "the other, the order turning every round; `benchmarks` holds every round's run")
-    record = measured[args.benchmarks[0]]
+    record = measured[side[args.benchmarks[0]]]
     for name in args.benchmarks[1:]:
-        record["benchmarks"] += measured[name]["benchmarks"]
+        record["benchmarks"] += measured[side[name]]["benchmarks"]
     record["paired"] = paired
     recorder.write(record, args.out)
 
