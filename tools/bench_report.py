@@ -1115,7 +1115,7 @@ class Report:
         parts = [f"{what} {us(run.step_seconds)} µs{cv_text(run)}, {100 * (times_faster(run, plain) - 1):+.0f} %"
                  for run, what in found]
         self.out(f"- The same 48 sheets in contact with the dissipative contact terms, priced against the plain "
-                 f"repulsion in the floor's alternating rounds (one thread, wall time): {us(plain.step_seconds)} µs "
+                 f"repulsion in the floor's alternating rounds (one thread, wall time): {us(plain.step_seconds)} µs{cv_text(plain)} "
                  f"per substep without them; with " + "; with ".join(parts) + ".")
 
     def broad_phase(self):
