@@ -188,16 +188,21 @@ V3<Real> dissipate(const Sheet<Real>& qs, std::uint32_t q, const Sheet<Real>& ss
   const Real normal = dot(rel, d);  // ḋ: > 0 parting, < 0 approaching
   V3<Real> damped{0, 0, 0};
   if (prm.damping > 0) {
-    const Real b = std::min(prm.damping * force, Real(kDampingShare) / (inv_mass * prm.dt));
+    // α·f, capped at the share of m/dt; whether it is, decided without a division
+    const Real b = prm.damping * force * inv_mass * prm.dt > Real(kDampingShare) ? Real(kDampingShare) / (inv_mass * prm.dt)
+                                                                                 : prm.damping * force;
     const Real change = std::max(-b * normal, -force);
     damped = {change * d.x, change * d.y, change * d.z};
     force += change;
   }
   if (!(prm.friction > 0)) return damped;
   const V3<Real> slip{rel.x - normal * d.x, rel.y - normal * d.y, rel.z - normal * d.z};
-  const Real speed = std::sqrt(dot(slip, slip));
-  if (!(speed > 0)) return damped;
-  const Real k = std::min(prm.friction * force / speed, Real(1) / (inv_mass * prm.dt));
+  const Real slip2 = dot(slip, slip);
+  if (!(slip2 > 0)) return damped;
+  // μ·N/|slip|, or m/dt where that stops the slip within the substep (a slip slower than
+  // μ·N·dt/m, decided on squares): one division, and a square root only while it slides
+  const Real held = prm.friction * force * inv_mass * prm.dt;
+  const Real k = slip2 < held * held ? Real(1) / (inv_mass * prm.dt) : prm.friction * force / std::sqrt(slip2);
   if (!(prm.damping > 0)) return {-k * slip.x, -k * slip.y, -k * slip.z};
   return {damped.x - k * slip.x, damped.y - k * slip.y, damped.z - k * slip.z};
 }

@@ -315,35 +315,44 @@ struct Rub {
     const V wz = hn::Add(vz, hn::Mul(step, hn::Add(hn::Mul(inv_mass, tz), hn::Set(d, gravity[2]))));
     const V wn = hn::Mul(hn::Add(hn::Add(hn::Mul(wx, gx), hn::Mul(wy, gy)), hn::Mul(wz, gz)), inv_g2);
     const V sx = hn::Sub(wx, hn::Mul(wn, gx)), sy = hn::Sub(wy, hn::Mul(wn, gy)), sz = hn::Sub(wz, hn::Mul(wn, gz));
-    const V speed = hn::Sqrt(hn::Add(hn::Add(hn::Mul(sx, sx), hn::Mul(sy, sy)), hn::Mul(sz, sz)));
-    const V stop = hn::IfThenElse(hn::Gt(inv_mass, zero), hn::Div(one, hn::Mul(inv_mass, step)),
-                                  hn::Set(d, std::numeric_limits<double>::infinity()));
-    const auto moving = hn::Gt(speed, zero);
-    const V k = hn::IfThenElseZero(
-        moving, lanes::first_min(hn::Div(hn::Mul(hn::Set(d, mu), load), hn::IfThenElse(moving, speed, one)), stop));
+    // The force is k·v*_t with k = μN/|v*_t|, or m/dt where that stops the slip, i.e. where the
+    // slip is slower than μN·dt/m (decided on squares): a division either way, and a square
+    // root only for a vector with a lane that slides.
+    const V slip2 = hn::Add(hn::Add(hn::Mul(sx, sx), hn::Mul(sy, sy)), hn::Mul(sz, sz));
+    const V held = hn::Mul(hn::Mul(hn::Set(d, mu), load), hn::Mul(inv_mass, step));  // the slip μN stops
+    const auto stops = hn::Lt(slip2, hn::Mul(held, held)), moving = hn::Gt(slip2, zero);
+    V over = hn::Mul(inv_mass, step);
+    if (!hn::AllTrue(d, hn::Or(stops, hn::Not(moving))))
+      over = hn::IfThenElse(stops, over, hn::Sqrt(hn::IfThenElse(moving, slip2, one)));
+    const V k = hn::IfThenElseZero(moving, hn::Div(hn::IfThenElse(stops, one, hn::Mul(hn::Set(d, mu), load)), over));
     Fx = hn::Sub(Fx, hn::Mul(k, sx));
     Fy = hn::Sub(Fy, hn::Mul(k, sy));
     Fz = hn::Sub(Fz, hn::Mul(k, sz));
   }
 };
 
-// Hunt–Crossley damping of the force F on the lanes' points (ObstacleDef::damping): F·(1 + c)
-// with c|F| = max(−b·ḋ, −|F|), b = min(α|F|, kDampingShare·m/dt) and ḋ = v·∇f/|∇f| the rate at which the
-// point leaves the surface (v relative to it). The cap keeps the damper well inside what an
-// explicit step resolves; a pinned point (1/m = 0) is not capped and does not move anyway.
+// Hunt–Crossley damping of the force F on the lanes' points (ObstacleDef::damping):
+// F·(1 + max(−c·ḋ, −1)), ḋ = v·∇f/|∇f| the rate at which the point leaves the surface (v
+// relative to it), c = α, or kDampingShare·(m/dt)/|F| where α|F| would pass that share of m/dt:
+// the force α|F|·ḋ of the damper capped, so it stays well inside what an explicit step
+// resolves. Whether a lane is capped is decided on squares (α|F|·dt/m against the share), so a
+// vector with none capped, the usual case, takes no square root and no division; a pinned
+// point (1/m = 0) is never capped and does not move anyway.
 struct Damp {
   double alpha, dt;
   template <class D, class V>
   HWY_INLINE void operator()(D d, V gx, V gy, V gz, V inv_g, V& Fx, V& Fy, V& Fz, V vx, V vy, V vz, V inv_mass) const {
-    const V zero = hn::Zero(d);
     const V rate = hn::Mul(hn::Add(hn::Add(hn::Mul(vx, gx), hn::Mul(vy, gy)), hn::Mul(vz, gz)), inv_g);
-    const V size = hn::Sqrt(hn::Add(hn::Add(hn::Mul(Fx, Fx), hn::Mul(Fy, Fy)), hn::Mul(Fz, Fz)));
-    const V most = hn::IfThenElse(hn::Gt(inv_mass, zero), hn::Div(hn::Set(d, kDampingShare), hn::Mul(inv_mass, hn::Set(d, dt))),
-                                  hn::Set(d, std::numeric_limits<double>::infinity()));
-    const V b = lanes::first_min(hn::Mul(hn::Set(d, alpha), size), most);
-    const V change = lanes::first_max(hn::Neg(hn::Mul(b, rate)), hn::Neg(size));
-    const auto pushed = hn::Gt(size, zero);
-    const V scale = hn::IfThenElseZero(pushed, hn::Div(change, hn::IfThenElse(pushed, size, hn::Set(d, 1.0))));
+    const V size2 = hn::Add(hn::Add(hn::Mul(Fx, Fx), hn::Mul(Fy, Fy)), hn::Mul(Fz, Fz));
+    const V per_force = hn::Mul(hn::Set(d, alpha), hn::Mul(inv_mass, hn::Set(d, dt)));  // α·dt/m
+    const auto capped = hn::Gt(hn::Mul(hn::Mul(per_force, per_force), size2), hn::Set(d, kDampingShare * kDampingShare));
+    V c = hn::Set(d, alpha);
+    if (!hn::AllFalse(d, capped)) {
+      const V cap = hn::Div(hn::Set(d, kDampingShare),
+                            hn::Mul(hn::Mul(inv_mass, hn::Set(d, dt)), hn::Sqrt(hn::IfThenElse(capped, size2, hn::Set(d, 1.0)))));
+      c = hn::IfThenElse(capped, cap, c);
+    }
+    const V scale = lanes::first_max(hn::Neg(hn::Mul(c, rate)), hn::Set(d, -1.0));
     Fx = hn::Add(Fx, hn::Mul(scale, Fx));
     Fy = hn::Add(Fy, hn::Mul(scale, Fy));
     Fz = hn::Add(Fz, hn::Mul(scale, Fz));
