@@ -93,20 +93,25 @@ struct Stack {
   static Vec3 center(int column, int layer, double layer_gap) { return {column_pitch * column, 0.0, layer_gap * layer}; }
 };
 
-// A floor (eq 9, c = 0.01 J, ξ = 0.01 m) under sheets lying flat at z = 0, at the height
-// where its force holds the weight of a point of `point_mass`: such sheets start there at rest
-// and stay, every point within its reach, so eq (9) acts on all of them every substep. (A floor
-// 5 mm under them, as the benchmarks had, threw them metres up: they spent most substeps
-// beyond its reach, where a point costs next to nothing.)
+// The gap over an obstacle's surface (its f, eq 9) where the force holds the weight of a point
+// of `point_mass`: (c/ξ)·(e^(−h/ξ) − e^(−reach)) = m·g. A sheet set down there rests; nearer,
+// eq (9) pushes its points with many times their weight and throws the sheet off (the
+// benchmarks' floor 5 mm under sheets at rest threw them metres up, where they spent most
+// substeps beyond its reach, at next to no cost).
+inline double holding_gap(double point_mass, double c, double xi) {
+  const double weight = point_mass * -WorldDef{}.gravity.z;
+  return -xi * std::log(weight * xi / c + std::exp(-detail::reach_exponent));
+}
+
+// A floor (eq 9, c = 0.01 J, ξ = 0.01 m) under sheets lying flat at z = 0, at their holding
+// gap: sheets of points of `point_mass` start there at rest and stay, every point within its
+// reach, so eq (9) acts on all of them every substep.
 inline ObstacleDef floor_holding(double point_mass) {
   ObstacleDef floor;
   floor.shape = ObstacleShape::Plane;
   floor.c = 0.01;
   floor.xi = 0.01;
-  const double weight = point_mass * -WorldDef{}.gravity.z;
-  // (c/ξ)·(e^(−h/ξ) − e^(−reach)) = weight, for the height h of the sheets over the floor
-  const double h = -floor.xi * std::log(weight * floor.xi / floor.c + std::exp(-detail::reach_exponent));
-  floor.center = {0.0, 0.0, -h};
+  floor.center = {0.0, 0.0, -holding_gap(point_mass, floor.c, floor.xi)};
   return floor;
 }
 
