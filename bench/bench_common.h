@@ -94,24 +94,24 @@ struct Stack {
 };
 
 // The gap over an obstacle's surface (its f, eq 9) where the force holds the weight of a point
-// of `point_mass`: (c/ξ)·(e^(−h/ξ) − e^(−reach)) = m·g. A sheet set down there rests; nearer,
+// of `sheet`: (c/ξ)·(e^(−h/ξ) − e^(−reach)) = m·g. A sheet set down there rests; nearer,
 // eq (9) pushes its points with many times their weight and throws the sheet off (the
 // benchmarks' floor 5 mm under sheets at rest threw them metres up, where they spent most
 // substeps beyond its reach, at next to no cost).
-inline double holding_gap(double point_mass, double c, double xi) {
-  const double weight = point_mass * -WorldDef{}.gravity.z;
+inline double holding_gap(const SheetDef& sheet, double c, double xi) {
+  const double weight = sheet.mass / double(point_count(sheet.m, sheet.n)) * -WorldDef{}.gravity.z;
   return -xi * std::log(weight * xi / c + std::exp(-detail::reach_exponent));
 }
 
 // A floor (eq 9, c = 0.01 J, ξ = 0.01 m) under sheets lying flat at z = 0, at their holding
-// gap: sheets of points of `point_mass` start there at rest and stay, every point within its
-// reach, so eq (9) acts on all of them every substep.
-inline ObstacleDef floor_holding(double point_mass) {
+// gap: sheets like `sheet` start there at rest and stay, every point within its reach, so
+// eq (9) acts on all of them every substep.
+inline ObstacleDef floor_holding(const SheetDef& sheet) {
   ObstacleDef floor;
   floor.shape = ObstacleShape::Plane;
   floor.c = 0.01;
   floor.xi = 0.01;
-  floor.center = {0.0, 0.0, -holding_gap(point_mass, floor.c, floor.xi)};
+  floor.center = {0.0, 0.0, -holding_gap(sheet, floor.c, floor.xi)};
   return floor;
 }
 

@@ -50,8 +50,7 @@ void build(drape::World& world, Kind kind) {
     world.add_constraint(c);
   }
   if (kind == Kind::MovingObstacle) {  // a floor under every sheet, resting on it, that rises and falls slowly
-    const drape::SheetDef sheet = drape::bench::square_sheet(side, {false, false, false});
-    drape::ObstacleDef floor = drape::bench::floor_holding(sheet.mass / double(drape::point_count(sheet.m, sheet.n)));
+    drape::ObstacleDef floor = drape::bench::floor_holding(drape::bench::square_sheet(side, {false, false, false}));
     drape::Motion bob;
     bob.repeat = true;
     bob.keyframes = {{0, {}, {}}, {1, {0, 0, 0.002}, {}}, {2, {}, {}}};

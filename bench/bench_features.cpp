@@ -40,8 +40,7 @@ void run(benchmark::State& state, Features f, int finite_check_every = 0, bool o
   drape::World world(one_thread());
   add_sheets(world, f);
   if (obstacle) {  // one floor under every sheet, which rests on it: eq (9) acts on all of their points
-    const drape::SheetDef sheet = drape::bench::square_sheet(side, f);
-    drape::ObstacleDef floor = drape::bench::floor_holding(sheet.mass / double(drape::point_count(sheet.m, sheet.n)));
+    drape::ObstacleDef floor = drape::bench::floor_holding(drape::bench::square_sheet(side, f));
     floor.friction = friction;
     floor.damping = damping;
     world.add_obstacle(floor);

@@ -34,7 +34,7 @@ void BM_SheetOnObstacle(benchmark::State& state) {
                      : shape == drape::ObstacleShape::Sphere ? od.size.x
                      : shape == drape::ObstacleShape::Torus  ? od.size.y
                                                              : od.size.z;
-  sd.center = {0, 0, top + drape::bench::holding_gap(sd.mass / double(drape::point_count(sd.m, sd.n)), od.c, od.xi)};
+  sd.center = {0, 0, top + drape::bench::holding_gap(sd, od.c, od.xi)};
   world.add_sheet(sd);
   for (auto _ : state) world.step(1);
   const double points = 64.0 * 64.0;
