@@ -319,12 +319,13 @@ struct Rub {
     // slip is slower than μN·dt/m (decided on squares): a division either way, and a square
     // root only for a vector with a lane that slides.
     const V slip2 = hn::Add(hn::Add(hn::Mul(sx, sx), hn::Mul(sy, sy)), hn::Mul(sz, sz));
-    const V held = hn::Mul(hn::Mul(hn::Set(d, mu), load), hn::Mul(inv_mass, step));  // the slip μN stops
+    const V mu_load = hn::Mul(hn::Set(d, mu), load), per_force = hn::Mul(inv_mass, step);  // μN, dt/m
+    const V held = hn::Mul(mu_load, per_force);  // the slip μN stops
     const auto stops = hn::Lt(slip2, hn::Mul(held, held)), moving = hn::Gt(slip2, zero);
-    V over = hn::Mul(inv_mass, step);
+    V over = per_force;
     if (!hn::AllTrue(d, hn::Or(stops, hn::Not(moving))))
       over = hn::IfThenElse(stops, over, hn::Sqrt(hn::IfThenElse(moving, slip2, one)));
-    const V k = hn::IfThenElseZero(moving, hn::Div(hn::IfThenElse(stops, one, hn::Mul(hn::Set(d, mu), load)), over));
+    const V k = hn::IfThenElseZero(moving, hn::Div(hn::IfThenElse(stops, one, mu_load), over));
     Fx = hn::Sub(Fx, hn::Mul(k, sx));
     Fy = hn::Sub(Fy, hn::Mul(k, sy));
     Fz = hn::Sub(Fz, hn::Mul(k, sz));
@@ -344,12 +345,12 @@ struct Damp {
   HWY_INLINE void operator()(D d, V gx, V gy, V gz, V inv_g, V& Fx, V& Fy, V& Fz, V vx, V vy, V vz, V inv_mass) const {
     const V rate = hn::Mul(hn::Add(hn::Add(hn::Mul(vx, gx), hn::Mul(vy, gy)), hn::Mul(vz, gz)), inv_g);
     const V size2 = hn::Add(hn::Add(hn::Mul(Fx, Fx), hn::Mul(Fy, Fy)), hn::Mul(Fz, Fz));
-    const V per_force = hn::Mul(hn::Set(d, alpha), hn::Mul(inv_mass, hn::Set(d, dt)));  // α·dt/m
-    const auto capped = hn::Gt(hn::Mul(hn::Mul(per_force, per_force), size2), hn::Set(d, kDampingShare * kDampingShare));
+    const V per_force = hn::Mul(inv_mass, hn::Set(d, dt)), damper = hn::Mul(hn::Set(d, alpha), per_force);  // dt/m, α·dt/m
+    const auto capped = hn::Gt(hn::Mul(hn::Mul(damper, damper), size2), hn::Set(d, kDampingShare * kDampingShare));
     V c = hn::Set(d, alpha);
     if (!hn::AllFalse(d, capped)) {
       const V cap = hn::Div(hn::Set(d, kDampingShare),
-                            hn::Mul(hn::Mul(inv_mass, hn::Set(d, dt)), hn::Sqrt(hn::IfThenElse(capped, size2, hn::Set(d, 1.0)))));
+                            hn::Mul(per_force, hn::Sqrt(hn::IfThenElse(capped, size2, hn::Set(d, 1.0)))));
       c = hn::IfThenElse(capped, cap, c);
     }
     const V scale = lanes::first_max(hn::Neg(hn::Mul(c, rate)), hn::Set(d, -1.0));
