@@ -1035,16 +1035,20 @@ TEST(Contacts, WalkedContactSetsStayWithinTheirBoundOfTheExactSearch) {
 // here, are points beyond the edge of a grid shifted or turned against theirs). The same
 // points feel a force, and the same force within 10⁻¹⁰ of the largest, on every
 // instruction set: it fails if a lane's exp, distance, direction or weights differ from
-// repel's beyond rounding.
+// repel's beyond rounding. The third pair turns the upper grid half a turn about its
+// normal, so its points run over the lower grid's cells in falling order (the lanes' runs
+// of falling cells, first_tests), as a fold's do.
 TEST(Contacts, WalkedForcesBetweenPlanesMatchEveryPointAgainstEveryTriangle) {
   test::for_each_target([&](std::int64_t) {
-    for (int pair = 0; pair < 2; ++pair) {
+    for (int pair = 0; pair < 3; ++pair) {
       SheetDef da;
       da.m = da.n = 16;
       da.width = da.height = 0.16;
       SheetDef db = da;
       db.center = {0.0, 0.0, 0.006};
-      db.orientation = quat_from_axis_angle(pair == 0 ? Vec3{0.3, 1, 0} : Vec3{1, 0.2, 0}, 0.05);
+      db.orientation = pair == 2   ? quat_from_axis_angle(Vec3{0.02, 0.03, 1}, 3.14159265358979)
+                       : pair == 0 ? quat_from_axis_angle(Vec3{0.3, 1, 0}, 0.05)
+                                   : quat_from_axis_angle(Vec3{1, 0.2, 0}, 0.05);
       auto a = build_sheet<double>(da), b = build_sheet<double>(db);
       // Each sheet's in-plane unit axes, from its first row and column.
       auto axes = [](const Sheet<double>& s) {
@@ -1068,7 +1072,7 @@ TEST(Contacts, WalkedForcesBetweenPlanesMatchEveryPointAgainstEveryTriangle) {
       const int steps = 10;
       for (int step = 0; step < steps; ++step) {
         move(a, along_a, 0.0, 0.0, 0.0);
-        move(b, along_b, pair == 0 ? 0.0006 : -0.0002, pair == 0 ? 0.0003 : 0.0007, step % 4 < 2 ? -2e-4 : 2e-4);
+        move(b, along_b, pair != 1 ? 0.0006 : -0.0002, pair != 1 ? 0.0003 : 0.0007, step % 4 < 2 ? -2e-4 : 2e-4);
         pair_contacts(a, boxes(a), b, boxes(b), kParams, walked, scratch);
         const Dense ab = brute_contacts(a, b, -1), ba = brute_contacts(b, a, -1);
         ASSERT_GT(ab.entries_q, a.size() / 2) << "pair " << pair;  // most points in contact
@@ -1090,15 +1094,21 @@ TEST(Contacts, WalkedForcesBetweenPlanesMatchEveryPointAgainstEveryTriangle) {
 // kept cell changes after the search. The forces stay the brute force's to 10⁻¹⁰ of the
 // largest (double). With the exact vertex test the cells move; a fold moved about a tenth
 // of its entries every substep so, and tested three more cells for about half of them.
+// Two equal 16×16 grids of 0.16 m, the second 8 mm straight above the first.
+template <class Real>
+std::pair<Sheet<Real>, Sheet<Real>> aligned_grids() {
+  SheetDef da;
+  da.m = da.n = 16;
+  da.width = da.height = 0.16;
+  SheetDef db = da;
+  db.center = {0.0, 0.0, 0.008};
+  return {build_sheet<Real>(da), build_sheet<Real>(db)};
+}
+
 template <class Real>
 void expect_walk_stays_at_aligned_vertices() {
   test::for_each_target([&](std::int64_t) {
-    SheetDef da;
-    da.m = da.n = 16;
-    da.width = da.height = 0.16;
-    SheetDef db = da;
-    db.center = {0.0, 0.0, 0.008};
-    auto a = build_sheet<Real>(da), b = build_sheet<Real>(db);
+    auto [a, b] = aligned_grids<Real>();
     const Vec3Array<Real> a0 = a.position, b0 = b.position;
     // The same motion for both, turned about the origin or about (ox, oy) and moved back:
     // equal but for rounding.
@@ -1148,6 +1158,71 @@ TEST(Contacts, WalkOverAnAlignedGridStaysAtItsVertexThroughRounding) {
 }
 TEST(Contacts, WalkOverAnAlignedGridStaysAtItsVertexThroughRoundingInFloat) {
   expect_walk_stays_at_aligned_vertices<float>();
+}
+
+// Two equal grids, one 8 mm above the other, searched while flat: every point lies over a
+// vertex of the other sheet and its walk starts there. Then some of the lower sheet's
+// points rise 0.4 mm (within the skin, so the kept sets serve): the triangles around a
+// raised point come nearer to the upper points over its neighbours, so a walk must leave
+// its vertex wherever a neighbour rose, along whichever of its six edges that is. The
+// lanes take the vertex test of a whole vector of such entries at once, reading the
+// vertices' neighbours as runs where they can (first_tests, AVX2 and AVX-512); the scalar
+// targets walk one entry at a time and read each neighbour by its index. So every target
+// must give the same forces bit for bit, and (for the unshifted grids) the brute force's.
+TEST(Contacts, WalkFromAnAlignedVertexFindsTheRaisedNeighboursTriangles) {
+  std::vector<double> first;
+  test::for_each_target([&](std::int64_t) {
+    auto [a, b] = aligned_grids<double>();
+    const Vec3Array<double> a0 = a.position, b0 = b.position;
+    const auto prm = ContactParams<double>::make(0.005, 0.002, 1e-4, 6.0);
+    ContactScratch<double> scratch;
+    std::mt19937 rng(11);
+    std::size_t moved = 0;
+    std::vector<double> got;
+    for (int trial = 0; trial < 25; ++trial) {
+      // The upper grid shifted by 0.1 nm diagonally, one of four ways, or not at all: a
+      // search then keeps the cell on that side of each vertex, whose corner the vertex
+      // is (and the walk takes a closest point that near a corner as the corner, kWalkTie).
+      const int shift = trial % 5;
+      b.position = b0;
+      if (shift < 4)
+        for (std::uint32_t p = 0; p < b.size(); ++p) {
+          b.position.x[p] += shift % 2 == 0 ? 1e-10 : -1e-10;
+          b.position.y[p] += shift < 2 ? 1e-10 : -1e-10;
+        }
+      PairContacts<double> walked;
+      a.position = a0;
+      pair_contacts(a, boxes(a), b, boxes(b), prm, walked, scratch);
+      ASSERT_EQ(walked.b_on_a.cell.size(), b.size());  // every point in the set
+      const std::vector<std::uint32_t> searched = walked.b_on_a.cell;
+      // points of a lattice three apart, each kept or not at random: no vertex has two
+      // raised neighbours, whose valleys would leave two local minima for its walk
+      const std::uint32_t cols = a.topology->cols(), row0 = rng() % 3, col0 = rng() % 3;
+      for (std::uint32_t p = 0; p < a.size(); ++p)
+        if ((p / cols) % 3 == row0 && (p % cols) % 3 == col0 && rng() % 2 == 0) a.position.z[p] += 4e-4;
+      pair_contacts(a, boxes(a), b, boxes(b), prm, walked, scratch);
+      ASSERT_EQ(walked.searches, 1u);  // the walk served the second step
+      for (std::size_t e = 0; e < searched.size(); ++e) moved += searched[e] != walked.b_on_a.cell[e];
+      const auto on_a = dense(walked.on_a, a.size()), on_b = dense(walked.on_b, b.size());
+      for (const auto* forces : {&on_a, &on_b})
+        for (const P3& f : *forces) got.insert(got.end(), f.begin(), f.end());
+      if (shift == 4) {
+        const Dense ab = brute_contacts(a, b, -1), ba = brute_contacts(b, a, -1);
+        const auto [brute_a, brute_b] = brute_pair(ab, ba);
+        const std::string tag = "trial " + std::to_string(trial);
+        expect_same_forces(on_a, brute_a, tag + " on a");
+        expect_same_forces(on_b, brute_b, tag + " on b");
+      }
+    }
+    EXPECT_GT(moved, b.size());  // many walks left their vertex
+    if (first.empty()) {
+      first = got;
+      return;
+    }
+    ASSERT_EQ(got.size(), first.size());
+    for (std::size_t k = 0; k < got.size(); ++k)
+      ASSERT_EQ(std::memcmp(&got[k], &first[k], sizeof(double)), 0) << "value " << k << ": " << got[k] << " vs " << first[k];
+  });
 }
 
 // The same over whole runs of a World, where a different force changes the trajectory:

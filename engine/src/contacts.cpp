@@ -722,12 +722,37 @@ HWY_INLINE void first_tests(const Sheet<Real>& q, const Sheet<Real>& s, const Ke
     return V3s<Real, V>{hn::GatherIndex(d, sheet.position.x.data(), at), hn::GatherIndex(d, sheet.position.y.data(), at),
                         hn::GatherIndex(d, sheet.position.z.data(), at)};
   };
+  // Where a vector's points are consecutive and its cells too, rising or falling (a stack
+  // of equal grids, or a sheet folded onto its mirror image: entries follow their points in
+  // order, each over the same corner of its cell), the positions are loaded (and reversed
+  // for falling cells), not gathered: the same values, without a gather's cost. Lane i of
+  // such a run reads index first + step·i; step 0: gathered at `index`.
   const std::size_t N = hn::Lanes(d);
+  const std::ptrdiff_t last = std::ptrdiff_t(N) - 1, stride = std::ptrdiff_t(s.topology->cols());
+  auto at = [&](const Sheet<Real>& sheet, auto index, std::ptrdiff_t first, int step) {
+    if (step == 0) return gather(sheet, index);
+    const std::size_t from = std::size_t(step > 0 ? first : first - last);
+    const V3s<Real, V> v{hn::LoadU(d, sheet.position.x.data() + from), hn::LoadU(d, sheet.position.y.data() + from),
+                         hn::LoadU(d, sheet.position.z.data() + from)};
+    if (step > 0) return v;
+    return V3s<Real, V>{hn::Reverse(d, v.x), hn::Reverse(d, v.y), hn::Reverse(d, v.z)};
+  };
+  const auto lane = hn::Iota(di, 0);
+  auto runs = [&](auto index, std::uint32_t first, int step) {
+    return hn::AllTrue(di, hn::Eq(index, hn::Add(hn::Set(di, Index(first)), hn::Mul(hn::Set(di, Index(step)), lane))));
+  };
   for (std::size_t k = 0; k < count; k += N) {
-    const auto c00 = indices(kept.cell.data() + e0 + k), c01 = hn::Add(c00, one), c10 = hn::Add(c00, cols),
+    const std::uint32_t* point = kept.point.data() + e0 + k;
+    const std::uint32_t* cell = kept.cell.data() + e0 + k;
+    const auto p = indices(point), c00 = indices(cell), c01 = hn::Add(c00, one), c10 = hn::Add(c00, cols),
                c11 = hn::Add(c10, one);
-    const V3s<Real, V> x = gather(q, indices(kept.point.data() + e0 + k));
-    const V3s<Real, V> x00 = gather(s, c00), x01 = gather(s, c01), x10 = gather(s, c10), x11 = gather(s, c11);
+    // (a run of cells never crosses a row: a row's last index starts no cell)
+    const bool points_run = runs(p, point[0], 1);
+    const int step = !points_run ? 0 : runs(c00, cell[0], 1) ? 1 : runs(c00, cell[0], -1) ? -1 : 0;
+    const std::ptrdiff_t c0 = cell[0];
+    const V3s<Real, V> x = at(q, p, point[0], step != 0 ? 1 : 0);
+    const V3s<Real, V> x00 = at(s, c00, c0, step), x01 = at(s, c01, c0 + 1, step), x10 = at(s, c10, c0 + stride, step),
+                       x11 = at(s, c11, c0 + stride + 1, step);
     V d0, u0, v0, w0, d1, u1, v1, w1;
     V3s<Real, V> g0, g1;
     closest_lanes(d, x, x00, x01, x11, d0, u0, v0, w0, g0);
@@ -775,11 +800,23 @@ HWY_INLINE void first_tests(const Sheet<Real>& q, const Sheet<Real>& s, const Ke
       const auto inside = hn::And(hn::And(hn::Ge(row, first), hn::Lt(row, hn::Set(d, Real(s.topology->m)))),
                                   hn::And(hn::Ge(col, first), hn::Lt(col, hn::Set(d, Real(s.topology->n)))));
       const auto last_point = hn::Set(di, Index(s.size() - 1));
-      auto near = [&](auto index) { return gather(s, hn::Min(hn::Max(index, hn::Zero(di)), last_point)); };
-      const V3s<Real, V> out_row = near(hn::IfThenElse(bi, hn::Add(vi, one), hn::Sub(vi, one)));
-      const V3s<Real, V> out_col = near(hn::IfThenElse(ai, hn::Add(vi, cols), hn::Sub(vi, cols)));
-      const V3s<Real, V> up_left = near(hn::Sub(hn::Sub(vi, cols), one)),
-                         down_right = near(hn::Add(hn::Add(vi, cols), one));
+      // The corners' neighbours: runs too where every lane turns to the same corner of its
+      // cell and all of them lie in the sheet; a lane outside reads a neighbour clamped
+      // into it, which it does not use.
+      const bool all_a = hn::AllTrue(d, a), all_b = hn::AllTrue(d, b);
+      const std::ptrdiff_t v0 = c0 + (all_a ? stride : 0) + (all_b ? 1 : 0);
+      const bool same = (all_a || hn::AllFalse(d, a)) && (all_b || hn::AllFalse(d, b));
+      const int corner_step = same && v0 + std::min<std::ptrdiff_t>(0, step * last) - stride - 1 >= 0 &&
+                                      v0 + std::max<std::ptrdiff_t>(0, step * last) + stride + 1 < std::ptrdiff_t(s.size())
+                                  ? step
+                                  : 0;
+      auto near = [&](auto index, std::ptrdiff_t offset) {
+        return at(s, hn::Min(hn::Max(index, hn::Zero(di)), last_point), v0 + offset, corner_step);
+      };
+      const V3s<Real, V> out_row = near(hn::IfThenElse(bi, hn::Add(vi, one), hn::Sub(vi, one)), all_b ? 1 : -1);
+      const V3s<Real, V> out_col = near(hn::IfThenElse(ai, hn::Add(vi, cols), hn::Sub(vi, cols)), all_a ? stride : -stride);
+      const V3s<Real, V> up_left = near(hn::Sub(hn::Sub(vi, cols), one), -stride - 1),
+                         down_right = near(hn::Add(hn::Add(vi, cols), one), stride + 1);
       const V3s<Real, V> dv = sub_lanes(x, v);
       const V tie2 = hn::Mul(hn::Mul(tie, tie), dot_lanes(dv, dv));
       auto away = [&](const V3s<Real, V>& u) {  // vertex_is_nearest's test of the edge to u
