@@ -729,7 +729,7 @@ HWY_INLINE void first_tests(const Sheet<Real>& q, const Sheet<Real>& s, const Ke
   // such a run reads index first + step·i; step 0: gathered at `index`.
   const std::size_t N = hn::Lanes(d);
   const std::ptrdiff_t last = std::ptrdiff_t(N) - 1, stride = std::ptrdiff_t(s.topology->cols());
-  auto at = [&](const Sheet<Real>& sheet, auto index, std::ptrdiff_t first, int step) {
+  auto positions = [&](const Sheet<Real>& sheet, auto index, std::ptrdiff_t first, int step) {
     if (step == 0) return gather(sheet, index);
     const std::size_t from = std::size_t(step > 0 ? first : first - last);
     const V3s<Real, V> v{hn::LoadU(d, sheet.position.x.data() + from), hn::LoadU(d, sheet.position.y.data() + from),
@@ -750,9 +750,9 @@ HWY_INLINE void first_tests(const Sheet<Real>& q, const Sheet<Real>& s, const Ke
     const bool points_run = runs(p, point[0], 1);
     const int step = !points_run ? 0 : runs(c00, cell[0], 1) ? 1 : runs(c00, cell[0], -1) ? -1 : 0;
     const std::ptrdiff_t c0 = cell[0];
-    const V3s<Real, V> x = at(q, p, point[0], step != 0 ? 1 : 0);
-    const V3s<Real, V> x00 = at(s, c00, c0, step), x01 = at(s, c01, c0 + 1, step), x10 = at(s, c10, c0 + stride, step),
-                       x11 = at(s, c11, c0 + stride + 1, step);
+    const V3s<Real, V> x = positions(q, p, point[0], step != 0 ? 1 : 0);
+    const V3s<Real, V> x00 = positions(s, c00, c0, step), x01 = positions(s, c01, c0 + 1, step),
+                       x10 = positions(s, c10, c0 + stride, step), x11 = positions(s, c11, c0 + stride + 1, step);
     V d0, u0, v0, w0, d1, u1, v1, w1;
     V3s<Real, V> g0, g1;
     closest_lanes(d, x, x00, x01, x11, d0, u0, v0, w0, g0);
@@ -811,7 +811,7 @@ HWY_INLINE void first_tests(const Sheet<Real>& q, const Sheet<Real>& s, const Ke
                                   ? step
                                   : 0;
       auto near = [&](auto index, std::ptrdiff_t offset) {
-        return at(s, hn::Min(hn::Max(index, hn::Zero(di)), last_point), v0 + offset, corner_step);
+        return positions(s, hn::Min(hn::Max(index, hn::Zero(di)), last_point), v0 + offset, corner_step);
       };
       const V3s<Real, V> out_row = near(hn::IfThenElse(bi, hn::Add(vi, one), hn::Sub(vi, one)), all_b ? 1 : -1);
       const V3s<Real, V> out_col = near(hn::IfThenElse(ai, hn::Add(vi, cols), hn::Sub(vi, cols)), all_a ? stride : -stride);
