@@ -18,10 +18,14 @@ namespace drape::bench {
 // iteration, but a program runs the stability guard once per step() call (a frame): with it
 // on here every substep would pay a frame's guard. It is off, and priced on its own by
 // BM_Feature_guard_per_frame.
+// Contacts between sheets run the plain repulsion (α = 0, not the default 2 s/m), so that
+// the contact figures compare across reports; the damping is priced on its own
+// (BM_World48SheetsInContactDissipative).
 inline WorldDef world_def(int threads = 0) {
   WorldDef wd;
   wd.threads = threads;
   wd.guard = false;
+  wd.contact_damping = 0.0;
   return wd;
 }
 
@@ -118,7 +122,7 @@ inline ObstacleDef floor_holding(const SheetDef& sheet) {
 // How the stack's sheets meet. `exact`: WorldDef::contact_exact, the exact nearest triangle
 // every substep instead of the walk (the reference, priced beside it). `friction`
 // (SheetDef::friction, on every sheet) and `damping` (WorldDef::contact_damping): the
-// dissipative contact terms, priced beside the default frictionless, undamped contact.
+// dissipative contact terms, priced beside the frictionless, undamped contact of world_def().
 struct StackContact {
   bool exact = false;
   double friction = 0.0;

@@ -538,7 +538,7 @@ PYBIND11_MODULE(drape, m) {
       .field("contact_xi", &WorldDef::contact_xi, "xi, m")
       .field("contact_strength", &WorldDef::contact_strength, "c, J; 0: no contacts")
       .field("contact_range", &WorldDef::contact_range, "cut-off beyond h, in units of xi")
-      .field("contact_damping", &WorldDef::contact_damping, "alpha, s/m: Hunt-Crossley damping of the repulsion; 0: none")
+      .field("contact_damping", &WorldDef::contact_damping, "alpha, s/m: Hunt-Crossley damping of the repulsion (default 2); 0: none, the repulsion conserves energy")
       .field("contact_exact", &WorldDef::contact_exact, "exact nearest triangle every substep (the reference)")
       .field("block_points", &WorldDef::block_points, "points per row block of a large sheet")
       .done();

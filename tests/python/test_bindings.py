@@ -234,7 +234,7 @@ def test_definitions_take_keywords_and_tuples():
     assert "stiffness=100.0" in repr(d)
     w = drape.WorldDef(integrator="rk4", dt=2e-3)
     assert w.integrator == drape.Integrator.RK4
-    assert w.contact_damping == 0.0 and drape.WorldDef(contact_damping=2.5).contact_damping == 2.5
+    assert w.contact_damping == 2.0 and drape.WorldDef(contact_damping=2.5).contact_damping == 2.5
     assert drape.ObstacleDef().damping == 0.0 and drape.ObstacleDef(damping=1.5).damping == 1.5
     world = drape.World(w, threads=1)
     assert world.definition.dt == 2e-3 and world.definition.threads == 1
