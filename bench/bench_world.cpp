@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <optional>
 #include <random>
 #include <vector>
 
@@ -23,25 +24,44 @@ void report(benchmark::State& state, double points) {
       benchmark::Counter(points * double(state.iterations()), benchmark::Counter::kIsRate);
 }
 
-// Arg: threads. Sheets apart: the host stage finds no pair.
-void BM_World48SheetsApart(benchmark::State& state) {
-  drape::World world = stack_world(int(state.range(0)), 2.0);
-  world.step(10);
-  for (auto _ : state) world.step(1);
-  state.counters["pairs"] = double(world.contact_pair_count());
-  report(state, 48.0 * 64 * 64);
+// The stack benchmarks below time the same span of a fresh stack in every iteration:
+// substeps kStackWarmUp … kStackWarmUp + kStackSpan. A stack's contacts cost what its state
+// makes them cost (from about 8 to about 75 ms a substep over its first 0.6 s on one thread,
+// counted while it sags into deeper contact), so a world stepped on for as long as the
+// benchmark runs timed a span that grew with the build's speed: a faster build ran further,
+// into costlier states, and looked slower. The span is 6 frames of frame_substeps, so the
+// frame-stepped variants time the same substeps.
+constexpr int kStackWarmUp = 10, kStackSpan = 6 * drape::bench::frame_substeps;
+
+// `per_call` substeps per step() call; the world is made, warmed up and destroyed untimed.
+void stack_span(benchmark::State& state, int threads, double layer_gap, drape::bench::StackContact contact = {},
+                int per_call = 1) {
+  std::optional<drape::World> world;
+  std::size_t pairs = 0;
+  for (auto _ : state) {
+    state.PauseTiming();
+    world.reset();
+    world.emplace(stack_world(threads, layer_gap, contact));
+    world->step(kStackWarmUp);
+    state.ResumeTiming();
+    for (int k = 0; k < kStackSpan; k += per_call) world->step(std::uint32_t(per_call));
+    state.PauseTiming();
+    pairs = world->contact_pair_count();
+    state.ResumeTiming();
+  }
+  world.reset();  // after the loop, untimed
+  state.counters["pairs"] = double(pairs);
+  state.counters["per_call"] = per_call;
+  drape::bench::set_point_rate(state, 48.0 * 64 * 64, kStackSpan);
 }
+
+// Arg: threads. Sheets apart: the host stage finds no pair.
+void BM_World48SheetsApart(benchmark::State& state) { stack_span(state, int(state.range(0)), 2.0); }
 BENCHMARK(BM_World48SheetsApart)->Arg(1)->Arg(2)->UseRealTime();
 
 // Arg: threads. Same sheets, layers 10 mm apart (about the resting gap): every layer
 // touches the next, and only the next.
-void BM_World48SheetsInContact(benchmark::State& state) {
-  drape::World world = stack_world(int(state.range(0)), 0.01);
-  world.step(10);
-  for (auto _ : state) world.step(1);
-  state.counters["pairs"] = double(world.contact_pair_count());
-  report(state, 48.0 * 64 * 64);
-}
+void BM_World48SheetsInContact(benchmark::State& state) { stack_span(state, int(state.range(0)), 0.01); }
 BENCHMARK(BM_World48SheetsInContact)->Arg(1)->Arg(2)->UseRealTime();
 
 // The same with WorldDef::contact_exact: every point tests every cell within reach each
@@ -49,27 +69,19 @@ BENCHMARK(BM_World48SheetsInContact)->Arg(1)->Arg(2)->UseRealTime();
 void BM_World48SheetsInContactExact(benchmark::State& state) {
   drape::bench::StackContact exact;
   exact.exact = true;
-  drape::World world = stack_world(1, 0.01, exact);
-  world.step(10);
-  for (auto _ : state) world.step(1);
-  state.counters["pairs"] = double(world.contact_pair_count());
-  report(state, 48.0 * 64 * 64);
+  stack_span(state, 1, 0.01, exact);
 }
 BENCHMARK(BM_World48SheetsInContactExact)->UseRealTime();
 
-// Arg: 0 Coulomb friction between the sheets (μ = 0.5), 1 contact damping (α = 2 s/m, which
-// stops the layers rattling beside their pins: docs/scene-format.md), 2 both. One thread,
-// priced against BM_World48SheetsInContact/1, the frictionless, undamped contact
+// Arg: 0 Coulomb friction between the sheets (μ = 0.5), 1 contact damping (α = 2 s/m, the
+// default, which stops the layers rattling beside their pins: docs/scene-format.md), 2 both.
+// One thread, priced against BM_World48SheetsInContact/1, the frictionless, undamped contact
 // (tools/floor_pair.py runs them in alternating rounds).
 void BM_World48SheetsInContactDissipative(benchmark::State& state) {
   drape::bench::StackContact contact;
   contact.friction = state.range(0) != 1 ? 0.5 : 0.0;
   contact.damping = state.range(0) != 0 ? 2.0 : 0.0;
-  drape::World world = stack_world(1, 0.01, contact);
-  world.step(10);
-  for (auto _ : state) world.step(1);
-  state.counters["pairs"] = double(world.contact_pair_count());
-  report(state, 48.0 * 64 * 64);
+  stack_span(state, 1, 0.01, contact);
 }
 BENCHMARK(BM_World48SheetsInContactDissipative)->Arg(0)->Arg(1)->Arg(2)->UseRealTime();
 
@@ -77,17 +89,12 @@ BENCHMARK(BM_World48SheetsInContactDissipative)->Arg(0)->Arg(1)->Arg(2)->UseReal
 // sheets apart run contact-free frames (each checked afterwards on its swept boxes); the
 // sheets in contact are in range at every frame's start, so no frame is tried.
 void BM_World48SheetsApartFrames(benchmark::State& state) {
-  drape::World world = stack_world(int(state.range(0)), 2.0);
-  world.step(10);
-  drape::bench::step_frames(state, world, 48.0 * 64 * 64);
-  state.counters["pairs"] = double(world.contact_pair_count());
+  stack_span(state, int(state.range(0)), 2.0, {}, drape::bench::frame_substeps);
 }
 BENCHMARK(BM_World48SheetsApartFrames)->Arg(1)->Arg(2)->UseRealTime();
 
 void BM_World48SheetsInContactFrames(benchmark::State& state) {
-  drape::World world = stack_world(int(state.range(0)), 0.01);
-  world.step(10);
-  drape::bench::step_frames(state, world, 48.0 * 64 * 64);
+  stack_span(state, int(state.range(0)), 0.01, {}, drape::bench::frame_substeps);
 }
 BENCHMARK(BM_World48SheetsInContactFrames)->Arg(1)->Arg(2)->UseRealTime();
 
