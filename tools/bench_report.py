@@ -931,7 +931,7 @@ class Report:
                      f"{100 * (contact.step_seconds / apart.step_seconds - 1):+.0f} %. Sheets apart pay only the host "
                      f"stage (bounds and broad-phase). Contacts cost what the sheets' state makes them cost, so every "
                      f"iteration of these benchmarks times the same {contact.substeps} substeps of a fresh stack (after "
-                     f"10 untimed ones), whatever the build's speed.")
+                     f"{int(contact.counters.get('warm_up') or 10)} untimed ones), whatever the build's speed.")
             apart_f = self.runs.get("BM_World48SheetsApartFrames/1/real_time")
             contact_f = self.runs.get("BM_World48SheetsInContactFrames/1/real_time")
             if apart_f and contact_f:
