@@ -839,13 +839,20 @@ HWY_INLINE void first_tests(const Sheet<Real>& q, const Sheet<Real>& s, const Ke
 // as repel computes it for a point at a positive distance, each lane doing its operations
 // in their order: the distance, the unit direction (p − q)/d, the capped exponent, e^x
 // (force_exp's, in lanes of doubles) and the force f. A lane at distance 0 (repel then
-// takes the triangle's normal), beyond R or not a number gets values nobody reads.
+// takes the triangle's normal), beyond R or not a number gets values nobody reads, and a
+// vector with no lane within R is skipped whole: most of a stack's walked entries are
+// beyond R, in runs (a block's entries follow each other, and a pair two layers apart has
+// few within R), and this is a square root, four divisions and an e^x per vector.
 template <class Real>
 HWY_INLINE void force_lanes(const ContactParams<Real>& prm, std::size_t count, FirstTests<Real>& t) {
   const hn::ScalableTag<Real> d;
   const std::size_t N = hn::Lanes(d);
   const auto h = hn::Set(d, prm.thickness), xi = hn::Set(d, prm.xi), cap = hn::Set(d, prm.exponent_cap);
+  const auto R2 = hn::Set(d, prm.range * prm.range);
+  bool within[FirstTests<Real>::kSize];  // per vector of N entries: some lane within R
   for (std::size_t k = 0; k < count; k += N) {  // the unit direction, and exponent_at
+    within[k / N] = !hn::AllFalse(d, hn::Lt(hn::Load(d, t.dist2 + k), R2));
+    if (!within[k / N]) continue;
     const auto dist = hn::Sqrt(hn::Load(d, t.dist2 + k));
     for (int c = 0; c < 3; ++c) hn::Store(hn::Div(hn::Load(d, t.unit[c] + k), dist), d, t.unit[c] + k);
     const auto ratio = hn::Div(hn::Sub(h, dist), xi);
@@ -853,6 +860,7 @@ HWY_INLINE void force_lanes(const ContactParams<Real>& prm, std::size_t count, F
   }
   const hn::ScalableTag<double> dd;
   for (std::size_t k = 0; k < count; k += hn::Lanes(dd)) {  // force_exp
+    if (!within[k / N]) continue;  // (a float vector holds two of doubles)
     if constexpr (std::is_same_v<Real, double>) {
       hn::Store(lanes::exp_lanes(dd, hn::Load(dd, t.force + k)), dd, t.force + k);
     } else {
@@ -862,7 +870,7 @@ HWY_INLINE void force_lanes(const ContactParams<Real>& prm, std::size_t count, F
   }
   const auto c_over_xi = hn::Set(d, prm.strength / prm.xi), tail = hn::Set(d, prm.tail);
   for (std::size_t k = 0; k < count; k += N)
-    hn::Store(hn::Mul(c_over_xi, hn::Sub(hn::Load(d, t.force + k), tail)), d, t.force + k);
+    if (within[k / N]) hn::Store(hn::Mul(c_over_xi, hn::Sub(hn::Load(d, t.force + k), tail)), d, t.force + k);
 }
 
 // The entries [e0, e1) of `kept` (points of q against cells of s), in order: each walks
