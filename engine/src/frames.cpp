@@ -122,8 +122,7 @@ bool BasicWorld<Real>::Impl::apart(const std::vector<detail::Aabb>& boxes, detai
 template <class Real>
 bool BasicWorld<Real>::Impl::try_frame(double h, std::uint64_t count) {
   const std::size_t n = active.size();
-  swept.resize(n);
-  parallel(n, [&](std::size_t k) { swept[k] = current_bounds(slots[active[k]]); });
+  active_bounds(swept);
   // Sheets already in contact, or at an obstacle, would only be undone: no try.
   if (!apart(swept, broad_phase)) return false;
   saved.resize(2 * n);

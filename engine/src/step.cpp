@@ -89,12 +89,42 @@ void BasicWorld<Real>::Impl::contact_bounds(double h) {
     return;
   }
   const auto params = contact_params(h);
-  bounds.resize(count);
+  active_bounds(bounds);
   grown.resize(count);
-  parallel(count, [&](std::size_t k) {
-    bounds[k] = current_bounds(slots[active[k]]);
-    grown[k] = bounds[k].inflated(0.5 * double(params.range));
-  });
+  for (std::size_t k = 0; k < count; ++k) grown[k] = bounds[k].inflated(0.5 * double(params.range));
+}
+
+// Worlds of whole sheets below this many points in all update on the calling thread
+// (integrate_sheets): at a few nanoseconds a point, less work than a fork and join of the
+// arena pays for. A driven world of 333 points (scenes/sewn_box.json), which forks every
+// substep, ran twice as long on 2 threads as on 1 while the virtual machine's other core was
+// slow to wake.
+constexpr std::uint64_t kParallelUpdatePoints = 2048;
+
+// Stale boxes below this many points in all are made on the calling thread: a pass over a
+// point's coordinates costs about a nanosecond, a fork and join of the arena microseconds
+// (and, on a virtual machine whose other core sleeps, tens of them).
+constexpr std::size_t kParallelBoundsPoints = std::size_t(1) << 16;
+
+template <class Real>
+void BasicWorld<Real>::Impl::active_bounds(std::vector<detail::Aabb>& out) const {
+  const std::size_t count = active.size();
+  out.resize(count);
+  std::size_t stale_points = 0;
+  for (std::size_t k = 0; k < count; ++k) {
+    const Slot& slot = slots[active[k]];
+    if (slot.bounds_fresh)
+      out[k] = slot.bounds;
+    else
+      stale_points += slot.sheet->size();
+  }
+  auto stale = [&](std::size_t k) {
+    const Slot& slot = slots[active[k]];
+    if (!slot.bounds_fresh) out[k] = detail::sheet_bounds(*slot.sheet);
+  };
+  if (stale_points >= kParallelBoundsPoints) return parallel(count, stale);
+  if (stale_points > 0)
+    for (std::size_t k = 0; k < count; ++k) stale(k);
 }
 
 template <class Real>
@@ -270,10 +300,15 @@ void BasicWorld<Real>::Impl::integrate_sheets(const detail::StepParams<Real>& pa
   plan_blocks();
   bool any_split = false;
   const bool keep_bounds = contacts_possible() || !active_obstacles.empty();  // someone reads the box next substep
-  // A first-order explicit integrator spawns no work of its own: with one block or one thread its
-  // tasks run here, in order, without entering the arena. A small sheet's substep takes a
-  // few microseconds, and a parallel_for in the arena costs a sizeable part of that.
-  const bool here = detail::updates_per_point(def.integrator) && (blocks.size() == 1 || def.threads == 1);
+  // A first-order explicit integrator spawns no work of its own: with one block or one thread,
+  // or whole sheets too small in all to pay for the other threads, its tasks run here, in
+  // order, without entering the arena. A small sheet's substep takes a few microseconds, and a
+  // parallel_for in the arena costs a sizeable part of that (tens of microseconds on a
+  // virtual machine whose other core sleeps). Row blocks (block_points) always go to the arena.
+  std::uint64_t points = 0;
+  for (std::size_t k = 0; k < active.size(); ++k) points += at(k).size();
+  const bool small = points < kParallelUpdatePoints && blocks.size() == active.size();
+  const bool here = detail::updates_per_point(def.integrator) && (blocks.size() == 1 || def.threads == 1 || small);
   auto tasks = [&](auto body) {
     if (!here) return parallel(blocks.size(), body);
     for (std::size_t q = 0; q < blocks.size(); ++q) body(q);
@@ -351,6 +386,7 @@ void BasicWorld<Real>::Impl::count_substeps(double h, std::uint64_t count) {
   template void BasicWorld<Real>::Impl::run_stage(Stage, double);                                     \
   template detail::ContactParams<Real> BasicWorld<Real>::Impl::contact_params(double) const;          \
   template void BasicWorld<Real>::Impl::contact_bounds(double);                                       \
+  template void BasicWorld<Real>::Impl::active_bounds(std::vector<detail::Aabb>&) const;               \
   template void BasicWorld<Real>::Impl::find_pairs();                                                 \
   template void BasicWorld<Real>::Impl::contact_boxes(double);                                        \
   template void BasicWorld<Real>::Impl::narrow_phase(double);                                         \

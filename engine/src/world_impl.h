@@ -172,6 +172,11 @@ struct BasicWorld<Real>::Impl {
   detail::Aabb current_bounds(const Slot& slot) const {
     return slot.bounds_fresh ? slot.bounds : detail::sheet_bounds(*slot.sheet);
   }
+  // Every active sheet's current_bounds, into out[k]. Most are fresh (a read); the stale
+  // ones take a pass over their points each, across the threads only when they hold enough
+  // points to pay for waking them: a small world's host stage then forks no work for
+  // nothing. The boxes are the same either way.
+  void active_bounds(std::vector<detail::Aabb>& out) const;
   void assign_obstacles(double h);
   void run_stage(Stage stage, double h);
   detail::ContactParams<Real> contact_params(double h) const;
