@@ -1086,6 +1086,57 @@ TEST(Contacts, WalkedForcesBetweenPlanesMatchEveryPointAgainstEveryTriangle) {
   });
 }
 
+// A kept entry beyond R skips its walks while the two sheets have not travelled its slack
+// (KeptContacts::until): the forces are those of walking every entry every step, bit for
+// bit, on every instruction set. The upper of two tilted 16×16 planes starts 24 mm above
+// the lower one and closes 0.6 mm a step while it slides 0.4 mm a step, every point of
+// both jittered by up to 0.1 mm a step: entries are made beyond R, skip a few steps, and
+// come within R, where a skip one step too long loses the force they then feel. Each
+// sheet's travel goes on as the world's does (advance_travel, once a step); the twin's
+// travel is unknown, so it walks every entry.
+TEST(Contacts, SkippedWalksGiveTheForcesOfWalkingEveryEntry) {
+  test::for_each_target([&](std::int64_t) {
+    SheetDef da;
+    da.m = da.n = 16;
+    da.width = da.height = 0.16;
+    SheetDef db = da;
+    db.center = {0.003, 0.002, 0.024};
+    db.orientation = quat_from_axis_angle(Vec3{0.3, 1, 0}, 0.05);
+    auto a = build_sheet<double>(da), b = build_sheet<double>(db);
+    std::mt19937 rng(21);
+    std::uniform_real_distribution<double> jitter(-1e-4, 1e-4);
+    PairContacts<double> skipping, walking;
+    ContactScratch<double> scratch;
+    std::size_t skipped = 0, touching = 0;
+    for (int step = 0; step < 30; ++step) {
+      for (std::size_t p = 0; p < b.size(); ++p) {
+        b.position.x[p] += 0.0004 + jitter(rng);
+        b.position.y[p] += jitter(rng);
+        b.position.z[p] += -0.0006 + jitter(rng);
+        a.position.x[p] += jitter(rng);
+        a.position.y[p] += jitter(rng);
+        a.position.z[p] += jitter(rng);
+      }
+      advance_travel(a);
+      advance_travel(b);
+      ContactParams<double> prm = kParams;
+      prm.travel = a.travel + b.travel;
+      std::size_t due_to_skip = 0;
+      for (const KeptContacts* k : {&skipping.a_on_b, &skipping.b_on_a})
+        for (double until : k->until) due_to_skip += prm.travel < until;
+      const std::uint64_t searches = skipping.searches;
+      pair_contacts(a, boxes(a), b, boxes(b), prm, skipping, scratch);
+      pair_contacts(a, boxes(a), b, boxes(b), kParams, walking, scratch);
+      if (skipping.searches == searches) skipped += due_to_skip;  // they walked: those skipped
+      expect_same_forces(skipping.on_a, walking.on_a, step);
+      expect_same_forces(skipping.on_b, walking.on_b, step);
+      touching += skipping.on_a.size();
+    }
+    EXPECT_GT(skipped, a.size());   // entries did skip, over the run
+    EXPECT_GT(touching, a.size());  // and the sheets came into range
+  });
+}
+
 // Two equal grids, one 8 mm straight above the other, carried together along a drift and a
 // turn: every point lies over a vertex of the other sheet, where the triangles around it
 // are equally near, and rounding alone (different for each point, through the turn) makes
@@ -1287,8 +1338,9 @@ TEST(Contacts, WalkedContactSetsKeepStackAndFoldRunsWithinTheirBoundOfTheExactSe
 // one-entry-a-word layout 1 of older checkpoints: both, read back, give pairs that write
 // the same layout-2 words, and layout 2 is shorter than layout 1 by half of each index or
 // flag list (rounded down), counted here from the pairs themselves.
-TEST(ContactMemory, PackedAndOneEntryAWordLayoutsReadBackTheSamePairs) {
-  auto [a, b] = close_sheets(7);
+// Six jostled steps of sheets a and b as pair 0 of a world's list; with `travel`, each
+// sheet's travel going on as the world's does, so entries beyond R skip.
+std::vector<PairContacts<double>> jostled_pair(Sheet<double>& a, Sheet<double>& b, bool travel) {
   std::mt19937 rng(8);
   ContactScratch<double> scratch;
   std::vector<PairContacts<double>> pairs(1);
@@ -1297,13 +1349,25 @@ TEST(ContactMemory, PackedAndOneEntryAWordLayoutsReadBackTheSamePairs) {
   for (int step = 0; step < 6; ++step) {
     jostle(a, rng);
     jostle(b, rng);
-    pair_contacts(a, boxes(a), b, boxes(b), kParams, pairs[0], scratch);
+    ContactParams<double> prm = kParams;
+    if (travel) {
+      advance_travel(a);
+      advance_travel(b);
+      prm.travel = a.travel + b.travel;
+    }
+    pair_contacts(a, boxes(a), b, boxes(b), prm, pairs[0], scratch);
   }
+  return pairs;
+}
+
+TEST(ContactMemory, PackedAndOneEntryAWordLayoutsReadBackTheSamePairs) {
+  auto [a, b] = close_sheets(7);
+  const std::vector<PairContacts<double>> pairs = jostled_pair(a, b, false);
   const PairContacts<double>& p = pairs[0];
   ASSERT_FALSE(p.a_on_b.point.empty());
   const std::array<const Sheet<double>*, 2> sheets{&a, &b};
-  const auto packed = write_contact_memory<double>(pairs, sheets);
-  const auto loose = write_contact_memory<double>(pairs, sheets, true);
+  const auto packed = write_contact_memory<double>(pairs, sheets, 2);
+  const auto loose = write_contact_memory<double>(pairs, sheets, 1);
   std::size_t halved = 0;
   for (const auto* list : {&p.a_near_b.begin, &p.a_near_b.count, &p.a_near_b.cell, &p.b_near_a.begin,
                            &p.b_near_a.count, &p.b_near_a.cell, &p.a_on_b.point, &p.a_on_b.cell,
@@ -1313,27 +1377,69 @@ TEST(ContactMemory, PackedAndOneEntryAWordLayoutsReadBackTheSamePairs) {
   halved += p.a_on_b.open.size() / 2 + p.b_on_a.open.size() / 2;
   EXPECT_EQ(loose.size() - packed.size(), halved);
 
+  std::vector<SheetTravel<double>> travel;
   for (const auto* words : {&packed, &loose}) {
     std::vector<PairContacts<double>> read;
-    read_contact_memory<double>(*words, sheets, read);
-    EXPECT_EQ(write_contact_memory<double>(read, sheets), packed);
+    read_contact_memory<double>(*words, sheets, read, travel);
+    EXPECT_EQ(write_contact_memory<double>(read, sheets, 2), packed);
+    EXPECT_TRUE(travel.empty());  // layouts before 3 hold none
   }
 
   // A packed flag that is neither 0 nor 1, or bits after a list's last entry, are refused.
   ASSERT_EQ(p.a_on_b.open.size() % 2, 1u) << "the test wants an odd number of blocks";
   std::vector<PairContacts<double>> marked = pairs;
   marked[0].a_on_b.open.back() = 0xAB;  // written as it is, so it can be found
-  const auto bad_flag = write_contact_memory<double>(marked, sheets);
+  const auto bad_flag = write_contact_memory<double>(marked, sheets, 2);
   std::vector<PairContacts<double>> untouched = pairs;
-  EXPECT_THROW(read_contact_memory<double>(bad_flag, sheets, untouched), std::invalid_argument);
+  EXPECT_THROW(read_contact_memory<double>(bad_flag, sheets, untouched, travel), std::invalid_argument);
   std::size_t at = 0;
   while (at < bad_flag.size() && bad_flag[at] != 0xAB) ++at;
   ASSERT_LT(at, bad_flag.size());
   auto past_end = packed;
   ASSERT_EQ(past_end[at] >> 32, 0u);
   past_end[at] |= std::uint64_t(1) << 32;
-  EXPECT_THROW(read_contact_memory<double>(past_end, sheets, untouched), std::invalid_argument);
-  EXPECT_EQ(write_contact_memory<double>(untouched, sheets), packed);  // left as it was
+  EXPECT_THROW(read_contact_memory<double>(past_end, sheets, untouched, travel), std::invalid_argument);
+  EXPECT_EQ(write_contact_memory<double>(untouched, sheets, 2), packed);  // left as it was
+}
+
+// Layout 3, the one written by default, adds each kept set's skips (KeptContacts::until)
+// and every sheet's travel: read back, they are the pair's and the sheets' own, and the
+// words written again are the same; the same words cut short are refused, leaving the
+// pairs and travel as they were.
+TEST(ContactMemory, LayoutThreeCarriesTheSkipsAndEverySheetsTravel) {
+  auto [a, b] = close_sheets(7);
+  for (double& z : b.position.z) z += 0.012;  // most points beyond R: their entries skip
+  const std::vector<PairContacts<double>> pairs = jostled_pair(a, b, true);
+  const PairContacts<double>& p = pairs[0];
+  ASSERT_GT(a.travel, 0.0);
+  const auto skips = std::count_if(p.a_on_b.until.begin(), p.a_on_b.until.end(),
+                                   [&](double u) { return u > a.travel + b.travel; });
+  ASSERT_GT(skips, 0);
+  const std::array<const Sheet<double>*, 2> sheets{&a, &b};
+  const auto words = write_contact_memory<double>(pairs, sheets);
+  ASSERT_EQ(words.front(), 3u);
+  std::vector<PairContacts<double>> read;
+  std::vector<SheetTravel<double>> travel;
+  read_contact_memory<double>(words, sheets, read, travel);
+  ASSERT_EQ(read.size(), 1u);
+  EXPECT_EQ(read[0].a_on_b.until, p.a_on_b.until);
+  EXPECT_EQ(read[0].b_on_a.until, p.b_on_a.until);
+  ASSERT_EQ(travel.size(), 2u);
+  for (int k = 0; k < 2; ++k) {
+    const Sheet<double>& s = k == 0 ? a : b;
+    EXPECT_EQ(travel[k].travel, s.travel);
+    EXPECT_EQ(travel[k].from.x, s.travel_from.x);
+    EXPECT_EQ(travel[k].from.y, s.travel_from.y);
+    EXPECT_EQ(travel[k].from.z, s.travel_from.z);
+  }
+  EXPECT_EQ(write_contact_memory<double>(read, sheets), words);
+  auto cut = words;
+  cut.pop_back();
+  std::vector<PairContacts<double>> untouched = pairs;
+  std::vector<SheetTravel<double>> kept_travel = travel;
+  EXPECT_THROW(read_contact_memory<double>(cut, sheets, untouched, kept_travel), std::invalid_argument);
+  EXPECT_EQ(write_contact_memory<double>(untouched, sheets), words);
+  EXPECT_EQ(kept_travel.size(), 2u);
 }
 
 // In float, lists of positions pack two to a word as well: a WorldF stack in contact takes

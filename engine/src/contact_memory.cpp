@@ -1,5 +1,7 @@
 // The contact stage's memory as words, for checkpoints (contacts.h, write_contact_memory).
+#include <algorithm>
 #include <bit>
+#include <limits>
 #include <cstdint>
 #include <stdexcept>
 #include <string>
@@ -13,8 +15,9 @@ namespace {
 
 // Bumped whenever the words below change. Layout 1 gave every list entry a word of its own;
 // layout 2 packs entries of 4 bytes or less (indices, flags, floats) two to a word, first
-// in the low half, and keeps doubles one to a word. Both are read.
-constexpr std::uint64_t kLayout = 2, kOneEntryAWord = 1;
+// in the low half, and keeps doubles one to a word; layout 3 adds each kept set's skips
+// (KeptContacts::until) and every sheet's travel. All three are read.
+constexpr std::uint64_t kLayout = 3, kPacked = 2, kOneEntryAWord = 1;
 constexpr std::uint32_t kNone = ~std::uint32_t(0);
 
 [[noreturn]] void bad(const std::string& problem) { throw std::invalid_argument("drape: contact memory " + problem); }
@@ -37,6 +40,10 @@ class Words {
   std::vector<std::uint64_t> out;
   bool packed = true;
   void word(std::uint64_t v) { out.push_back(v); }
+  void doubles(const std::vector<double>& values) {  // one to a word, whatever Real is
+    out.push_back(values.size());
+    for (double v : values) out.push_back(std::bit_cast<std::uint64_t>(v));
+  }
   template <class T>
   void list(const T& values) {
     using V = typename T::value_type;
@@ -114,6 +121,12 @@ class Reading {
         v = u32(what);
     }
   }
+  void doubles(std::vector<double>& values, const char* what) {
+    const std::uint64_t count = word(what);
+    if (count > in_.size() - pos_) bad(std::string(what) + " claims more entries than it holds");
+    values.resize(count);
+    for (double& v : values) v = std::bit_cast<double>(word(what));
+  }
   bool done() const { return pos_ == in_.size(); }
 
  private:
@@ -172,11 +185,15 @@ void check_kept(const KeptContacts& k, const Sheet<Real>& query, const Sheet<Rea
 
 template <class Real>
 std::vector<std::uint64_t> write_contact_memory(const std::vector<PairContacts<Real>>& pair_work,
-                                                std::span<const Sheet<Real>* const> sheets, bool one_entry_a_word) {
+                                                std::span<const Sheet<Real>* const> sheets, int layout) {
   Words<Real> w;
-  if (pair_work.empty()) return {};  // a world that never coupled sheets carries nothing
-  w.packed = !one_entry_a_word;
-  w.word(one_entry_a_word ? kOneEntryAWord : kLayout);
+  const bool travelled =
+      std::any_of(sheets.begin(), sheets.end(), [](const Sheet<Real>* s) { return !s->travel_from.x.empty(); });
+  // a world that never coupled sheets carries nothing
+  if (pair_work.empty() && (layout < 3 || !travelled)) return {};
+  if (layout < 1 || layout > 3) bad("cannot be written in layout " + std::to_string(layout));
+  w.packed = layout != int(kOneEntryAWord);
+  w.word(std::uint64_t(layout));
   w.word(sizeof(Real));
   w.word(sheets.size());
   w.word(pair_work.size());
@@ -222,20 +239,28 @@ std::vector<std::uint64_t> write_contact_memory(const std::vector<PairContacts<R
       w.list(s.cell);
       w.list(s.open);
       w.list(s.block_begin);
+      if (layout >= 3) w.doubles(s.until);
     }
     w.list(guessed ? p.last_a : no_guesses);
     w.list(guessed ? p.last_b : no_guesses);
   }
+  if (layout >= 3)
+    for (const Sheet<Real>* s : sheets) {
+      w.word(std::bit_cast<std::uint64_t>(s->travel));
+      w.list(s->travel_from.x);
+      w.list(s->travel_from.y);
+      w.list(s->travel_from.z);
+    }
   return std::move(w.out);
 }
 
 template <class Real>
 void read_contact_memory(std::span<const std::uint64_t> memory, std::span<const Sheet<Real>* const> sheets,
-                         std::vector<PairContacts<Real>>& pair_work) {
+                         std::vector<PairContacts<Real>>& pair_work, std::vector<SheetTravel<Real>>& travel) {
   Reading<Real> in(memory);
   const std::uint64_t layout = in.word("its layout");
-  if (layout != kLayout && layout != kOneEntryAWord) bad("has another layout than this drape writes");
-  in.packed = layout == kLayout;
+  if (layout != kLayout && layout != kPacked && layout != kOneEntryAWord) bad("has another layout than this drape writes");
+  in.packed = layout != kOneEntryAWord;
   if (in.word("its precision") != sizeof(Real)) bad("was written by a world of the other precision");
   if (in.word("its sheet count") != sheets.size()) bad("was written for another number of sheets");
   const std::uint64_t pairs = in.word("its pair count");
@@ -279,6 +304,12 @@ void read_contact_memory(std::span<const std::uint64_t> memory, std::span<const 
       in.list(k->cell, "kept sets");
       in.list(k->open, "kept sets");
       in.list(k->block_begin, "kept sets");
+      if (layout >= 3) {
+        in.doubles(k->until, "kept sets' skips");
+        if (k->until.size() != k->point.size()) bad("kept set has points and skips of different counts");
+      } else {
+        k->until.assign(k->point.size(), -std::numeric_limits<double>::infinity());  // every entry walks
+      }
     }
     check_kept(p.a_on_b, a, b);
     check_kept(p.b_on_a, b, a);
@@ -299,15 +330,30 @@ void read_contact_memory(std::span<const std::uint64_t> memory, std::span<const 
       p.guessed_b = b.topology.get();
     }
   }
-  if (!in.done()) bad("has words after its last pair");
+  std::vector<SheetTravel<Real>> travelled;
+  if (layout >= 3) {
+    travelled.resize(sheets.size());
+    for (std::size_t k = 0; k < sheets.size(); ++k) {
+      SheetTravel<Real>& t = travelled[k];
+      t.travel = std::bit_cast<double>(in.word("a sheet's travel"));
+      in.list(t.from.x, "a sheet's travel");
+      in.list(t.from.y, "a sheet's travel");
+      in.list(t.from.z, "a sheet's travel");
+      if (!(t.travel >= 0) || t.from.x.size() != t.from.y.size() || t.from.x.size() != t.from.z.size() ||
+          (!t.from.x.empty() && t.from.x.size() != sheets[k]->size()))
+        bad("holds a travel that does not fit its sheet");
+    }
+  }
+  if (!in.done()) bad(layout >= 3 ? "has words after its last sheet" : "has words after its last pair");
   pair_work = std::move(read);
+  travel = std::move(travelled);
 }
 
 #define DRAPE_CONTACT_MEMORY(Real)                                                                             \
   template std::vector<std::uint64_t> write_contact_memory<Real>(const std::vector<PairContacts<Real>>&,      \
-                                                                 std::span<const Sheet<Real>* const>, bool);  \
+                                                                 std::span<const Sheet<Real>* const>, int);   \
   template void read_contact_memory<Real>(std::span<const std::uint64_t>, std::span<const Sheet<Real>* const>, \
-                                          std::vector<PairContacts<Real>>&);
+                                          std::vector<PairContacts<Real>>&, std::vector<SheetTravel<Real>>&);
 DRAPE_CONTACT_MEMORY(double)
 DRAPE_CONTACT_MEMORY(float)
 #undef DRAPE_CONTACT_MEMORY

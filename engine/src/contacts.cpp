@@ -395,6 +395,7 @@ void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
         points_walking(q, s, ring, *before, e0, e1, prm, on_q, on_s, last);
         kept->point.insert(kept->point.end(), before->point.begin() + e0, before->point.begin() + e1);
         kept->cell.insert(kept->cell.end(), before->cell.begin() + e0, before->cell.begin() + e1);
+        kept->until.insert(kept->until.end(), before->until.begin() + e0, before->until.begin() + e1);
         if (!before->open[block]) {
           kept->open[block] = 0;
           continue;
@@ -482,11 +483,13 @@ void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
           // A point within R + skin joins the kept set at the cell whose box is nearest,
           // or at its nearest triangle's cell if that is within R.
           std::uint32_t start = kNoCell;
+          Real nearest_gap2 = 0;  // no triangle of s is nearer (every cell within R + skin is in `near`)
           if (kept && found > 0) {
             std::uint32_t nearest = 0;
             for (std::uint32_t e = 1; e < found; ++e)
               if (near[e].gap2 < near[nearest].gap2) nearest = e;
             start = near[nearest].corner;
+            nearest_gap2 = near[nearest].gap2;
           }
           if (lists || kept) {  // the list, then only the cells within R
             if (lists) {
@@ -501,13 +504,18 @@ void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
             }
             found = within;
           }
+          bool repelled = false;
           if (found > 0) {
             repel_nearest(q, p, x, s, near, found, prm, on_q, on_s, last[p]);
-            if (kept && last[p] != kNoCell) start = last[p];
+            repelled = last[p] != kNoCell;
+            if (kept && repelled) start = last[p];
           }
           if (start != kNoCell) {
             kept->point.push_back(p);
             kept->cell.push_back(start);
+            // beyond R: walked again once the pair has travelled the gap to the nearest box
+            kept->until.push_back(repelled ? -std::numeric_limits<double>::infinity()
+                                           : prm.travel + 0.99 * (std::sqrt(double(nearest_gap2)) - double(prm.range)));
           }
         }
       if (before)
@@ -682,9 +690,9 @@ HWY_INLINE void closest_lanes(D d, const V3s<hn::TFromD<D>, V>& p, const V3s<hn:
   wc = w;
 }
 
-// For kept entries [e0, e0 + count), count a multiple of the lanes: the squared distance of
-// the nearer of each entry's cell's two triangles (NaN when neither gives a number: no
-// triangle), 1 where it is the second, and its weights, as test_cell from an empty best;
+// For kept entries of points[0, count) at cells[0, count), count a multiple of the lanes:
+// the squared distance of the nearer of each entry's cell's two triangles (NaN when neither
+// gives a number: no triangle), 1 where it is the second, and its weights, as test_cell from an empty best;
 // then (force_lanes) the repulsion repel would give that triangle: its unit direction and
 // force.
 template <class Real>
@@ -701,8 +709,8 @@ struct FirstTests {
 };
 
 template <class Real>
-HWY_INLINE void first_tests(const Sheet<Real>& q, const Sheet<Real>& s, const KeptContacts& kept, std::size_t e0,
-                            std::size_t count, FirstTests<Real>& out) {
+HWY_INLINE void first_tests(const Sheet<Real>& q, const Sheet<Real>& s, const std::uint32_t* points,
+                            const std::uint32_t* cells, std::size_t count, FirstTests<Real>& out) {
   const hn::ScalableTag<Real> d;
   using V = hn::Vec<decltype(d)>;
   const hn::RebindToSigned<decltype(d)> di;
@@ -742,8 +750,8 @@ HWY_INLINE void first_tests(const Sheet<Real>& q, const Sheet<Real>& s, const Ke
     return hn::AllTrue(di, hn::Eq(index, hn::Add(hn::Set(di, Index(first)), hn::Mul(hn::Set(di, Index(step)), lane))));
   };
   for (std::size_t k = 0; k < count; k += N) {
-    const std::uint32_t* point = kept.point.data() + e0 + k;
-    const std::uint32_t* cell = kept.cell.data() + e0 + k;
+    const std::uint32_t* point = points + k;
+    const std::uint32_t* cell = cells + k;
     const auto p = indices(point), c00 = indices(cell), c01 = hn::Add(c00, one), c10 = hn::Add(c00, cols),
                c11 = hn::Add(c10, one);
     // (a run of cells never crosses a row: a row's last index starts no cell)
@@ -888,18 +896,29 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
   // than a cell in one, and the bound keeps a walk on a crumpled sheet short.
   constexpr int kMaxMoves = 8;
   // Each entry's first cell tested a vector of entries at a time (first_tests), a chunk
-  // ahead of the walks, where the CPU gathers in hardware (AVX2 and AVX-512: the stacked
-  // sheets of BM_World48SheetsInContact 15-25 % faster); the entries after the last whole
-  // vector, and every entry elsewhere, one by one (test_cell: SSE4 ran the stack 10 %
-  // slower with the vectors).
+  // of the entries due ahead of their walks, where the CPU gathers in hardware (AVX2 and
+  // AVX-512: the stacked sheets of BM_World48SheetsInContact 15-25 % faster); the due
+  // entries after the last whole vector, and every entry elsewhere, one by one (test_cell:
+  // SSE4 ran the stack 10 % slower with the vectors).
 #if HWY_ARCH_X86 && HWY_TARGET <= HWY_AVX2
   constexpr bool vectors = true;
 #else
   constexpr bool vectors = false;
 #endif
   FirstTests<Real> first;
-  const std::size_t lanes = vectors ? hn::Lanes(hn::ScalableTag<Real>()) : e1 - e0 + 1;
-  std::size_t tested = e0, tested_end = e0;
+  constexpr std::size_t kChunk = FirstTests<Real>::kSize;
+  const std::size_t lanes = vectors ? hn::Lanes(hn::ScalableTag<Real>()) : kChunk + 1;
+  // An entry beyond R is walked again once the pair has travelled its slack (until): until
+  // then no point of it can be within R, in the walk's view of the nearest triangle.
+  const double travel = prm.travel, R = double(prm.range);
+  auto beyond = [&](std::size_t e, Real dist2) {
+    kept.until[e] = travel + 0.99 * (std::sqrt(double(dist2)) - R);
+  };
+  constexpr double kAlways = -std::numeric_limits<double>::infinity();
+  if (kept.until.size() != kept.point.size()) kept.until.assign(kept.point.size(), kAlways);
+  // The entries due, a chunk at a time: their indices, points and cells, contiguous.
+  std::size_t due[kChunk];
+  std::uint32_t due_point[kChunk], due_cell[kChunk];
   // The triangle the lanes found nearest for entry k at `cell` (its corners' positions not
   // read), as test_cell from an empty best finds it.
   auto tested_triangle = [&](std::size_t k, std::uint32_t cell, Nearest<Real>& best) {
@@ -912,100 +931,127 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
     best.tri[2] = second ? p10 : p11;
     best.w = {first.w[0][k], first.w[1][k], first.w[2][k]};
   };
-  for (std::size_t e = e0; e < e1; ++e) {
-    const std::uint32_t p = kept.point[e];
-    std::uint32_t cell = kept.cell[e];
-    if (e == tested_end) {
-      tested = e;
-      tested_end = e + std::min(FirstTests<Real>::kSize, (e1 - e) / lanes * lanes);
-      if constexpr (vectors) {
-        first_tests(q, s, kept, tested, tested_end - tested, first);
-        force_lanes(prm, tested_end - tested, first);
+  std::size_t next = e0;
+  while (next < e1) {
+    // The next chunk's entries due; those skipped have no triangle within R.
+    std::size_t count = 0;
+    for (; next < e1 && count < kChunk; ++next) {
+      if (travel < kept.until[next]) {
+        last[kept.point[next]] = kNoCell;
+        continue;
+      }
+      due[count] = next;
+      due_point[count] = kept.point[next];
+      due_cell[count] = kept.cell[next];
+      ++count;
+    }
+    // Whole vectors in lanes, the rest (and every entry without vectors) one by one.
+    const std::size_t tested_end = count / lanes * lanes;
+    if constexpr (vectors) {
+      if (tested_end > 0) {
+        first_tests(q, s, due_point, due_cell, tested_end, first);
+        force_lanes(prm, tested_end, first);
       }
     }
-    if (e < tested_end && first.ends[e - tested] != 0) {  // the walk ends at its first cell: lanes did it all
-      const std::size_t k = e - tested;
-      if (first.dist2[k] < R2) {
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::size_t e = due[k];
+      const std::uint32_t p = due_point[k];
+      std::uint32_t cell = due_cell[k];
+      if (k < tested_end && first.ends[k] != 0) {  // the walk ends at its first cell: lanes did it all
+        kept.until[e] = kAlways;
+        if (first.dist2[k] < R2) {
+          last[p] = cell;
+          Nearest<Real> best;
+          tested_triangle(k, cell, best);
+          const V3<Real> unit{first.unit[0][k], first.unit[1][k], first.unit[2][k]};
+          push_repulsion(q, p, s, best, unit, first.force[k], prm, on_q, on_s);
+        } else {
+          last[p] = kNoCell;
+          beyond(e, first.dist2[k]);
+        }
+        continue;
+      }
+      kept.until[e] = kAlways;
+      const V3<Real> x = at(q, p);
+      const std::int64_t pi = p / qcols, pj = p % qcols;
+      auto allowed = [&](std::int64_t ci, std::int64_t cj) {
+        if (ci < 0 || cj < 0 || ci >= std::int64_t(m) || cj >= std::int64_t(n)) return false;
+        return ring < 0 || !(ci >= pi - ring && ci < pi + ring && cj >= pj - ring && cj < pj + ring);
+      };
+      Nearest<Real> best{};
+      best.dist2 = std::numeric_limits<Real>::infinity();
+      best.key = ~std::uint32_t(0);
+      // The key of the triangle tested in lanes, whose force the lanes hold; best's corners
+      // are not read for it.
+      std::uint32_t lanes_key = ~std::uint32_t(0);
+      if (k < tested_end) {
+        if (first.dist2[k] == first.dist2[k]) {  // else not a number: no triangle (best stays empty)
+          tested_triangle(k, cell, best);
+          lanes_key = best.key;
+        }
+      } else {
+        test_cell(s, cols, x, cell, best);
+      }
+      if (best.key == ~std::uint32_t(0)) {  // not a number: no triangle, no force
+        last[p] = kNoCell;
+        continue;
+      }
+      bool settled = false;  // the walk reached its local minimum within its moves
+      for (int move = 0; move < kMaxMoves; ++move) {
+        // The closest point's weights on the cell's corners 00, 01, 10, 11: triangle 0 is
+        // (00, 01, 11), triangle 1 (00, 11, 10). Zero weight on a row's (column's) two
+        // corners (within kWalkTie: a closest point within rounding of a corner is taken
+        // there, and the corner's test decides) puts it on the opposite row (column) edge.
+        Real w00 = best.w.x, w01, w10, w11;
+        if (best.key & 1) {
+          w01 = 0;
+          w11 = best.w.y;
+          w10 = best.w.z;
+        } else {
+          w01 = best.w.y;
+          w11 = best.w.z;
+          w10 = 0;
+        }
+        constexpr Real tie = kWalkTie<Real>;
+        const int di = w10 + w11 <= tie ? -1 : (w00 + w01 <= tie ? 1 : 0);
+        const int dj = w01 + w11 <= tie ? -1 : (w00 + w10 <= tie ? 1 : 0);
+        if (di == 0 && dj == 0) {
+          settled = true;
+          break;
+        }
+        const std::int64_t ci = cell / cols, cj = cell % cols;
+        // At a corner: no cell around it holds a nearer point (of the cells outside the grid
+        // there are none to test; of those in the ring, the test asks more than it needs).
+        if (di != 0 && dj != 0 && vertex_is_nearest(s, x, ci + (di > 0), cj + (dj > 0))) {
+          settled = true;
+          break;
+        }
+        const std::uint32_t key = best.key;
+        auto corner = [&](std::int64_t i, std::int64_t j) { return std::uint32_t(i * cols + j); };
+        if (di != 0 && allowed(ci + di, cj)) test_cell(s, cols, x, corner(ci + di, cj), best);
+        if (dj != 0 && allowed(ci, cj + dj)) test_cell(s, cols, x, corner(ci, cj + dj), best);
+        if (di != 0 && dj != 0 && allowed(ci + di, cj + dj)) test_cell(s, cols, x, corner(ci + di, cj + dj), best);
+        if (best.key == key) {  // no neighbour holds a nearer triangle
+          settled = true;
+          break;
+        }
+        cell = best.key / 2;
+      }
+      kept.cell[e] = cell;
+      if (best.dist2 < R2) {
         last[p] = cell;
-        Nearest<Real> best;
-        tested_triangle(k, cell, best);
-        const V3<Real> unit{first.unit[0][k], first.unit[1][k], first.unit[2][k]};
-        push_repulsion(q, p, s, best, unit, first.force[k], prm, on_q, on_s);
+        if (best.key == lanes_key && best.dist2 > 0) {  // the triangle the lanes tested: their force
+          const V3<Real> unit{first.unit[0][k], first.unit[1][k], first.unit[2][k]};
+          push_repulsion(q, p, s, best, unit, first.force[k], prm, on_q, on_s);
+        } else {  // moved, or on the triangle (its normal): the scalar force, from the corners
+          if (best.key == lanes_key)
+            for (int c = 0; c < 3; ++c) best.v[c] = at(s, best.tri[c]);
+          repel(q, p, x, s, best, prm, on_q, on_s);
+        }
       } else {
         last[p] = kNoCell;
+        if (settled) beyond(e, best.dist2);
       }
-      continue;
-    }
-    const V3<Real> x = at(q, p);
-    const std::int64_t pi = p / qcols, pj = p % qcols;
-    auto allowed = [&](std::int64_t ci, std::int64_t cj) {
-      if (ci < 0 || cj < 0 || ci >= std::int64_t(m) || cj >= std::int64_t(n)) return false;
-      return ring < 0 || !(ci >= pi - ring && ci < pi + ring && cj >= pj - ring && cj < pj + ring);
-    };
-    Nearest<Real> best{};
-    best.dist2 = std::numeric_limits<Real>::infinity();
-    best.key = ~std::uint32_t(0);
-    // The key of the triangle tested in lanes, whose force the lanes hold; best's corners
-    // are not read for it.
-    std::uint32_t lanes_key = ~std::uint32_t(0);
-    if (e < tested_end) {
-      const std::size_t k = e - tested;
-      if (first.dist2[k] == first.dist2[k]) {  // else not a number: no triangle (best stays empty)
-        tested_triangle(k, cell, best);
-        lanes_key = best.key;
-      }
-    } else {
-      test_cell(s, cols, x, cell, best);
-    }
-    if (best.key == ~std::uint32_t(0)) {  // not a number: no triangle, no force
-      last[p] = kNoCell;
-      continue;
-    }
-    for (int move = 0; move < kMaxMoves; ++move) {
-      // The closest point's weights on the cell's corners 00, 01, 10, 11: triangle 0 is
-      // (00, 01, 11), triangle 1 (00, 11, 10). Zero weight on a row's (column's) two
-      // corners (within kWalkTie: a closest point within rounding of a corner is taken
-      // there, and the corner's test decides) puts it on the opposite row (column) edge.
-      Real w00 = best.w.x, w01, w10, w11;
-      if (best.key & 1) {
-        w01 = 0;
-        w11 = best.w.y;
-        w10 = best.w.z;
-      } else {
-        w01 = best.w.y;
-        w11 = best.w.z;
-        w10 = 0;
-      }
-      constexpr Real tie = kWalkTie<Real>;
-      const int di = w10 + w11 <= tie ? -1 : (w00 + w01 <= tie ? 1 : 0);
-      const int dj = w01 + w11 <= tie ? -1 : (w00 + w10 <= tie ? 1 : 0);
-      if (di == 0 && dj == 0) break;
-      const std::int64_t ci = cell / cols, cj = cell % cols;
-      // At a corner: no cell around it holds a nearer point (of the cells outside the grid
-      // there are none to test; of those in the ring, the test asks more than it needs).
-      if (di != 0 && dj != 0 && vertex_is_nearest(s, x, ci + (di > 0), cj + (dj > 0))) break;
-      const std::uint32_t key = best.key;
-      auto corner = [&](std::int64_t i, std::int64_t j) { return std::uint32_t(i * cols + j); };
-      if (di != 0 && allowed(ci + di, cj)) test_cell(s, cols, x, corner(ci + di, cj), best);
-      if (dj != 0 && allowed(ci, cj + dj)) test_cell(s, cols, x, corner(ci, cj + dj), best);
-      if (di != 0 && dj != 0 && allowed(ci + di, cj + dj)) test_cell(s, cols, x, corner(ci + di, cj + dj), best);
-      if (best.key == key) break;  // no neighbour holds a nearer triangle
-      cell = best.key / 2;
-    }
-    kept.cell[e] = cell;
-    if (best.dist2 < R2) {
-      last[p] = cell;
-      if (best.key == lanes_key && best.dist2 > 0) {  // the triangle the lanes tested: their force
-        const std::size_t k = e - tested;
-        const V3<Real> unit{first.unit[0][k], first.unit[1][k], first.unit[2][k]};
-        push_repulsion(q, p, s, best, unit, first.force[k], prm, on_q, on_s);
-      } else {  // moved, or on the triangle (its normal): the scalar force, from the corners
-        if (best.key == lanes_key)
-          for (int c = 0; c < 3; ++c) best.v[c] = at(s, best.tri[c]);
-        repel(q, p, x, s, best, prm, on_q, on_s);
-      }
-    } else {
-      last[p] = kNoCell;
     }
   }
 }
@@ -1545,6 +1591,32 @@ void self_contacts(const Sheet<Real>& s, const SheetBoxes<Real>& boxes, const Co
 }
 
 template <class Real>
+void advance_travel(Sheet<Real>& s) {
+  Vec3Array<Real>& from = s.travel_from;
+  if (from.x.size() != s.size()) {
+    from.x.assign(s.position.x.begin(), s.position.x.end());
+    from.y.assign(s.position.y.begin(), s.position.y.end());
+    from.z.assign(s.position.z.begin(), s.position.z.end());
+    return;
+  }
+  const Real *x = s.position.x.data(), *y = s.position.y.data(), *z = s.position.z.data();
+  Real *__restrict fx = from.x.data(), *__restrict fy = from.y.data(), *__restrict fz = from.z.data();
+  Real most = 0, bad = 0;  // bad: NaN where a displacement is not a number or infinite
+  const std::size_t count = s.size();
+#pragma omp simd reduction(max : most) reduction(+ : bad)
+  for (std::size_t p = 0; p < count; ++p) {
+    const Real dx = x[p] - fx[p], dy = y[p] - fy[p], dz = z[p] - fz[p];
+    most = std::max(most, dx * dx + dy * dy + dz * dz);
+    bad += (dx + dy + dz) * Real(0);
+    fx[p] = x[p];
+    fy[p] = y[p];
+    fz[p] = z[p];
+  }
+  // rounded up a little: the square root and the sum round, and entries hold 0.99 of a slack
+  s.travel = bad == 0 ? s.travel + std::sqrt(double(most)) * (1 + 1e-6) : std::numeric_limits<double>::infinity();
+}
+
+template <class Real>
 void gather_contacts(std::span<const ContactForces<Real>* const> sources, Vec3Array<Real>& out, std::size_t begin,
                      std::size_t end) {
   std::fill(out.x.begin() + begin, out.x.begin() + end, Real(0));
@@ -1571,6 +1643,7 @@ void gather_contacts(std::span<const ContactForces<Real>* const> sources, Vec3Ar
   template void self_contacts<Real>(const Sheet<Real>&, const SheetBoxes<Real>&, const ContactParams<Real>&,  \
                                     PairContacts<Real>&, ContactScratch<Real>&);                               \
   template std::uint32_t self_contact_ring<Real>(const Sheet<Real>&, const ContactParams<Real>&);            \
+  template void advance_travel<Real>(Sheet<Real>&);                                                            \
   template void gather_contacts<Real>(std::span<const ContactForces<Real>* const>, Vec3Array<Real>&,           \
                                       std::size_t, std::size_t);
 DRAPE_CONTACTS(double)

@@ -77,6 +77,10 @@ struct ContactParams {
   // the reference); false, every point of the kept contact set walks from its cell
   // (KeptContacts: an approximation, the default).
   bool exact = false;
+  // The pair's travel now: Sheet::travel of both sheets summed (a sheet with itself: twice
+  // its own). A kept entry beyond R skips its walk while the sheets have not travelled the
+  // entry's slack since its last test (KeptContacts::until). NaN, unknown: none skips.
+  double travel = std::numeric_limits<double>::quiet_NaN();
 
   static ContactParams make(double thickness, double xi, double strength, double range_in_xi);
 };
@@ -181,7 +185,9 @@ struct Candidates {
 // local minimum of the distance over the grid, which is the nearest triangle wherever the
 // other sheet is the graph of a function over the point's neighbourhood; where two parts
 // of the other sheet are both within R of the point (a crease, a fold of it), it may stay
-// on the farther one until the next search. A point not in the set costs nothing.
+// on the farther one until the next search. An entry beyond R skips its walks until the
+// two sheets have travelled its slack (until, below; Sheet::travel); where the walk finds
+// the nearest triangle, that changes no force. A point not in the set costs nothing.
 //
 // Only blocks (patches) with points outside the set need the relative-motion test of
 // PairContacts, and when it fails only their points outside the set are searched again (a
@@ -192,6 +198,12 @@ struct Candidates {
 // (contacts.cpp, points_walking), the rest one entry at a time.
 struct KeptContacts {
   std::vector<std::uint32_t> point, cell;
+  // Per entry: the pair's travel (ContactParams::travel) below which its walk is skipped.
+  // An entry that a walk left beyond R, at distance d, cannot be nearer than d less the
+  // sheets' travel since, so it comes within R no sooner than the pair has travelled
+  // 0.99·(d − R) more; a search's entry beyond R takes its nearest cell box's gap as d.
+  // −∞: walked every substep (within R, a walk cut short, not a number).
+  std::vector<double> until;
   // Per patch of the query sheet (SheetBoxes): 1 if some point of its block is not in the
   // set. Only open patches can bring a point into range unseen (PairContacts).
   std::vector<std::uint8_t> open;
@@ -200,8 +212,16 @@ struct KeptContacts {
   void clear() {
     point.clear();
     cell.clear();
+    until.clear();
   }
 };
+
+// Adds to s.travel the largest distance a point of s moved since the last call (the
+// positions then kept in s.travel_from); the first call, or one after the sheet changed
+// size, starts from the positions now. A displacement not a number makes the travel
+// infinite: no entry skips again.
+template <class Real>
+void advance_travel(Sheet<Real>& s);
 
 // The contact work of one overlapping pair of sheets (a < b), or of one sheet with itself
 // (a == b, only on_a used). Written by one task, read by the gather: no sharing.
@@ -288,20 +308,27 @@ void gather_contacts(std::span<const ContactForces<Real>* const> sources, Vec3Ar
                      std::size_t end);
 
 // The contact stage's memory between substeps, as words (a Real by its bits), for
-// checkpoints: every pair's kept lists and sets, the positions and clearances they were
-// made at, their skin and counters, and its guesses, in pair_work's order (gone pairs
-// too). A kept set's walk and the substeps that search depend on all of it, so a world
-// that takes it back continues bit for bit. `sheets` are the world's sheets in order.
+// checkpoints: every pair's kept lists and sets (with their entries' skips), the positions
+// and clearances they were made at, their skin and counters, and its guesses, in
+// pair_work's order (gone pairs too), then every sheet's travel (Sheet::travel and
+// travel_from). A kept set's walk and the substeps that search depend on all of it, so a
+// world that takes it back continues bit for bit. `sheets` are the world's sheets in order.
 // read_contact_memory checks every count and index against them and throws
-// std::invalid_argument naming the problem, leaving `pair_work` as it was. Indices, flags
-// and floats are packed two to a word (layout 2); `one_entry_a_word` writes layout 1, one
-// word per entry as before, which read_contact_memory still reads (for older checkpoints).
+// std::invalid_argument naming the problem, leaving `pair_work` and `travel` as they were;
+// `travel` gets one entry per sheet, or none from a layout before 3. Layout 3 (written
+// by default) packs indices, flags and floats two to a word as layout 2 does; layouts 2
+// and 1 (one word per entry) have no skips or travel, and are still read (for older
+// checkpoints): their entries walk every substep until the next search.
+template <class Real>
+struct SheetTravel {
+  double travel = 0;
+  Vec3Array<Real> from;
+};
 template <class Real>
 std::vector<std::uint64_t> write_contact_memory(const std::vector<PairContacts<Real>>& pair_work,
-                                                std::span<const Sheet<Real>* const> sheets,
-                                                bool one_entry_a_word = false);
+                                                std::span<const Sheet<Real>* const> sheets, int layout = 3);
 template <class Real>
 void read_contact_memory(std::span<const std::uint64_t> memory, std::span<const Sheet<Real>* const> sheets,
-                         std::vector<PairContacts<Real>>& pair_work);
+                         std::vector<PairContacts<Real>>& pair_work, std::vector<SheetTravel<Real>>& travel);
 
 }  // namespace drape::detail

@@ -200,6 +200,12 @@ struct Sheet {
   bool has_contacts = false;
   bool self_collision = false;
   double friction = 0;  // μ (SheetDef::friction)
+  // How far the sheet has travelled, for the contact stage (contacts.h, advance_travel): the
+  // sum, over the substeps it spent in some pair, of the largest distance any of its points
+  // moved since the last of them, and its positions then. No two of its points can have
+  // moved farther apart than the growth of `travel` between two of those substeps.
+  double travel = 0;
+  Vec3Array<Real> travel_from;
   // Obstacles whose reach overlaps this sheet's bounding box, chosen by the world's host
   // stage every substep (the world clears these lists whenever its obstacle pool changes).
   std::vector<NearObstacle> near_obstacles;

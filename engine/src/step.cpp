@@ -196,12 +196,18 @@ void BasicWorld<Real>::Impl::contact_boxes(double h) {
     auto& w = pair_work[q];
     detail::pair_needs_boxes(at(w.a), at(w.b), params, w, contact_scratch.local());
   });
+  // in_pair: 1 the sheet needs its boxes; 2 it is in some pair, whose kept set may walk, so
+  // its travel (Sheet::travel) goes on
   in_pair.assign(count, 0);
-  for (std::size_t q = 0; q < pairs.size(); ++q)
-    if (pair_work[q].decided == 0 || params.exact) in_pair[pairs[q].first] = in_pair[pairs[q].second] = 1;
+  for (std::size_t q = 0; q < pairs.size(); ++q) {
+    const std::uint8_t mark = (pair_work[q].decided == 0 || params.exact ? 1 : 0) | (params.exact ? 0 : 2);
+    in_pair[pairs[q].first] |= mark;
+    in_pair[pairs[q].second] |= mark;
+  }
   if (sheet_boxes.size() < count) sheet_boxes.resize(count);
   parallel(count, [&](std::size_t k) {
-    if (in_pair[k]) detail::build_boxes(at(k), sheet_boxes[k]);
+    if (in_pair[k] & 2) detail::advance_travel(at(k));
+    if (in_pair[k] & 1) detail::build_boxes(at(k), sheet_boxes[k]);
   });
 }
 
@@ -217,6 +223,7 @@ void BasicWorld<Real>::Impl::narrow_phase(double h) {
     const double lightest = std::min(slots[active[w.a]].lightest_point, slots[active[w.b]].lightest_point);
     pair.exponent_cap = static_cast<Real>(
         std::max(0.0, detail::stiffness_exponent_cap(def.contact_strength, def.contact_xi, lightest, h)));
+    if (!params.exact) pair.travel = at(w.a).travel + at(w.b).travel;
     if (w.a == w.b)
       detail::self_contacts(at(w.a), sheet_boxes[w.a], pair, w, scratch);
     else

@@ -82,7 +82,7 @@ struct BasicWorld<Real>::Impl {
   std::vector<detail::Aabb> bounds, grown;
   detail::TrackingBroadPhase broad_phase;  // reset when `active` changes
   std::vector<detail::BoxPair> pairs;
-  std::vector<char> in_pair;                          // per sheet: in a pair that needs its boxes
+  std::vector<std::uint8_t> in_pair;                  // per sheet: needs its boxes (1), in a pair (2)
   std::vector<detail::SheetBoxes<Real>> sheet_boxes;  // per sheet in a pair, shared by its pairs
   std::vector<detail::PairContacts<Real>> pair_work;
   tbb::enumerable_thread_specific<detail::ContactScratch<Real>> contact_scratch;  // narrow phase
