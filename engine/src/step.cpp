@@ -196,11 +196,15 @@ void BasicWorld<Real>::Impl::contact_boxes(double h) {
     auto& w = pair_work[q];
     detail::pair_needs_boxes(at(w.a), at(w.b), params, w, contact_scratch.local());
   });
-  // in_pair: 1 the sheet needs its boxes; 2 it is in some pair, whose kept set may walk, so
-  // its travel (Sheet::travel) goes on
+  // in_pair: 1 the sheet needs its boxes; 2 some pair of it searches or walks its kept set
+  // this substep, so its travel (Sheet::travel) goes on. A sheet no entry is tested
+  // against skips it: its next pass measures from where it was then (a self-colliding
+  // sheet far from everything pays nothing).
   in_pair.assign(count, 0);
   for (std::size_t q = 0; q < pairs.size(); ++q) {
-    const std::uint8_t mark = (pair_work[q].decided == 0 || params.exact ? 1 : 0) | (params.exact ? 0 : 2);
+    const auto& w = pair_work[q];
+    const bool tests = w.decided == 0 || !(w.a_on_b.point.empty() && w.b_on_a.point.empty());
+    const std::uint8_t mark = (w.decided == 0 || params.exact ? 1 : 0) | (!params.exact && tests ? 2 : 0);
     in_pair[pairs[q].first] |= mark;
     in_pair[pairs[q].second] |= mark;
   }
