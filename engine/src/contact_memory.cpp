@@ -1,8 +1,8 @@
 // The contact stage's memory as words, for checkpoints (contacts.h, write_contact_memory).
 #include <algorithm>
 #include <bit>
-#include <limits>
 #include <cstdint>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
@@ -186,12 +186,12 @@ void check_kept(const KeptContacts& k, const Sheet<Real>& query, const Sheet<Rea
 template <class Real>
 std::vector<std::uint64_t> write_contact_memory(const std::vector<PairContacts<Real>>& pair_work,
                                                 std::span<const Sheet<Real>* const> sheets, int layout) {
+  if (layout < 1 || layout > int(kLayout)) bad("cannot be written in layout " + std::to_string(layout));
   Words<Real> w;
   const bool travelled =
       std::any_of(sheets.begin(), sheets.end(), [](const Sheet<Real>* s) { return !s->travel_from.x.empty(); });
   // a world that never coupled sheets carries nothing
   if (pair_work.empty() && (layout < 3 || !travelled)) return {};
-  if (layout < 1 || layout > 3) bad("cannot be written in layout " + std::to_string(layout));
   w.packed = layout != int(kOneEntryAWord);
   w.word(std::uint64_t(layout));
   w.word(sizeof(Real));

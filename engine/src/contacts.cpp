@@ -42,6 +42,13 @@ Real positive_part(Real a) { return (a + std::abs(a)) * Real(0.5); }
 
 constexpr std::uint32_t kNoCell = ~std::uint32_t(0);
 
+// The pair's travel (ContactParams::travel) below which an entry beyond R, at least √dist2
+// from every triangle of the other sheet, skips its walk: 0.99 of its slack from now
+// (KeptContacts::until).
+inline double skip_until(double travel, double dist2, double range) {
+  return travel + 0.99 * (std::sqrt(dist2) - range);
+}
+
 }  // namespace
 }  // namespace drape::detail
 #endif  // DRAPE_CONTACTS_SHARED_
@@ -515,7 +522,7 @@ void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
             kept->cell.push_back(start);
             // beyond R: walked again once the pair has travelled the gap to the nearest box
             kept->until.push_back(repelled ? -std::numeric_limits<double>::infinity()
-                                           : prm.travel + 0.99 * (std::sqrt(double(nearest_gap2)) - double(prm.range)));
+                                           : skip_until(prm.travel, double(nearest_gap2), double(prm.range)));
           }
         }
       if (before)
@@ -910,10 +917,8 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
   const std::size_t lanes = vectors ? hn::Lanes(hn::ScalableTag<Real>()) : kChunk + 1;
   // An entry beyond R is walked again once the pair has travelled its slack (until): until
   // then no point of it can be within R, in the walk's view of the nearest triangle.
-  const double travel = prm.travel, R = double(prm.range);
-  auto beyond = [&](std::size_t e, Real dist2) {
-    kept.until[e] = travel + 0.99 * (std::sqrt(double(dist2)) - R);
-  };
+  const double travel = prm.travel;
+  auto beyond = [&](std::size_t e, Real dist2) { kept.until[e] = skip_until(travel, double(dist2), double(prm.range)); };
   constexpr double kAlways = -std::numeric_limits<double>::infinity();
   if (kept.until.size() != kept.point.size()) kept.until.assign(kept.point.size(), kAlways);
   // The entries due, a chunk at a time: their indices, points and cells, contiguous.

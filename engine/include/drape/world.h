@@ -293,10 +293,11 @@ class BasicWorld {
   std::span<const Real> integrator_memory(SheetId id) const;
   void set_integrator_memory(SheetId id, std::span<const Real> memory);
   // What the contact stage carries from one substep to the next (each pair's kept contact
-  // sets and lists, when it searches next, how far each sheet has travelled): without it a world in contact searches afresh
-  // and may continue differently. Opaque words, valid only for a world built from the same
-  // definitions. set_contact_memory checks them (else std::invalid_argument naming the
-  // problem, the world unchanged); an empty span forgets: the next substep searches.
+  // sets and lists, when it searches next, how far each sheet has travelled): without it a
+  // world in contact searches afresh and may continue differently. Opaque words, valid only
+  // for a world built from the same definitions. set_contact_memory checks them (else
+  // std::invalid_argument naming the problem, the world unchanged); an empty span forgets:
+  // the next substep searches.
   std::vector<std::uint64_t> contact_memory() const;
   void set_contact_memory(std::span<const std::uint64_t> memory);
 
