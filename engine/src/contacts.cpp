@@ -1386,12 +1386,15 @@ Real next_skin(const PairContacts<Real>& w, const ContactParams<Real>& prm) {
   if (!(w.skin > 0)) return prm.skin;
   // Exact lists grow with the skin and are read every substep, so lists that serve long
   // narrow it; a kept contact set costs one entry per point within R + skin, but one beyond
-  // R only walks, so its skin never narrows below R/2 (from the first R/4, a widening):
-  // narrower, a settling stack searched again nearly every substep and ran slower
-  // (BM_World48SheetsSettling; the figures are in the commit that set the floor).
+  // R only walks (and mostly skips its walk), so its skin never narrows below R/2 (from the
+  // first R/4, a widening): narrower, a settling stack searched again nearly every substep
+  // and ran slower; and it widens up to 2R: at R, the settling stack's pairs three and more
+  // layers apart searched again every four substeps or so, finding nothing (their sheets'
+  // patches sag past each other faster than R allows; BM_World48SheetsSettling, the
+  // figures in the commits that set the floor and the ceiling).
   if (w.kept_for == 0 || (prm.exact && w.kept_for > 32))
     return std::max(w.skin / 2, prm.exact ? prm.range / 16 : prm.range / 2);
-  if (w.kept_for < 4) return std::min(w.skin * 2, prm.exact ? prm.range / 2 : prm.range);
+  if (w.kept_for < 4) return std::min(w.skin * 2, prm.exact ? prm.range / 2 : 2 * prm.range);
   return w.skin;
 }
 

@@ -244,7 +244,7 @@ void advance_travel(Sheet<Real>& s);
 // than 4. Lists at R/16 that did not outlive their substep make the pair search without
 // lists for the next 16 substeps (making them costs more than it saves while the sheets
 // move that fast), then start again at R/4. A kept contact set's skin (below) doubles up
-// to R and never halves below R/2.
+// to 2R and never halves below R/2.
 template <class Real>
 struct PairContacts {
   std::uint32_t a = 0, b = 0;  // positions in the world's sheet order
