@@ -151,20 +151,23 @@ def times_faster(slow, fast, cpu=False):
 
 
 def speedup_shortfall(ratio, goal):
-    """The by-how-much of a missed speed-up target, in per cent of the measured ×: a ratio a hair under
-    its goal, which two decimals round up to the goal itself, still reads as short by a named amount."""
+    """The by-how-much of a missed × target: how much faster it must get, in per cent while that is
+    under 2× (a ratio a hair under its goal, which two decimals round up to the goal itself, still reads
+    as short by a named amount), else as a ×."""
     if not ratio or ratio >= goal:
         return ""
-    return f"{100 * (goal / ratio - 1):.1f} % short"
+    more = goal / ratio
+    if more >= 2:
+        return f"{more:.1f}× short"
+    percent = 100 * (more - 1)
+    return f"{percent:.2f} % short" if percent < 1 else f"{percent:.1f} % short"
 
 
 def scene_shortfall(ratio, bound):
     """The by-how-much of a many-sheet scene's verdict: how far it is from issue 13's ×, and the most
     × the scene's sheets alone leave to contact and obstacle work (its baseline's time over theirs)."""
-    if not ratio or ratio >= TARGET_SCENES_SPEEDUP:
-        return ""
-    text = f"{TARGET_SCENES_SPEEDUP / ratio:.1f}× short"
-    if bound:
+    text = speedup_shortfall(ratio, TARGET_SCENES_SPEEDUP)
+    if text and bound:
         text += f"; its sheets alone allow {bound:.1f}×"
     return text
 
@@ -486,7 +489,7 @@ class Report:
                  f"drape's).", "")
         self.target("Stacked sheets in contact, drape ÷ Bullet per simulated second (1 thread, "
                     f"first {span:g} s)", f"{ratio:.2f}×", f"≥ {TARGET_OVER_BULLET:.0f}×", ratio >= TARGET_OVER_BULLET,
-                    "" if ratio >= TARGET_OVER_BULLET else f"{TARGET_OVER_BULLET / ratio:.1f}× short")
+                    speedup_shortfall(ratio, TARGET_OVER_BULLET))
 
     # BM_Scene's names: iterations:1 (one span per scene, the baseline recorded before issue 13's
     # third step) or min_time:… (spans repeated to a minimum time, since).
@@ -800,7 +803,7 @@ class Report:
                 ratio = r[s32].rate / r[s64].rate
                 self.target("48 sheets on AVX2 (DRAPE_SIMD_TARGET), float32 ÷ float64", f"{ratio:.2f}×",
                             f"≥ {TARGET_F32_OVER_F64:.1f}×", ratio >= TARGET_F32_OVER_F64,
-                            "" if ratio >= TARGET_F32_OVER_F64 else f"{TARGET_F32_OVER_F64 - ratio:.2f}× short")
+                            speedup_shortfall(ratio, TARGET_F32_OVER_F64))
 
     def avx2_against_baseline(self):
         """Issue 15: the portable build held to AVX2 against "today" (tools/simd_baseline.py's JSON)."""

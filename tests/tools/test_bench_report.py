@@ -150,8 +150,11 @@ class ScenesAgainstTheirSheetsAlone(unittest.TestCase):
 class SpeedupShortfall(unittest.TestCase):
     def test_a_ratio_just_under_its_goal_is_short_by_a_named_amount(self):
         # 2.995× shows as 3.00× at two decimals; 3 / 2.995 is 0.17 % more
-        self.assertEqual(bench_report.speedup_shortfall(2.995, 3.0), "0.2 % short")
+        self.assertEqual(bench_report.speedup_shortfall(2.995, 3.0), "0.17 % short")
         self.assertEqual(bench_report.speedup_shortfall(2.8, 3.0), "7.1 % short")
+
+    def test_a_ratio_far_from_its_goal_is_short_by_a_times(self):
+        self.assertEqual(bench_report.speedup_shortfall(1.2, 10.0), "8.3× short")
 
     def test_a_met_or_unmeasured_target_has_no_shortfall(self):
         self.assertEqual(bench_report.speedup_shortfall(3.0, 3.0), "")
