@@ -3,9 +3,9 @@
 #   1. Release build (warnings as errors) and every test, the Python module's pytest suite
 #      (Python.Bindings) and the 2-rank MPI tests (Mpi.*) among them;
 #   2. the tests again, built with AddressSanitizer + UndefinedBehaviorSanitizer (build-asan;
-#      the files compiled per instruction set without the UBSan checks ASan covers there, see
-#      engine/CMakeLists.txt; a few heavy tests run smaller cases of the same code paths under
-#      DRAPE_SANITIZED), and with every optional package left out (-DDRAPE_OPTIONAL_PACKAGES=OFF: Bullet, ...), so
+#      the files compiled per instruction set without the UBSan checks ASan covers there and
+#      without ASan's use-after-scope check, see engine/CMakeLists.txt; a few heavy tests run
+#      smaller cases of the same code paths under DRAPE_SANITIZED), and with every optional package left out (-DDRAPE_OPTIONAL_PACKAGES=OFF: Bullet, ...), so
 #      this stage also proves that a machine with only what tools/setup.sh installs builds
 #      everything, the benchmarks included, whatever else this machine has; it is also the
 #      portable build (-DDRAPE_NATIVE=OFF): its baseline is the compiler's default, where
