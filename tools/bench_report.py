@@ -1113,9 +1113,37 @@ class Report:
                      f"wall time): {us(walk.step_seconds)} µs per substep with kept contact sets that walk between "
                      f"searches (the default), {us(exact.step_seconds)} µs with the exact search every substep "
                      f"(`contact_exact`), {exact.step_seconds / walk.step_seconds:.2f}×.")
+        self.contact_ceiling(walk)
         self.dissipative_stack(paired)
         self.used.update(r.name for r in settle.values())
         self.out("")
+
+    def contact_ceiling(self, walk):
+        """What the stack's contacts could cost at best (bench/bench_contact_ceiling.cpp), beside what the
+        engine's contact stage costs in the same stack and what issue 13's target leaves it."""
+        gathered, aligned = self.get("BM_CeilingContacts/aligned:0"), self.get("BM_CeilingContacts/aligned:1")
+        apart = self.get("BM_World48SheetsApart/1/real_time")
+        if not (gathered and aligned):
+            return
+        count = gathered.counters.get("contacts")
+        text = (f"- What the contacts of the 48 stacked sheets (layers 10 mm apart) could cost at best "
+                f"(`BM_CeilingContacts`, bench/bench_contact_ceiling.cpp, one thread, CPU time): the stack's "
+                + (f"{count:,.0f} " if count else "")
+                + "point–triangle contacts between neighbouring layers (both ways), each with its triangle and its "
+                f"point's weights on it given (no search, no walk, no test that the triangle is still the nearest), "
+                f"evaluated as the engine's force is: {us(gathered.step_seconds)} µs per substep gathered by index "
+                f"and summed one contact at a time, as the engine's buffers hold them, and "
+                f"{us(aligned.step_seconds)} µs laid out as equal stacked grids allow (consecutive points over "
+                f"consecutive corners: loads, and sums per corner of the triangle)")
+        if walk and apart:
+            stage = walk.step_seconds - apart.step_seconds
+            budget = (TARGET_CONTACT_OVER_APART - 1) * apart.step_seconds
+            text += (f". The engine's contact work in that stack (in contact less apart, "
+                     f"`BM_World48SheetsInContact/1` − `BM_World48SheetsApart/1`): {us(stage)} µs per substep, "
+                     f"{stage / gathered.step_seconds:.1f}× the first and {stage / aligned.step_seconds:.1f}× the "
+                     f"second; issue 13's ≤ {TARGET_CONTACT_OVER_APART:.0f}× of apart leaves contacts "
+                     f"{us(budget)} µs")
+        self.out(text + ".")
 
     def dissipative_stack(self, paired):
         """Issue 13's pricing of the contact terms added beside the repulsion: friction and damping
