@@ -13,7 +13,10 @@
 //   points one contact at a time in that order, as the engine's buffers and gather do;
 // - aligned (arg 1): laid out as equal stacked grids allow, a vector's lanes consecutive
 //   points over consecutive corners: positions loaded, and the corners' shares summed per
-//   corner of the triangle, added to the points once per pair of sheets.
+//   corner of the triangle, added to the points once per pair of sheets;
+// - aligned with the law in float (arg 2): the same, the differences rounded to float and
+//   the square root, exp and division done in float (the figure a contact law in float
+//   could reach; the counter says how far its forces stray).
 // tools/bench_report.py sets both beside the engine's contact stage on the same stack.
 #include "simd/targets.h"
 
@@ -138,19 +141,51 @@ namespace drape::bench::contact_ceiling {
 namespace HWY_NAMESPACE {
 namespace hn = hwy::HWY_NAMESPACE;
 
-// The force on the point of each lane, its corners at c[k] with weights w[k], along d.
-template <class D, class V>
+// e^x in float for x in [−80, 80], as exp_lanes does it in double, to float's precision: a
+// polynomial of degree 6 on |r| ≤ ln2/2 (its Taylor series; the next term is under 2·10⁻⁷ of e^r).
+template <class DF, class VF>
+HWY_INLINE VF exp_float(DF df, VF x) {
+  const hn::RebindToSigned<DF> di;
+  x = hn::Min(hn::Max(x, hn::Set(df, -80.0f)), hn::Set(df, 80.0f));
+  const VF kf = hn::Round(hn::Mul(x, hn::Set(df, 1.44269504f)));
+  const VF r = hn::Sub(hn::Sub(x, hn::Mul(kf, hn::Set(df, 0.693359375f))), hn::Mul(kf, hn::Set(df, -2.12194440e-4f)));
+  VF p = hn::Set(df, 1.0f / 720);
+  for (float c : {1.0f / 120, 1.0f / 24, 1.0f / 6, 0.5f, 1.0f, 1.0f}) p = hn::Add(hn::Mul(p, r), hn::Set(df, c));
+  const auto k = hn::ConvertTo(di, kf);
+  return hn::BitCast(df, hn::Add(hn::BitCast(di, p), hn::ShiftLeft<23>(k)));
+}
+
+// The force on the point of each lane, its corners at c[k] with weights w[k], along d: the
+// differences in double, the law (the square root, the exp and the division) in double or,
+// InFloat, in float on the differences rounded to float.
+template <bool InFloat = false, class D, class V>
 HWY_INLINE void force(D d, const ContactSet& s, V px, V py, V pz, const V (&cx)[3], const V (&cy)[3], const V (&cz)[3],
                       const V (&w)[3], V& Fx, V& Fy, V& Fz) {
   const V dx = hn::Sub(px, hn::Add(hn::Add(hn::Mul(w[0], cx[0]), hn::Mul(w[1], cx[1])), hn::Mul(w[2], cx[2])));
   const V dy = hn::Sub(py, hn::Add(hn::Add(hn::Mul(w[0], cy[0]), hn::Mul(w[1], cy[1])), hn::Mul(w[2], cy[2])));
   const V dz = hn::Sub(pz, hn::Add(hn::Add(hn::Mul(w[0], cz[0]), hn::Mul(w[1], cz[1])), hn::Mul(w[2], cz[2])));
-  const V dist = hn::Sqrt(hn::Add(hn::Add(hn::Mul(dx, dx), hn::Mul(dy, dy)), hn::Mul(dz, dz)));
+  const V dist2 = hn::Add(hn::Add(hn::Mul(dx, dx), hn::Mul(dy, dy)), hn::Mul(dz, dz));
   // (h − |d|)/ξ as a product: one division per contact, the fewest its force needs
-  const V e = hn::Min(hn::Mul(hn::Sub(hn::Set(d, s.h), dist), hn::Set(d, 1.0 / s.xi)), hn::Set(d, s.cap));
-  const V f = hn::Mul(hn::Set(d, s.strength / s.xi),
-                      hn::Sub(drape::detail::simd::HWY_NAMESPACE::exp_lanes(d, e), hn::Set(d, s.tail)));
-  const V scale = hn::Div(f, dist);
+  const auto scale_of = [&](auto dl, auto d2) HWY_ATTR {
+    using T = hn::TFromD<decltype(dl)>;
+    const auto dist = hn::Sqrt(d2);
+    const auto e = hn::Min(hn::Mul(hn::Sub(hn::Set(dl, T(s.h)), dist), hn::Set(dl, T(1.0 / s.xi))),
+                           hn::Set(dl, T(std::min(s.cap, 80.0))));
+    const auto ex = [&]() HWY_ATTR {
+      if constexpr (sizeof(T) == 4)
+        return exp_float(dl, e);
+      else
+        return drape::detail::simd::HWY_NAMESPACE::exp_lanes(dl, e);
+    }();
+    return hn::Div(hn::Mul(hn::Set(dl, T(s.strength / s.xi)), hn::Sub(ex, hn::Set(dl, T(s.tail)))), dist);
+  };
+  V scale;
+  if constexpr (InFloat) {
+    const hn::Rebind<float, D> df;
+    scale = hn::PromoteTo(d, scale_of(df, hn::DemoteTo(df, dist2)));
+  } else {
+    scale = scale_of(d, dist2);
+  }
   Fx = hn::Mul(scale, dx), Fy = hn::Mul(scale, dy), Fz = hn::Mul(scale, dz);
 }
 
@@ -200,7 +235,7 @@ void Gathered(ContactSet& s) {
 
 // Contacts j, j + 1, ... of run r: loads, and each corner's share into its own sums.
 // Whole vectors load and store plainly; a run's last part vector through its mask m.
-template <bool Whole, class D, class M>
+template <bool Whole, bool InFloat, class D, class M>
 HWY_INLINE void aligned_at(D d, M m, ContactSet& s, const Run& r, std::size_t j, std::uint32_t sheet) {
   using V = hn::Vec<D>;
   const auto load = [&](const double* a) HWY_ATTR {
@@ -222,7 +257,7 @@ HWY_INLINE void aligned_at(D d, M m, ContactSet& s, const Run& r, std::size_t j,
   V Fx, Fy, Fz;
   V pz = load(s.z.data() + p);
   if constexpr (!Whole) pz = hn::IfThenElse(m, pz, hn::Set(d, 1.0));
-  force(d, s, load(s.x.data() + p), load(s.y.data() + p), pz, cx, cy, cz, w, Fx, Fy, Fz);
+  force<InFloat>(d, s, load(s.x.data() + p), load(s.y.data() + p), pz, cx, cy, cz, w, Fx, Fy, Fz);
   auto add = [&](double* a, std::size_t at, V v) HWY_ATTR { store(hn::Add(load(a + at), v), a + at); };
   add(s.sum_x.data(), p, Fx), add(s.sum_y.data(), p, Fy), add(s.sum_z.data(), p, Fz);
   for (int k = 0; k < 3; ++k) {
@@ -246,7 +281,8 @@ HWY_INLINE void fold(std::size_t n, double* __restrict a, double* __restrict b, 
   }
 }
 
-void Aligned(ContactSet& s) {
+template <bool InFloat>
+void aligned(ContactSet& s) {
   const hn::ScalableTag<double> d;
   const std::size_t lanes = hn::Lanes(d), n = s.part[0][0].size();
   for (Array* a : {&s.sum_x, &s.sum_y, &s.sum_z}) std::fill(a->begin(), a->end(), 0.0);
@@ -254,12 +290,12 @@ void Aligned(ContactSet& s) {
     for (std::uint32_t k = g.begin; k < g.end; ++k) {
       const Run& r = s.runs[k];
       std::size_t j = 0;
-      for (; j + lanes <= r.count; j += lanes) aligned_at<true>(d, hn::FirstN(d, lanes), s, r, j, g.sheet);
+      for (; j + lanes <= r.count; j += lanes) aligned_at<true, InFloat>(d, hn::FirstN(d, lanes), s, r, j, g.sheet);
 #if HWY_TARGET <= HWY_AVX2  // masked loads and stores that touch nothing past the mask
-      if (j < r.count) aligned_at<false>(d, hn::FirstN(d, r.count - j), s, r, j, g.sheet);
+      if (j < r.count) aligned_at<false, InFloat>(d, hn::FirstN(d, r.count - j), s, r, j, g.sheet);
 #else  // elsewhere Highway's masked load reads the whole vector: one lane at a time
       const hn::CappedTag<double, 1> one;
-      for (; j < r.count; ++j) aligned_at<true>(one, hn::FirstN(one, 1), s, r, j, g.sheet);
+      for (; j < r.count; ++j) aligned_at<true, InFloat>(one, hn::FirstN(one, 1), s, r, j, g.sheet);
 #endif
     }
     // the corners' sums into the other sheet's points (an engine's gather would take them)
@@ -268,6 +304,9 @@ void Aligned(ContactSet& s) {
     fold(n, s.part[0][2].data(), s.part[1][2].data(), s.part[2][2].data(), s.sum_z.data() + g.sheet);
   }
 }
+
+void Aligned(ContactSet& s) { aligned<false>(s); }
+void AlignedInFloat(ContactSet& s) { aligned<true>(s); }
 
 }  // namespace HWY_NAMESPACE
 }  // namespace drape::bench::contact_ceiling
@@ -280,23 +319,28 @@ namespace drape::bench::contact_ceiling {
 
 HWY_EXPORT(Gathered);
 HWY_EXPORT(Aligned);
+HWY_EXPORT(AlignedInFloat);
 
-// One substep's contacts of the stack per iteration. The counters check what was timed:
-// net_over_total, the net force on the stack over the sum of its magnitudes (zero up to
-// rounding: every share is taken from the point it pushes), and layout_difference, the
-// largest difference between the two layouts' forces on a point over the largest force
-// (rounding only: both evaluate the same contacts).
+// One substep's contacts of the stack per iteration, in layout 0 (gathered), 1 (aligned)
+// or 2 (aligned, the law in float). The counters check what was timed: net_over_total, the
+// net force on the stack over the sum of its magnitudes (zero up to rounding: every share
+// is taken from the point it pushes), and difference, the largest difference between the
+// forces on a point and those of another layout (the gathered one, or for it the aligned
+// one) over the largest force: rounding in double (both evaluate the same contacts), or
+// what the law in float changes.
 void BM_CeilingContacts(benchmark::State& state) {
-  const bool aligned = state.range(0) != 0;
+  const int layout = int(state.range(0));
   ContactSet set;
-  auto run = [&](bool in_aligned) {
-    if (in_aligned)
+  auto run = [&](int in_layout) {
+    if (in_layout == 2)
+      HWY_DYNAMIC_DISPATCH(AlignedInFloat)(set);
+    else if (in_layout == 1)
       HWY_DYNAMIC_DISPATCH(Aligned)(set);
     else
       HWY_DYNAMIC_DISPATCH(Gathered)(set);
   };
   for (auto _ : state) {
-    run(aligned);
+    run(layout);
     benchmark::DoNotOptimize(set.sum_z.data());
     benchmark::ClobberMemory();
   }
@@ -306,19 +350,19 @@ void BM_CeilingContacts(benchmark::State& state) {
     push += std::abs(set.sum_z[p]);
   }
   const Array x = set.sum_x, y = set.sum_y, z = set.sum_z;
-  run(!aligned);
+  run(layout == 0 ? 1 : 0);
   for (std::size_t p = 0; p < z.size(); ++p) {
     largest = std::max({largest, std::abs(x[p]), std::abs(y[p]), std::abs(z[p])});
     differ = std::max({differ, std::abs(x[p] - set.sum_x[p]), std::abs(y[p] - set.sum_y[p]), std::abs(z[p] - set.sum_z[p])});
   }
   state.counters["contacts"] = double(set.size());
   state.counters["net_over_total"] = push > 0 ? std::abs(net) / push : 0.0;
-  state.counters["layout_difference"] = largest > 0 ? differ / largest : 0.0;
+  state.counters["difference"] = largest > 0 ? differ / largest : 0.0;
   state.counters["contacts_per_s"] =
       benchmark::Counter(double(set.size()) * double(state.iterations()), benchmark::Counter::kIsRate);
   state.SetLabel(drape::detail::simd::target_name());
 }
-BENCHMARK(BM_CeilingContacts)->ArgName("aligned")->Arg(0)->Arg(1);
+BENCHMARK(BM_CeilingContacts)->ArgName("layout")->Arg(0)->Arg(1)->Arg(2);
 
 }  // namespace drape::bench::contact_ceiling
 #endif  // HWY_ONCE

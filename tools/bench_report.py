@@ -1121,7 +1121,8 @@ class Report:
     def contact_ceiling(self, walk):
         """What the stack's contacts could cost at best (bench/bench_contact_ceiling.cpp), beside what the
         engine's contact stage costs in the same stack and what issue 13's target leaves it."""
-        gathered, aligned = self.get("BM_CeilingContacts/aligned:0"), self.get("BM_CeilingContacts/aligned:1")
+        gathered, aligned = self.get("BM_CeilingContacts/layout:0"), self.get("BM_CeilingContacts/layout:1")
+        in_float = self.get("BM_CeilingContacts/layout:2")
         apart = self.get("BM_World48SheetsApart/1/real_time")
         if not (gathered and aligned):
             return
@@ -1135,6 +1136,10 @@ class Report:
                 f"and summed one contact at a time, as the engine's buffers hold them, and "
                 f"{us(aligned.step_seconds)} µs laid out as equal stacked grids allow (consecutive points over "
                 f"consecutive corners: loads, and sums per corner of the triangle)")
+        if in_float:
+            differ = in_float.counters.get("difference")
+            text += (f"; {us(in_float.step_seconds)} µs in that layout with the square root, exp and division in "
+                     f"float" + (f" (forces within {differ:.0e} of the largest of double's)" if differ else ""))
         if walk and apart:
             stage = walk.step_seconds - apart.step_seconds
             budget = (TARGET_CONTACT_OVER_APART - 1) * apart.step_seconds
