@@ -163,6 +163,12 @@ def speedup_shortfall(ratio, goal):
     return f"{percent:.2f} % short" if percent < 1 else f"{percent:.1f} % short"
 
 
+def contact_stage(in_contact, apart, over_apart):
+    """The contact stage's time in a substep of sheets in contact (its time less that of the same
+    sheets apart), and what a target of `over_apart` × the apart substep leaves it."""
+    return in_contact - apart, (over_apart - 1) * apart
+
+
 def scene_shortfall(ratio, bound):
     """The by-how-much of a many-sheet scene's verdict: how far it is from issue 13's ×, and the most
     × the scene's sheets alone leave to contact and obstacle work (its baseline's time over theirs)."""
@@ -1141,8 +1147,7 @@ class Report:
             text += (f"; {us(in_float.step_seconds)} µs in that layout with the square root, exp and division in "
                      f"float" + (f" (forces within {differ:.0e} of the largest of double's)" if differ else ""))
         if walk and apart:
-            stage = walk.step_seconds - apart.step_seconds
-            budget = (TARGET_CONTACT_OVER_APART - 1) * apart.step_seconds
+            stage, budget = contact_stage(walk.step_seconds, apart.step_seconds, TARGET_CONTACT_OVER_APART)
             text += (f". The engine's contact work in that stack (in contact less apart, "
                      f"`BM_World48SheetsInContact/1` − `BM_World48SheetsApart/1`): {us(stage)} µs per substep, "
                      f"{stage / gathered.step_seconds:.1f}× the first and {stage / aligned.step_seconds:.1f}× the "

@@ -29,6 +29,15 @@ def rounds_run(name, seconds, cpu_seconds=None, **kw):
     return bench_report.runs_of(data)[name]
 
 
+class ContactStage(unittest.TestCase):
+    def test_the_stage_is_in_contact_less_apart_and_the_target_leaves_the_rest(self):
+        # 9 ms in contact, 0.6 ms apart: the contacts took 8.4 ms; at most 4× apart is 2.4 ms a
+        # substep, of which the sheets take their 0.6 ms and the contacts may take 1.8 ms
+        stage, budget = bench_report.contact_stage(0.009, 0.0006, 4.0)
+        self.assertAlmostEqual(stage, 0.0084, places=15)
+        self.assertAlmostEqual(budget, 0.0018, places=15)
+
+
 class TimesFaster(unittest.TestCase):
     def test_median_of_the_ratio_within_each_round(self):
         # rounds (slow, fast): (10, 5), (12, 4), (30, 10): ratios 2, 3, 3, median 3. The fastest
