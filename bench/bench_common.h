@@ -93,6 +93,7 @@ struct Stack {
   static constexpr std::uint32_t side = 64;  // points per side
   static constexpr double width = 1.0, column_pitch = 1.5;
   static constexpr double mass = 1.0, stiffness = 100.0, damping = 1e-3, dt = 1e-3;
+  static constexpr double contact_gap = 0.01;  // m between layers that touch (stack_world)
   // Sheet k of the world is column k / layers, layer k % layers (bottom first).
   static Vec3 center(int column, int layer, double layer_gap) { return {column_pitch * column, 0.0, layer_gap * layer}; }
 };

@@ -31,6 +31,7 @@
 #include <vector>
 
 #include "bench_common.h"
+#include "contacts.h"
 #include "sheet_data.h"
 
 #include "simd/exp-inl.h"
@@ -54,8 +55,8 @@ struct Group {
 };
 
 struct ContactSet {
-  static constexpr std::uint32_t side = 64, stacks = 6, layers = 8;
-  static constexpr double gap = 0.01;  // m between layers
+  using Stack = drape::bench::Stack;  // its sheets, flat, at the gap of BM_World48SheetsInContact
+  static constexpr std::uint32_t side = Stack::side, stacks = Stack::columns, layers = Stack::layers;
   Array x, y, z;                       // every sheet's points, sheet after sheet
   std::vector<Run> runs;
   std::vector<Group> groups;
@@ -64,14 +65,18 @@ struct ContactSet {
   Array fx, fy, fz;                           // per contact: the force on its point (gathered)
   Array sum_x, sum_y, sum_z;                  // per point: the contact forces (both layouts)
   Array part[3][3];  // per point of one sheet and corner of the triangle (aligned)
-  // the force's parameters: the defaults of WorldDef (h, ξ, c, range) and no cap
-  double h = 0.005, xi = 0.002, strength = 1e-3, cap = 1e300, tail = std::exp(-6.0);
+  // the force's parameters, as the engine derives them from WorldDef's defaults (no cap)
+  drape::detail::ContactParams<double> law = [] {
+    const drape::WorldDef wd;
+    return drape::detail::ContactParams<double>::make(wd.contact_thickness, wd.contact_xi, wd.contact_strength,
+                                                      wd.contact_range);
+  }();
 
   std::size_t size() const { return point.size(); }
 
   ContactSet() {
     const std::uint32_t n = side * side;
-    const double cell = 1.0 / (side - 1);
+    const double cell = Stack::width / (side - 1);
     const std::size_t points = std::size_t(stacks) * layers * n;
     for (Array* a : {&x, &y, &z, &sum_x, &sum_y, &sum_z}) a->assign(points, 0.0);
     for (auto& role : part)
@@ -81,13 +86,14 @@ struct ContactSet {
     const double shift_x = 0.3 * cell, shift_y = 0.2 * cell;
     for (std::uint32_t s = 0; s < stacks * layers; ++s) {
       const std::uint32_t layer = s % layers;
-      const double ox = 2.0 * (s / layers) + (layer % 2 ? shift_x : 0.0), oy = layer % 2 ? shift_y : 0.0;
+      const double ox = Stack::column_pitch * (s / layers) + (layer % 2 ? shift_x : 0.0);
+      const double oy = layer % 2 ? shift_y : 0.0;
       for (std::uint32_t i = 0; i < side; ++i)
         for (std::uint32_t j = 0; j < side; ++j) {
           const std::size_t p = std::size_t(s) * n + i * side + j;
           x[p] = ox + j * cell;
           y[p] = oy + i * cell;
-          z[p] = layer * gap;
+          z[p] = layer * Stack::contact_gap;
         }
     }
     // Each layer's points against the triangles of the layer above and below: over a
@@ -169,15 +175,17 @@ HWY_INLINE void force(D d, const ContactSet& s, V px, V py, V pz, const V (&cx)[
   const auto scale_of = [&](auto dl, auto d2) HWY_ATTR {
     using T = hn::TFromD<decltype(dl)>;
     const auto dist = hn::Sqrt(d2);
-    const auto e = hn::Min(hn::Mul(hn::Sub(hn::Set(dl, T(s.h)), dist), hn::Set(dl, T(1.0 / s.xi))),
-                           hn::Set(dl, T(std::min(s.cap, 80.0))));
+    const auto gap = hn::Sub(hn::Set(dl, T(s.law.thickness)), dist);
+    const auto cap = hn::Set(dl, T(std::min(s.law.exponent_cap, 80.0)));  // (float's exp: up to 80)
+    const auto e = hn::Min(hn::Mul(gap, hn::Set(dl, T(1.0 / s.law.xi))), cap);
     const auto ex = [&]() HWY_ATTR {
       if constexpr (sizeof(T) == 4)
         return exp_float(dl, e);
       else
         return drape::detail::simd::HWY_NAMESPACE::exp_lanes(dl, e);
     }();
-    return hn::Div(hn::Mul(hn::Set(dl, T(s.strength / s.xi)), hn::Sub(ex, hn::Set(dl, T(s.tail)))), dist);
+    const auto f = hn::Mul(hn::Set(dl, T(s.law.strength / s.law.xi)), hn::Sub(ex, hn::Set(dl, T(s.law.tail))));
+    return hn::Div(f, dist);
   };
   V scale;
   if constexpr (InFloat) {
@@ -204,8 +212,9 @@ HWY_INLINE void gathered_at(D d, ContactSet& s, std::size_t e) {
     w[k] = hn::LoadU(d, s.w[k].data() + e);
   }
   V Fx, Fy, Fz;
-  force(d, s, hn::GatherIndex(d, s.x.data(), ip), hn::GatherIndex(d, s.y.data(), ip), hn::GatherIndex(d, s.z.data(), ip),
-        cx, cy, cz, w, Fx, Fy, Fz);
+  const V px = hn::GatherIndex(d, s.x.data(), ip), py = hn::GatherIndex(d, s.y.data(), ip),
+          pz = hn::GatherIndex(d, s.z.data(), ip);
+  force(d, s, px, py, pz, cx, cy, cz, w, Fx, Fy, Fz);
   hn::StoreU(Fx, d, s.fx.data() + e);
   hn::StoreU(Fy, d, s.fy.data() + e);
   hn::StoreU(Fz, d, s.fz.data() + e);
@@ -275,8 +284,8 @@ HWY_INLINE void fold(std::size_t n, double* __restrict a, double* __restrict b, 
   const hn::ScalableTag<double> d;
   const auto zero = hn::Zero(d);
   for (std::size_t p = 0; p < n; p += hn::Lanes(d)) {
-    hn::StoreU(hn::Add(hn::LoadU(d, sum + p), hn::Add(hn::Add(hn::LoadU(d, a + p), hn::LoadU(d, b + p)), hn::LoadU(d, c + p))),
-               d, sum + p);
+    const auto corners = hn::Add(hn::Add(hn::LoadU(d, a + p), hn::LoadU(d, b + p)), hn::LoadU(d, c + p));
+    hn::StoreU(hn::Add(hn::LoadU(d, sum + p), corners), d, sum + p);
     hn::StoreU(zero, d, a + p), hn::StoreU(zero, d, b + p), hn::StoreU(zero, d, c + p);
   }
 }
@@ -353,7 +362,8 @@ void BM_CeilingContacts(benchmark::State& state) {
   run(layout == 0 ? 1 : 0);
   for (std::size_t p = 0; p < z.size(); ++p) {
     largest = std::max({largest, std::abs(x[p]), std::abs(y[p]), std::abs(z[p])});
-    differ = std::max({differ, std::abs(x[p] - set.sum_x[p]), std::abs(y[p] - set.sum_y[p]), std::abs(z[p] - set.sum_z[p])});
+    differ = std::max(
+        {differ, std::abs(x[p] - set.sum_x[p]), std::abs(y[p] - set.sum_y[p]), std::abs(z[p] - set.sum_z[p])});
   }
   state.counters["contacts"] = double(set.size());
   state.counters["net_over_total"] = push > 0 ? std::abs(net) / push : 0.0;

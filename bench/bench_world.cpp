@@ -33,6 +33,9 @@ void report(benchmark::State& state, double points) {
 // frame-stepped variants time the same substeps.
 constexpr int kStackWarmUp = 10, kStackSpan = 6 * drape::bench::frame_substeps;
 
+// The gap of layers in contact (bench_common.h), as every stacked benchmark below sets it.
+constexpr double touching = drape::bench::Stack::contact_gap;
+
 // `per_call` substeps per step() call; the world is made, warmed up and destroyed untimed.
 void stack_span(benchmark::State& state, int threads, double layer_gap, drape::bench::StackContact contact = {},
                 int per_call = 1) {
@@ -61,7 +64,7 @@ BENCHMARK(BM_World48SheetsApart)->Arg(1)->Arg(2)->UseRealTime();
 
 // Arg: threads. Same sheets, layers 10 mm apart (about the resting gap): every layer
 // touches the next, and only the next.
-void BM_World48SheetsInContact(benchmark::State& state) { stack_span(state, int(state.range(0)), 0.01); }
+void BM_World48SheetsInContact(benchmark::State& state) { stack_span(state, int(state.range(0)), touching); }
 BENCHMARK(BM_World48SheetsInContact)->Arg(1)->Arg(2)->UseRealTime();
 
 // The same with WorldDef::contact_exact: every point tests every cell within reach each
@@ -69,7 +72,7 @@ BENCHMARK(BM_World48SheetsInContact)->Arg(1)->Arg(2)->UseRealTime();
 void BM_World48SheetsInContactExact(benchmark::State& state) {
   drape::bench::StackContact exact;
   exact.exact = true;
-  stack_span(state, 1, 0.01, exact);
+  stack_span(state, 1, touching, exact);
 }
 BENCHMARK(BM_World48SheetsInContactExact)->UseRealTime();
 
@@ -81,7 +84,7 @@ void BM_World48SheetsInContactDissipative(benchmark::State& state) {
   drape::bench::StackContact contact;
   contact.friction = state.range(0) != 1 ? 0.5 : 0.0;
   contact.damping = state.range(0) != 0 ? 2.0 : 0.0;
-  stack_span(state, 1, 0.01, contact);
+  stack_span(state, 1, touching, contact);
 }
 BENCHMARK(BM_World48SheetsInContactDissipative)->Arg(0)->Arg(1)->Arg(2)->UseRealTime();
 
@@ -94,7 +97,7 @@ void BM_World48SheetsApartFrames(benchmark::State& state) {
 BENCHMARK(BM_World48SheetsApartFrames)->Arg(1)->Arg(2)->UseRealTime();
 
 void BM_World48SheetsInContactFrames(benchmark::State& state) {
-  stack_span(state, int(state.range(0)), 0.01, {}, drape::bench::frame_substeps);
+  stack_span(state, int(state.range(0)), touching, {}, drape::bench::frame_substeps);
 }
 BENCHMARK(BM_World48SheetsInContactFrames)->Arg(1)->Arg(2)->UseRealTime();
 
@@ -109,7 +112,7 @@ void BM_World48SheetsSettling(benchmark::State& state) {
   const bool contact = state.range(0) != 0;
   for (auto _ : state) {
     state.PauseTiming();
-    drape::World world = stack_world(int(state.range(1)), contact ? 0.01 : 2.0, {}, /*guard=*/true);
+    drape::World world = stack_world(int(state.range(1)), contact ? touching : 2.0, {}, /*guard=*/true);
     state.ResumeTiming();
     for (int frame = 0; frame < 100; ++frame) {
       const drape::StabilityReport report = world.step(10);
