@@ -43,4 +43,22 @@ void BM_SheetOnObstacle(benchmark::State& state) {
 }
 BENCHMARK(BM_SheetOnObstacle)->ArgsProduct({{0, 1, 2, 3, 4}, {0, 1}});
 
+// Args: threads. One 256×256 sheet lying on a floor that holds it (eq 9 on every point), as
+// a large tablecloth on a table, stepped in frames as a program steps it: on two threads its
+// rows are cut into blocks (WorldDef::block_points) that the cores step together, obstacle
+// term included.
+void BM_LargeSheetOnFloor(benchmark::State& state) {
+  drape::WorldDef wd = drape::bench::world_def();
+  wd.dt = 1e-4;
+  wd.threads = int(state.range(0));
+  drape::World world(wd);
+  drape::SheetDef sd;
+  sd.m = sd.n = 255;
+  sd.width = sd.height = 2.0;
+  world.add_obstacle(drape::bench::floor_holding(sd));
+  world.add_sheet(sd);
+  drape::bench::step_frames(state, world, 256.0 * 256.0);
+}
+BENCHMARK(BM_LargeSheetOnFloor)->ArgName("threads")->Arg(1)->Arg(2)->UseRealTime();
+
 }  // namespace

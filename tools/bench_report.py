@@ -611,7 +611,8 @@ class Report:
     def threads(self):
         groups = [("48 sheets of 64×64, f64", "BM_Sheets48_f64", TARGET_SPEEDUP_SHEETS),
                   ("48 sheets of 64×64, f32", "BM_Sheets48_f32", None),
-                  ("one 1024×1024 sheet, f64", "BM_HugeSheet", TARGET_SPEEDUP_HUGE)]
+                  ("one 1024×1024 sheet, f64", "BM_HugeSheet", TARGET_SPEEDUP_HUGE),
+                  ("one 256×256 sheet resting on a floor (eq 9 on every point), f64", "BM_LargeSheetOnFloor", None)]
         # the native side of tools/portable_pair.py's rounds, where 1 and 2 threads ran in one process
         pair = self.portable[2] if self.portable and self.portable[2] else {}
         rows, plot = [], []
