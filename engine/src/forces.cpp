@@ -444,6 +444,9 @@ void sheet_forces_rows_of(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Ptr<Rea
   const std::size_t begin = row_begin * cols, end = row_end * cols;
   for (std::size_t a = 0; a < an.point.size(); ++a)
     if (an.point[a] >= begin && an.point[a] < end) add_anchor(an, a, x, f, an.point[a]);
+  // eq (9) on these rows: every block's update waits for every block's forces, so the rows
+  // on either side of the range, which the normal reads, have not moved
+  for (const NearObstacle& o : s.near_obstacles) obstacle_forces(t, o, x, v, s.inv_mass.data(), f, row_begin, row_end);
 }
 
 template <class Real, class Update>
@@ -465,36 +468,38 @@ void sheet_forces_by_rows_with(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Pt
     else
       run(p, p + count, nullptr);
   };
-  // Obstacle forces (eq 9) follow the sheet's surface normal, which reads the rows on both
-  // sides of a point, so they cannot be added row by row once earlier rows have moved.
-  if (!s.near_obstacles.empty() || !std::is_sorted(an.point.begin(), an.point.end())) {
+  if (!std::is_sorted(an.point.begin(), an.point.end())) {
     // finish every force first, then update the whole sheet
     sheet_sweep(s, x, v, f, ptr(s.row_scratch), 0, t.rows(),
                 [&](std::uint32_t i) { row_terms(s, std::size_t(i) * t.cols(), t.cols(), v, f); });
     for (std::size_t a = 0; a < an.point.size(); ++a) anchor(a);
-    // eq (9): only obstacles the host stage found near this sheet
     for (const NearObstacle& o : s.near_obstacles) obstacle_forces(t, o, x, v, s.inv_mass.data(), f);
     move(0, s.size());
     return;
   }
   // Every term of row i is added as soon as its springs are final (same order as above:
-  // springs, damping, contacts, anchors), then the rows are updated while they are still in
-  // the nearest cache, in runs of whole rows of at least update_run_points points: one
-  // call per row would run short rows mostly in their remainders and reduce the box's
-  // lanes once per row (BM_Fig13 at small sizes, BM_WorldStep10kSheets), and a sheet's
+  // springs, damping, contacts, anchors, obstacles), then the rows are updated while they
+  // are still in the nearest cache, in runs of whole rows of at least update_run_points
+  // points: one call per row would run short rows mostly in their remainders and reduce the
+  // box's lanes once per row (BM_Fig13 at small sizes, BM_WorldStep10kSheets), and a sheet's
   // whole update after its sweep reads every row back from a farther cache. A new
-  // per-point force term belongs in add_point_terms, a row stencil in terms/terms.h; one
-  // that reads all rows' positions, like obstacles, must send its sheets to the branch
-  // above.
+  // per-point force term belongs in add_point_terms, a row stencil in terms/terms.h.
+  // Obstacle forces (eq 9, only obstacles the host stage found near this sheet) follow the
+  // sheet's surface normal, which reads the rows on both sides of a point: row i's are
+  // added when its springs are final, while row i + 1 has not moved, and the update then
+  // stays a row behind, so row i − 1 has not moved either.
   const std::uint32_t cols = t.cols(), rows = t.rows();
+  const std::uint32_t lag = s.near_obstacles.empty() ? 0 : 1;
   std::size_t next_anchor = 0, unmoved = 0;
   sheet_sweep(s, x, v, f, ptr(s.row_scratch), 0, rows, [&](std::uint32_t i) {
     const std::size_t p = std::size_t(i) * cols;
     row_terms(s, p, cols, v, f);
     for (; next_anchor < an.point.size() && an.point[next_anchor] < p + cols; ++next_anchor) anchor(next_anchor);
-    if (p + cols - unmoved >= update_run_points || i + 1 == rows) {
-      move(unmoved, p + cols - unmoved);
-      unmoved = p + cols;
+    for (const NearObstacle& o : s.near_obstacles) obstacle_forces(t, o, x, v, s.inv_mass.data(), f, i, i + 1);
+    const std::size_t ready = i + 1 == rows ? s.size() : p + cols - std::size_t(lag) * cols;
+    if (ready > unmoved && (ready - unmoved >= update_run_points || i + 1 == rows)) {
+      move(unmoved, ready - unmoved);
+      unmoved = ready;
     }
   });
 }

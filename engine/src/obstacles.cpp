@@ -456,7 +456,7 @@ struct RowForce {
 // its last (none after) go one lane at a time.
 template <class Shape, class Real>
 void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near, ConstVec3Ptr<Real> x,
-           ConstVec3Ptr<Real> v, const Real* inv_mass, Vec3Ptr<Real> f) {
+           ConstVec3Ptr<Real> v, const Real* inv_mass, Vec3Ptr<Real> f, std::uint32_t row_begin, std::uint32_t row_end) {
   const std::uint32_t m = t.m, n = t.n, cols = t.cols();
   const ForceScale scale = force_scale_of(o.def, near.exponent_cap);
   const Frame frame = frame_of(o);
@@ -467,7 +467,7 @@ void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near,
   hn::Vec<decltype(one)> inv_g2, inv_g;  // used only for a constant ∇f, the local z axis
   inverse_norms(one, hn::Set(one, frame.rot[0][2]), hn::Set(one, frame.rot[1][2]), hn::Set(one, frame.rot[2][2]),
                 inv_g2, inv_g);
-  for (std::uint32_t i = 0; i <= m; ++i) {
+  for (std::uint32_t i = row_begin; i < row_end; ++i) {
     const std::size_t row = std::size_t(i) * cols;
     const std::size_t up = std::size_t(std::min(i + 1, m)) * cols, down = std::size_t(i > 0 ? i - 1 : 0) * cols;
     const RowForce<Shape, Real> at{frame,
@@ -504,24 +504,26 @@ void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near,
 
 template <class Real>
 void obstacle_forces_of(const Topology<Real>& t, const NearObstacle& near, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v,
-                        const Real* inv_mass, Vec3Ptr<Real> f) {
+                        const Real* inv_mass, Vec3Ptr<Real> f, std::uint32_t row_begin, std::uint32_t row_end) {
   const Obstacle& o = *near.obstacle;
   switch (o.def.shape) {
-    case ObstacleShape::Plane: repel<PlaneF>(t, o, near, x, v, inv_mass, f); break;
-    case ObstacleShape::Sphere: repel<SphereF>(t, o, near, x, v, inv_mass, f); break;
-    case ObstacleShape::Ellipsoid: repel<EllipsoidF>(t, o, near, x, v, inv_mass, f); break;
-    case ObstacleShape::Torus: repel<TorusF>(t, o, near, x, v, inv_mass, f); break;
-    case ObstacleShape::Box: repel<BoxF>(t, o, near, x, v, inv_mass, f); break;
+    case ObstacleShape::Plane: repel<PlaneF>(t, o, near, x, v, inv_mass, f, row_begin, row_end); break;
+    case ObstacleShape::Sphere: repel<SphereF>(t, o, near, x, v, inv_mass, f, row_begin, row_end); break;
+    case ObstacleShape::Ellipsoid: repel<EllipsoidF>(t, o, near, x, v, inv_mass, f, row_begin, row_end); break;
+    case ObstacleShape::Torus: repel<TorusF>(t, o, near, x, v, inv_mass, f, row_begin, row_end); break;
+    case ObstacleShape::Box: repel<BoxF>(t, o, near, x, v, inv_mass, f, row_begin, row_end); break;
   }
 }
 
 void ObstacleForcesF64(const Topology<double>& t, const NearObstacle& near, ConstVec3Ptr<double> x,
-                       ConstVec3Ptr<double> v, const double* inv_mass, Vec3Ptr<double> f) {
-  obstacle_forces_of(t, near, x, v, inv_mass, f);
+                       ConstVec3Ptr<double> v, const double* inv_mass, Vec3Ptr<double> f, std::uint32_t row_begin,
+                       std::uint32_t row_end) {
+  obstacle_forces_of(t, near, x, v, inv_mass, f, row_begin, row_end);
 }
 void ObstacleForcesF32(const Topology<float>& t, const NearObstacle& near, ConstVec3Ptr<float> x,
-                       ConstVec3Ptr<float> v, const float* inv_mass, Vec3Ptr<float> f) {
-  obstacle_forces_of(t, near, x, v, inv_mass, f);
+                       ConstVec3Ptr<float> v, const float* inv_mass, Vec3Ptr<float> f, std::uint32_t row_begin,
+                       std::uint32_t row_end) {
+  obstacle_forces_of(t, near, x, v, inv_mass, f, row_begin, row_end);
 }
 
 }  // namespace HWY_NAMESPACE
@@ -661,15 +663,22 @@ bool may_touch(const Obstacle& o, const Aabb& box) {
   return lowest < o.reach_distance;
 }
 
-// One dispatch per sheet and obstacle per substep: the rows, the shapes' f and ∇f, the
-// force scale, the projection and friction run on the widest instruction set the CPU has.
+// One dispatch per call (a sheet's rows, or one row as the sweep finishes it): the rows,
+// the shapes' f and ∇f, the force scale, the projection and friction run on the widest
+// instruction set the CPU has.
+template <class Real>
+void obstacle_forces(const Topology<Real>& t, const NearObstacle& near, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v,
+                     const Real* inv_mass, Vec3Ptr<Real> f, std::uint32_t row_begin, std::uint32_t row_end) {
+  if constexpr (std::is_same_v<Real, double>)
+    HWY_DYNAMIC_DISPATCH(ObstacleForcesF64)(t, near, x, v, inv_mass, f, row_begin, row_end);
+  else
+    HWY_DYNAMIC_DISPATCH(ObstacleForcesF32)(t, near, x, v, inv_mass, f, row_begin, row_end);
+}
+
 template <class Real>
 void obstacle_forces(const Topology<Real>& t, const NearObstacle& near, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v,
                      const Real* inv_mass, Vec3Ptr<Real> f) {
-  if constexpr (std::is_same_v<Real, double>)
-    HWY_DYNAMIC_DISPATCH(ObstacleForcesF64)(t, near, x, v, inv_mass, f);
-  else
-    HWY_DYNAMIC_DISPATCH(ObstacleForcesF32)(t, near, x, v, inv_mass, f);
+  obstacle_forces(t, near, x, v, inv_mass, f, 0, t.rows());
 }
 
 template <class Real>
@@ -686,6 +695,11 @@ template void obstacle_forces<double>(const Topology<double>&, const NearObstacl
                                       ConstVec3Ptr<double>, const double*, Vec3Ptr<double>);
 template void obstacle_forces<float>(const Topology<float>&, const NearObstacle&, ConstVec3Ptr<float>,
                                      ConstVec3Ptr<float>, const float*, Vec3Ptr<float>);
+template void obstacle_forces<double>(const Topology<double>&, const NearObstacle&, ConstVec3Ptr<double>,
+                                      ConstVec3Ptr<double>, const double*, Vec3Ptr<double>, std::uint32_t,
+                                      std::uint32_t);
+template void obstacle_forces<float>(const Topology<float>&, const NearObstacle&, ConstVec3Ptr<float>,
+                                     ConstVec3Ptr<float>, const float*, Vec3Ptr<float>, std::uint32_t, std::uint32_t);
 template double obstacle_energy<double>(const Sheet<double>&, const Obstacle&, double);
 template double obstacle_energy<float>(const Sheet<float>&, const Obstacle&, double);
 

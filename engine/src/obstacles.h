@@ -72,6 +72,11 @@ bool may_touch(const Obstacle& o, const Aabb& box);
 template <class Real>
 void obstacle_forces(const Topology<Real>& topo, const NearObstacle& near, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v,
                      const Real* inv_mass, Vec3Ptr<Real> f);
+// The same on the grid rows [row_begin, row_end) only: a row's points read the positions of
+// the rows on either side (the normal), so those must not have moved yet.
+template <class Real>
+void obstacle_forces(const Topology<Real>& topo, const NearObstacle& near, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v,
+                     const Real* inv_mass, Vec3Ptr<Real> f, std::uint32_t row_begin, std::uint32_t row_end);
 
 template <class Real>
 double obstacle_energy(const Sheet<Real>& sheet, const Obstacle& o, double cap);

@@ -273,8 +273,7 @@ void BasicWorld<Real>::Impl::plan_blocks() {
     const std::uint32_t rows = s.topology->rows();
     const std::uint64_t points = s.size();
     std::uint32_t count = 1;
-    // The obstacle term works on whole sheets: a sheet near an obstacle is not split.
-    if (can_split && s.near_obstacles.empty() && points >= 2 * std::uint64_t(def.block_points))
+    if (can_split && points >= 2 * std::uint64_t(def.block_points))
       count = static_cast<std::uint32_t>(std::min<std::uint64_t>(rows, points / def.block_points));
     slots[active[k]].bounds_fresh = false;  // set again by the update (integrate_sheets)
     if (count == 1) {
