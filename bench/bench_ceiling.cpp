@@ -21,6 +21,8 @@
 #include "sheet_data.h"
 #include "simd/kernels.h"
 
+#include "obstacles.h"
+#include "simd/exp-inl.h"
 #include "simd/kernels-inl.h"
 
 // The sheet, compiled once (foreach_target re-includes this file for every target).
@@ -68,6 +70,15 @@ void hold_corners(PlainSheet& s) {
     s.vx[p] = s.vy[p] = s.vz[p] = 0.0;
   }
 }
+
+// A floor z = height (eq 9, normal +z) in the form the force takes per point: −dE/df =
+// (c/ξ)·(e^min(−f/ξ, cap) − e^−16) where f = z − height < reach, projected on the sheet's
+// normal (a × b, a and b the differences across the point along its row and its column,
+// one-sided at the edges), as the engine's obstacle term computes it (obstacles.cpp).
+struct PlainFloor {
+  double height, c_over_xi, minus_inv_xi, cap, tail, reach;
+  bool project;  // false: along ∇f, the plane's normal (ObstacleDef::full_gradient)
+};
 
 }  // namespace
 #endif  // DRAPE_BENCH_CEILING_SHEET_
@@ -125,32 +136,127 @@ HWY_INLINE void integrate(std::uint32_t w, const PlainSheet& s, const double* in
       drape::detail::simd::PointUpdate<double>::of(w, x, y, z, vx, vy, vz, fx, fy, fz, inv_mass).step(s.dt, 0, 0, s.gz, true));
 }
 
-HWY_INLINE void step(PlainSheet& s) {
+namespace hn = hwy::HWY_NAMESPACE;
+namespace lanes = drape::detail::simd::HWY_NAMESPACE;
+
+// The floor's force on the lanes' points p, p + 1, … of a row (masked by `mine`), their
+// neighbours along the row at l and r and across it at u and dn (the same point where a
+// side is missing), added to f where the point is within reach; a vector with none within
+// reach costs f and one test, as in the engine.
+template <class D, class M>
+HWY_INLINE void floor_lanes(D d, M mine, const PlainFloor& fl, const PlainSheet& s, std::size_t p, std::size_t l,
+                            std::size_t r, std::size_t u, std::size_t dn, double* fx, double* fy, double* fz) {
+  using V = hn::Vec<D>;
+  const double *x = s.x.data(), *y = s.y.data(), *z = s.z.data();
+  const V f = hn::Sub(hn::LoadU(d, z + p), hn::Set(d, fl.height));
+  const auto within = hn::And(mine, hn::Lt(f, hn::Set(d, fl.reach)));
+  if (hn::AllFalse(d, within)) return;
+  const V e = lanes::first_min(hn::Mul(f, hn::Set(d, fl.minus_inv_xi)), hn::Set(d, fl.cap));
+  const V scale = hn::Mul(hn::Set(d, fl.c_over_xi),
+                          lanes::first_max(hn::Sub(drape::detail::simd::HWY_NAMESPACE::exp_lanes(d, e), hn::Set(d, fl.tail)),
+                                           hn::Zero(d)));
+  if (!fl.project) {
+    hn::StoreU(hn::Add(hn::LoadU(d, fz + p), hn::IfThenElseZero(within, scale)), d, fz + p);
+    return;
+  }
+  const auto diff = [&](const double* a, std::size_t i, std::size_t k) HWY_ATTR {
+    return hn::Sub(hn::LoadU(d, a + i), hn::LoadU(d, a + k));
+  };
+  const V ax = diff(x, r, l), ay = diff(y, r, l), az = diff(z, r, l);
+  const V bx = diff(x, u, dn), by = diff(y, u, dn), bz = diff(z, u, dn);
+  const V nx = hn::Sub(hn::Mul(ay, bz), hn::Mul(az, by)), ny = hn::Sub(hn::Mul(az, bx), hn::Mul(ax, bz)),
+          nz = hn::Sub(hn::Mul(ax, by), hn::Mul(ay, bx));
+  const V nn = hn::Add(hn::Add(hn::Mul(nx, nx), hn::Mul(ny, ny)), hn::Mul(nz, nz));
+  const auto has = hn::Gt(nn, hn::Zero(d));
+  // F = scale·(0, 0, 1), so F·n = scale·nz
+  const V along = hn::Div(hn::Mul(scale, nz), hn::IfThenElse(has, nn, hn::Set(d, 1.0)));
+  const V Fx = hn::IfThenElseZero(has, hn::Mul(along, nx)), Fy = hn::IfThenElseZero(has, hn::Mul(along, ny));
+  const V Fz = hn::IfThenElse(has, hn::Mul(along, nz), scale);
+  hn::StoreU(hn::Add(hn::LoadU(d, fx + p), hn::IfThenElseZero(within, Fx)), d, fx + p);
+  hn::StoreU(hn::Add(hn::LoadU(d, fy + p), hn::IfThenElseZero(within, Fy)), d, fy + p);
+  hn::StoreU(hn::Add(hn::LoadU(d, fz + p), hn::IfThenElseZero(within, Fz)), d, fz + p);
+}
+
+// The floor on row i, whose neighbours i − 1 and i + 1 have not moved: its two end points one
+// lane at a time, its inner points in whole vectors, the last one shifted back to end at the
+// row's last inner point with the lanes done before masked off.
+HWY_INLINE void floor_row(const PlainFloor& fl, PlainSheet& s, std::uint32_t i) {
   const std::uint32_t w = s.side;
-  double *x = s.x.data(), *y = s.y.data(), *z = s.z.data();
-  double *vx = s.vx.data(), *vy = s.vy.data(), *vz = s.vz.data();
+  const std::size_t row = std::size_t(i) * w;
+  const std::size_t up = std::size_t(std::min(i + 1, w - 1)) * w, down = std::size_t(i > 0 ? i - 1 : 0) * w;
+  double *fx = s.fx.data(), *fy = s.fy.data(), *fz = s.fz.data();
+  const hn::CappedTag<double, 1> one;
+  const auto all1 = hn::FirstN(one, 1);
+  floor_lanes(one, all1, fl, s, row, row, row + 1, up, down, fx, fy, fz);
+  floor_lanes(one, all1, fl, s, row + w - 1, row + w - 2, row + w - 1, up + w - 1, down + w - 1, fx, fy, fz);
+  const hn::ScalableTag<double> d;
+  const std::size_t n = hn::Lanes(d), inner_end = w - 1;
+  std::size_t j = 1;
+  for (; j + n <= inner_end; j += n)
+    floor_lanes(d, hn::FirstN(d, n), fl, s, row + j, row + j - 1, row + j + 1, up + j, down + j, fx, fy, fz);
+  if (j < inner_end) {
+    if (inner_end - 1 >= n) {  // back to end at the last inner point; lanes before j are done
+      const std::size_t start = inner_end - n;
+      const auto fresh = hn::Not(hn::FirstN(d, j - start));
+      floor_lanes(d, fresh, fl, s, row + start, row + start - 1, row + start + 1, up + start, down + start, fx, fy, fz);
+    } else {
+      for (; j < inner_end; ++j)
+        floor_lanes(one, all1, fl, s, row + j, row + j - 1, row + j + 1, up + j, down + j, fx, fy, fz);
+    }
+  }
+}
+
+// The springs of every row, and done(i) as soon as row i's forces are complete (its
+// vertical springs in, no later spring reading it), rows 0 … w − 1 in order.
+template <class Done>
+HWY_INLINE void sweep(PlainSheet& s, Done done) {
+  const std::uint32_t w = s.side;
+  const double *x = s.x.data(), *y = s.y.data(), *z = s.z.data();
   double *fx = s.fx.data(), *fy = s.fy.data(), *fz = s.fz.data();
   double *nx = s.sx.data() + s.pad, *ny = s.sy.data() + s.pad, *nz = s.sz.data() + s.pad;
-  const double* im = s.inv_mass_row.data();
   horizontal(w, s.k, s.rest, x, y, z, nx, ny, nz);
   net_forces(w, nx, fx);
   net_forces(w, ny, fy);
   net_forces(w, nz, fz);
   for (std::uint32_t i = 0; i + 1 < w; ++i) {
     const std::size_t a = std::size_t(i) * w, b = a + w;
-    // row i is complete once its vertical springs are in, and no later spring reads it
     if (!joined(w, s.k, s.rest, x + a, y + a, z + a, x + b, y + b, z + b, fx + a, fy + a, fz + a, fx + b, fy + b,
                 fz + b)) {
       horizontal(w, s.k, s.rest, x + b, y + b, z + b, nx, ny, nz);
       vertical(w, s.k, s.rest, x + a, y + a, z + a, x + b, y + b, z + b, fx + a, fy + a, fz + a, fx + b, fy + b,
                fz + b, nx, ny, nz);
     }
-    integrate(w, s, im, x + a, y + a, z + a, vx + a, vy + a, vz + a, fx + a, fy + a, fz + a);
+    done(i);
   }
-  const std::size_t last = std::size_t(w - 1) * w;
-  integrate(w, s, im, x + last, y + last, z + last, vx + last, vy + last, vz + last, fx + last, fy + last, fz + last);
+  done(w - 1);
+}
+
+// Semi-implicit Euler on row i of the sheet.
+HWY_INLINE void move_row(PlainSheet& s, std::uint32_t i) {
+  const std::size_t a = std::size_t(i) * s.side;
+  integrate(s.side, s, s.inv_mass_row.data(), s.x.data() + a, s.y.data() + a, s.z.data() + a, s.vx.data() + a,
+            s.vy.data() + a, s.vz.data() + a, s.fx.data() + a, s.fy.data() + a, s.fz.data() + a);
+}
+
+// Each row moves as soon as its forces are complete.
+HWY_INLINE void step(PlainSheet& s) {
+  sweep(s, [&](std::uint32_t i) HWY_ATTR { move_row(s, i); });
   hold_corners(s);
 }
+
+// With the floor: row i's floor force once its springs are in, and its update a row later
+// (the floor on row i + 1 reads row i where it was).
+HWY_INLINE void step_on_floor(PlainSheet& s, const PlainFloor& fl) {
+  sweep(s, [&](std::uint32_t i) HWY_ATTR {
+    floor_row(fl, s, i);
+    if (i > 0) move_row(s, i - 1);
+    if (i + 1 == s.side) move_row(s, i);
+  });
+  hold_corners(s);
+}
+
+void StepOnFloor(PlainSheet& s, const PlainFloor& fl) { step_on_floor(s, fl); }
+void FloorRow(const PlainFloor& fl, PlainSheet& s, std::uint32_t i) { floor_row(fl, s, i); }
 
 void Step(PlainSheet& s) { step(s); }
 
@@ -162,6 +268,8 @@ HWY_AFTER_NAMESPACE();
 namespace drape::bench::ceiling {
 
 HWY_EXPORT(Step);
+HWY_EXPORT(StepOnFloor);
+HWY_EXPORT(FloorRow);
 
 void plain_step(PlainSheet& s) { HWY_DYNAMIC_DISPATCH(Step)(s); }
 
@@ -186,6 +294,43 @@ void BM_CeilingSheets48(benchmark::State& state) {
   drape::bench::set_point_rate(state, 48.0 * 64 * 64);
 }
 BENCHMARK(BM_CeilingSheets48);  // CPU time, like the feature benchmarks, which step once per call
+
+// The same 48 sheets lying on a floor that holds them (bench::floor_holding, as
+// BM_Feature_obstacle lays them), eq (9) on every point: the ceiling of a floor's price,
+// the floor term computed per point as the engine's obstacle term computes it (the same
+// exp, the same exponent cap and, with arg 0, the projection on the sheet normal; arg 1:
+// along the plane's normal, ObstacleDef::full_gradient), inside the same sweep.
+// Counter floor_force: the net force the floor holds, over the sheets' weight (about 1 when
+// the floor carries them, so the timed term is the one that works).
+void BM_CeilingSheets48Floor(benchmark::State& state) {
+  std::vector<PlainSheet> sheets;
+  for (int s = 0; s < 48; ++s) sheets.emplace_back(64, 0.0);
+  const drape::SheetDef like = drape::bench::square_sheet(64);
+  const drape::ObstacleDef def = drape::bench::floor_holding(like);
+  const PlainSheet& first = sheets.front();
+  const double mass = 1.0 / first.inv_mass;
+  const PlainFloor floor{def.center.z,
+                         def.c / def.xi,
+                         -1.0 / def.xi,
+                         drape::detail::exponent_cap(def, mass, first.dt),
+                         std::exp(-drape::detail::reach_exponent),
+                         drape::detail::reach_exponent * def.xi,
+                         state.range(0) == 0};
+  for (auto _ : state)
+    for (auto& sheet : sheets) HWY_DYNAMIC_DISPATCH(StepOnFloor)(sheet, floor);
+  benchmark::DoNotOptimize(sheets.front().z.data());
+  // eq (9) alone on the first sheet as it lies now, against its weight
+  PlainSheet& s = sheets.front();
+  std::fill(s.fx.begin(), s.fx.end(), 0.0);
+  std::fill(s.fy.begin(), s.fy.end(), 0.0);
+  std::fill(s.fz.begin(), s.fz.end(), 0.0);
+  for (std::uint32_t i = 0; i < s.side; ++i) HWY_DYNAMIC_DISPATCH(FloorRow)(floor, s, i);
+  double held = 0;
+  for (double f : s.fz) held += f;
+  state.counters["floor_force"] = held / (-s.gz * mass * double(s.fz.size()));
+  drape::bench::set_point_rate(state, 48.0 * 64 * 64);
+}
+BENCHMARK(BM_CeilingSheets48Floor)->ArgName("full_gradient")->Arg(0)->Arg(1);  // CPU time, like BM_Feature_obstacle
 
 // The same 48 sheets a frame at a time, as a program steps them and as BM_Sheets48 steps
 // the engine (bench_common.h's step_frames): each sheet takes the frame's substeps in turn

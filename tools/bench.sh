@@ -85,7 +85,7 @@ portable_json=docs/benchmarks-portable.json
 settle "the portable run"
 "$python" tools/portable_pair.py --native "$build/bench/drape_bench" --portable "$build-portable/bench/drape_bench" \
   --rounds "$rounds" --out "$portable_json" -- "--benchmark_min_time=$min_time" \
-  "--benchmark_filter=^BM_(Sheets48_f|HugeSheet|Fig13/semi_implicit_euler/f64/|Paper1000Points|CeilingSheets48|ArithmeticBound)"
+  "--benchmark_filter=^BM_(Sheets48_f|HugeSheet|Fig13/semi_implicit_euler/f64/|Paper1000Points|CeilingSheets48($|Frames)|ArithmeticBound)"
 # Issue 13's floor against the bare world (docs/benchmarks-floor.json): BM_Feature_bare,
 # BM_Feature_obstacle and its friction and damping variants, and the stacked sheets with and
 # without friction and damping between them, from the native binary in alternating rounds of one
