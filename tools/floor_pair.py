@@ -12,7 +12,8 @@ the same drape_bench binary, and writes every side's runs into one drape_bench J
 tools/bench_report.py shows the fastest of each benchmark's rounds and judges the floor by the median
 over the rounds of the price within a round. The stacked sheets in contact with friction and
 damping between them (issue 13's pricing of the contact terms) are paired the same way against
-the plain stack.
+the plain stack, and the same floor in the machine ceiling (bench/bench_ceiling.cpp) against the
+ceiling's bare step, which prices the floor's own arithmetic with no engine around it.
 
 Usage: tools/floor_pair.py --bench BENCH [--rounds 5] [--out docs/benchmarks-floor.json]
                            [--benchmarks BM_Feature_bare BM_Feature_obstacle ...]
@@ -28,6 +29,7 @@ from baseline import Recorder  # noqa: E402
 
 recorder = Recorder("floor_pair")
 BENCHMARKS = ["BM_Feature_bare", "BM_Feature_obstacle", "BM_Feature_obstacle_friction", "BM_Feature_obstacle_damping",
+              "BM_CeilingSheets48", "BM_CeilingSheets48Floor/full_gradient:0", "BM_CeilingSheets48Floor/full_gradient:1",
               "BM_World48SheetsInContact/1/real_time", "BM_World48SheetsInContactDissipative/0/real_time",
               "BM_World48SheetsInContactDissipative/1/real_time", "BM_World48SheetsInContactDissipative/2/real_time"]
 

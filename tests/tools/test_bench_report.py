@@ -29,13 +29,19 @@ def rounds_run(name, seconds, cpu_seconds=None, **kw):
     return bench_report.runs_of(data)[name]
 
 
-class ContactStage(unittest.TestCase):
+class TermCost(unittest.TestCase):
     def test_the_stage_is_in_contact_less_apart_and_the_target_leaves_the_rest(self):
         # 9 ms in contact, 0.6 ms apart: the contacts took 8.4 ms; at most 4× apart is 2.4 ms a
         # substep, of which the sheets take their 0.6 ms and the contacts may take 1.8 ms
-        stage, budget = bench_report.contact_stage(0.009, 0.0006, 4.0)
+        stage, budget = bench_report.term_cost(0.009, 0.0006, 4.0)
         self.assertAlmostEqual(stage, 0.0084, places=15)
         self.assertAlmostEqual(budget, 0.0018, places=15)
+
+    def test_a_price_in_per_cent_leaves_that_share_of_the_bare_step(self):
+        # a floor: 1.1 ms on it, 0.5 ms bare; it took 0.6 ms, and at most +40 % leaves it 0.2 ms
+        cost, budget = bench_report.term_cost(0.0011, 0.0005, 1.4)
+        self.assertAlmostEqual(cost, 0.0006, places=15)
+        self.assertAlmostEqual(budget, 0.0002, places=15)
 
 
 class TimesFaster(unittest.TestCase):
