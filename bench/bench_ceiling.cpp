@@ -139,13 +139,15 @@ HWY_INLINE void integrate(std::uint32_t w, const PlainSheet& s, const double* in
 namespace hn = hwy::HWY_NAMESPACE;
 namespace lanes = drape::detail::simd::HWY_NAMESPACE;
 
-// The floor's force on the lanes' points p, p + 1, … of a row (masked by `mine`), their
-// neighbours along the row at l and r and across it at u and dn (the same point where a
-// side is missing), added to f where the point is within reach; a vector with none within
-// reach costs f and one test, as in the engine.
+// The floor's force on the lanes' points p, p + 1, … of a row from its column j on (masked by
+// `mine`), their neighbours along the row at l and r and across it at u and dn (the same
+// point where a side is missing: a lane in the row's first or last column takes its own
+// point for the neighbour it lacks), added to f where the point is within reach; a vector
+// with none within reach costs f and one test, as in the engine.
 template <class D, class M>
-HWY_INLINE void floor_lanes(D d, M mine, const PlainFloor& fl, const PlainSheet& s, std::size_t p, std::size_t l,
-                            std::size_t r, std::size_t u, std::size_t dn, double* fx, double* fy, double* fz) {
+HWY_INLINE void floor_lanes(D d, M mine, const PlainFloor& fl, const PlainSheet& s, std::size_t p, std::size_t j,
+                            std::size_t l, std::size_t r, std::size_t u, std::size_t dn, double* fx, double* fy,
+                            double* fz) {
   using V = hn::Vec<D>;
   const double *x = s.x.data(), *y = s.y.data(), *z = s.z.data();
   const V f = hn::Sub(hn::LoadU(d, z + p), hn::Set(d, fl.height));
@@ -159,11 +161,15 @@ HWY_INLINE void floor_lanes(D d, M mine, const PlainFloor& fl, const PlainSheet&
     hn::StoreU(hn::Add(hn::LoadU(d, fz + p), hn::IfThenElseZero(within, scale)), d, fz + p);
     return;
   }
-  const auto diff = [&](const double* a, std::size_t i, std::size_t k) HWY_ATTR {
-    return hn::Sub(hn::LoadU(d, a + i), hn::LoadU(d, a + k));
+  const V column = hn::Iota(d, double(j));
+  const auto first = hn::Eq(column, hn::Zero(d)), last = hn::Eq(column, hn::Set(d, double(s.side - 1)));
+  const auto along_row = [&](const double* a) HWY_ATTR {
+    const V at = hn::LoadU(d, a + p);
+    return hn::Sub(hn::IfThenElse(last, at, hn::LoadU(d, a + r)), hn::IfThenElse(first, at, hn::LoadU(d, a + l)));
   };
-  const V ax = diff(x, r, l), ay = diff(y, r, l), az = diff(z, r, l);
-  const V bx = diff(x, u, dn), by = diff(y, u, dn), bz = diff(z, u, dn);
+  const auto across = [&](const double* a) HWY_ATTR { return hn::Sub(hn::LoadU(d, a + u), hn::LoadU(d, a + dn)); };
+  const V ax = along_row(x), ay = along_row(y), az = along_row(z);
+  const V bx = across(x), by = across(y), bz = across(z);
   const V nx = hn::Sub(hn::Mul(ay, bz), hn::Mul(az, by)), ny = hn::Sub(hn::Mul(az, bx), hn::Mul(ax, bz)),
           nz = hn::Sub(hn::Mul(ax, by), hn::Mul(ay, bx));
   const V nn = hn::Add(hn::Add(hn::Mul(nx, nx), hn::Mul(ny, ny)), hn::Mul(nz, nz));
@@ -177,31 +183,37 @@ HWY_INLINE void floor_lanes(D d, M mine, const PlainFloor& fl, const PlainSheet&
   hn::StoreU(hn::Add(hn::LoadU(d, fz + p), hn::IfThenElseZero(within, Fz)), d, fz + p);
 }
 
-// The floor on row i, whose neighbours i − 1 and i + 1 have not moved: its two end points one
-// lane at a time, its inner points in whole vectors, the last one shifted back to end at the
-// row's last inner point with the lanes done before masked off.
+// The floor on row i, whose neighbours i − 1 and i + 1 have not moved: in whole vectors from
+// column 0, the row's ends fixed lane by lane, where the points before and after the row
+// exist in memory (every row but the sheet's first and last when whole vectors fill a row);
+// else its two end points one lane at a time and its inner points in whole vectors, the last
+// one shifted back to end at the row's last inner point with the lanes done before masked off.
 HWY_INLINE void floor_row(const PlainFloor& fl, PlainSheet& s, std::uint32_t i) {
   const std::uint32_t w = s.side;
   const std::size_t row = std::size_t(i) * w;
   const std::size_t up = std::size_t(std::min(i + 1, w - 1)) * w, down = std::size_t(i > 0 ? i - 1 : 0) * w;
   double *fx = s.fx.data(), *fy = s.fy.data(), *fz = s.fz.data();
-  const hn::CappedTag<double, 1> one;
-  const auto all1 = hn::FirstN(one, 1);
-  floor_lanes(one, all1, fl, s, row, row, row + 1, up, down, fx, fy, fz);
-  floor_lanes(one, all1, fl, s, row + w - 1, row + w - 2, row + w - 1, up + w - 1, down + w - 1, fx, fy, fz);
   const hn::ScalableTag<double> d;
-  const std::size_t n = hn::Lanes(d), inner_end = w - 1;
+  const std::size_t n = hn::Lanes(d);
+  auto at = [&](auto tag, auto mine, std::size_t j, std::size_t l, std::size_t r) HWY_ATTR {
+    floor_lanes(tag, mine, fl, s, row + j, j, row + l, row + r, up + j, down + j, fx, fy, fz);
+  };
+  if (i > 0 && i + 1 < w && w % n == 0) {
+    for (std::size_t j = 0; j < w; j += n) at(d, hn::FirstN(d, n), j, j - 1, j + 1);  // j − 1 wraps to the row before's last point
+    return;
+  }
+  const hn::CappedTag<double, 1> one;
+  at(one, hn::FirstN(one, 1), 0, 0, 1);
+  at(one, hn::FirstN(one, 1), w - 1, w - 2, w - 1);
+  const std::size_t inner_end = w - 1;
   std::size_t j = 1;
-  for (; j + n <= inner_end; j += n)
-    floor_lanes(d, hn::FirstN(d, n), fl, s, row + j, row + j - 1, row + j + 1, up + j, down + j, fx, fy, fz);
+  for (; j + n <= inner_end; j += n) at(d, hn::FirstN(d, n), j, j - 1, j + 1);
   if (j < inner_end) {
     if (inner_end - 1 >= n) {  // back to end at the last inner point; lanes before j are done
       const std::size_t start = inner_end - n;
-      const auto fresh = hn::Not(hn::FirstN(d, j - start));
-      floor_lanes(d, fresh, fl, s, row + start, row + start - 1, row + start + 1, up + start, down + start, fx, fy, fz);
+      at(d, hn::Not(hn::FirstN(d, j - start)), start, start - 1, start + 1);
     } else {
-      for (; j < inner_end; ++j)
-        floor_lanes(one, all1, fl, s, row + j, row + j - 1, row + j + 1, up + j, down + j, fx, fy, fz);
+      for (; j < inner_end; ++j) at(one, hn::FirstN(one, 1), j, j - 1, j + 1);
     }
   }
 }
@@ -321,13 +333,48 @@ void BM_CeilingSheets48Floor(benchmark::State& state) {
   benchmark::DoNotOptimize(sheets.front().z.data());
   // eq (9) alone on the first sheet as it lies now, against its weight
   PlainSheet& s = sheets.front();
-  std::fill(s.fx.begin(), s.fx.end(), 0.0);
-  std::fill(s.fy.begin(), s.fy.end(), 0.0);
-  std::fill(s.fz.begin(), s.fz.end(), 0.0);
-  for (std::uint32_t i = 0; i < s.side; ++i) HWY_DYNAMIC_DISPATCH(FloorRow)(floor, s, i);
+  const auto floor_alone = [&](PlainSheet& on) {
+    for (auto* f : {&on.fx, &on.fy, &on.fz}) std::fill(f->begin(), f->end(), 0.0);
+    for (std::uint32_t i = 0; i < on.side; ++i) HWY_DYNAMIC_DISPATCH(FloorRow)(floor, on, i);
+  };
+  floor_alone(s);
   double held = 0;
   for (double f : s.fz) held += f;
   state.counters["floor_force"] = held / (-s.gz * mass * double(s.fz.size()));
+  // and on a crumpled copy, against eq (9) written out point by point with std::exp: the
+  // largest difference over the largest force (rounding, and the polynomial's 1e-15)
+  PlainSheet c = s;
+  for (std::size_t p = 0; p < c.z.size(); ++p) {
+    c.x[p] += 0.004 * std::sin(1.7 * double(p));
+    c.z[p] += 0.02 * std::cos(2.3 * double(p));
+  }
+  floor_alone(c);
+  const std::uint32_t w = c.side;
+  double largest = 0, difference = 0;
+  for (std::uint32_t i = 0; i < w; ++i)
+    for (std::uint32_t j = 0; j < w; ++j) {
+      const std::size_t p = std::size_t(i) * w + j;
+      const auto at = [&](std::uint32_t ii, std::uint32_t jj) { return std::size_t(ii) * w + jj; };
+      const std::size_t l = at(i, j > 0 ? j - 1 : j), r = at(i, j + 1 < w ? j + 1 : j);
+      const std::size_t u = at(i + 1 < w ? i + 1 : i, j), dn = at(i > 0 ? i - 1 : i, j);
+      const double f = c.z[p] - floor.height;
+      double F[3] = {0, 0, 0};
+      if (f < floor.reach) {
+        const double scale = floor.c_over_xi * std::max(std::exp(std::min(-f / def.xi, floor.cap)) - floor.tail, 0.0);
+        const double a[3] = {c.x[r] - c.x[l], c.y[r] - c.y[l], c.z[r] - c.z[l]};
+        const double b[3] = {c.x[u] - c.x[dn], c.y[u] - c.y[dn], c.z[u] - c.z[dn]};
+        const double n[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+        const double nn = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
+        for (int k = 0; k < 3; ++k) F[k] = nn > 0 ? scale * n[2] / nn * n[k] : (k == 2 ? scale : 0.0);
+      }
+      const double got[3] = {c.fx[p], c.fy[p], c.fz[p]};
+      for (int k = 0; k < 3; ++k) {
+        const double want = state.range(0) == 0 ? F[k] : (k == 2 && f < floor.reach ? floor.c_over_xi * std::max(std::exp(std::min(-f / def.xi, floor.cap)) - floor.tail, 0.0) : 0.0);
+        largest = std::max(largest, std::abs(want));
+        difference = std::max(difference, std::abs(got[k] - want));
+      }
+    }
+  state.counters["difference"] = difference / largest;
   drape::bench::set_point_rate(state, 48.0 * 64 * 64);
 }
 BENCHMARK(BM_CeilingSheets48Floor)->ArgName("full_gradient")->Arg(0)->Arg(1);  // CPU time, like BM_Feature_obstacle
