@@ -485,19 +485,22 @@ void sheet_forces_by_rows_with(Sheet<Real>& s, ConstVec3Ptr<Real> x, ConstVec3Pt
   // whole update after its sweep reads every row back from a farther cache. A new
   // per-point force term belongs in add_point_terms, a row stencil in terms/terms.h.
   // Obstacle forces (eq 9, only obstacles the host stage found near this sheet) follow the
-  // sheet's surface normal, which reads the rows on both sides of a point: row i's are
-  // added when its springs are final, while row i + 1 has not moved, and the update then
-  // stays a row behind, so row i − 1 has not moved either.
+  // sheet's surface normal, which reads the rows on both sides of a point: they are added to
+  // the rows whose springs are final just before a run of rows moves, while the next row has
+  // not moved, and the update stays a row behind, so the row before them has not moved
+  // either (one call per run of rows, not per row: a call sets up the obstacle's frame).
   const std::uint32_t cols = t.cols(), rows = t.rows();
   const std::uint32_t lag = s.near_obstacles.empty() ? 0 : 1;
   std::size_t next_anchor = 0, unmoved = 0;
+  std::uint32_t unforced = 0;  // the first row without its obstacle forces
   sheet_sweep(s, x, v, f, ptr(s.row_scratch), 0, rows, [&](std::uint32_t i) {
     const std::size_t p = std::size_t(i) * cols;
     row_terms(s, p, cols, v, f);
     for (; next_anchor < an.point.size() && an.point[next_anchor] < p + cols; ++next_anchor) anchor(next_anchor);
-    for (const NearObstacle& o : s.near_obstacles) obstacle_forces(t, o, x, v, s.inv_mass.data(), f, i, i + 1);
     const std::size_t ready = i + 1 == rows ? s.size() : p + cols - std::size_t(lag) * cols;
     if (ready > unmoved && (ready - unmoved >= update_run_points || i + 1 == rows)) {
+      for (const NearObstacle& o : s.near_obstacles) obstacle_forces(t, o, x, v, s.inv_mass.data(), f, unforced, i + 1);
+      unforced = i + 1;
       move(unmoved, ready - unmoved);
       unmoved = ready;
     }
