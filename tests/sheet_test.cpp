@@ -3,7 +3,10 @@
 #include <drape/drape.h>
 #include <gtest/gtest.h>
 
+#include "sheet_data.h"
+
 #include <cmath>
+#include <cstdint>
 #include <numbers>
 
 namespace {
@@ -81,6 +84,28 @@ TEST(Sheet, ValidationNamesTheFieldAndTheProblem) {
     EXPECT_THROW(world.add_sheet(d), std::invalid_argument) << c.field;
   }
   EXPECT_EQ(world.sheet_count(), 0u);
+}
+
+// The arrays' allocator (aligned.h): every array on a cache line, and one of 2 MiB or more
+// on a 2 MiB boundary, where a huge page can back it from its first byte; a sheet that
+// large gets its arrays that way.
+TEST(Sheet, LargeArraysStartOnHugePageBoundariesAndSmallOnesOnCacheLines) {
+  using drape::detail::huge_block;
+  const auto offset = [](const void* p, std::size_t to) { return reinterpret_cast<std::uintptr_t>(p) % to; };
+  for (std::size_t n : {std::size_t(1), std::size_t(3), std::size_t(1000), huge_block / sizeof(double) - 1}) {
+    drape::detail::AlignedArray<double> a(n);
+    EXPECT_EQ(offset(a.data(), 64), 0u) << n;
+  }
+  for (std::size_t n : {huge_block / sizeof(double), huge_block / sizeof(double) + 5, 3 * huge_block / sizeof(float)}) {
+    drape::detail::AlignedArray<double> a(n);
+    EXPECT_EQ(offset(a.data(), huge_block), 0u) << n;
+    a.assign(n / 2, 1.0);  // shrinking keeps the block: freed with the alignment it was made with
+  }
+  drape::SheetDef big;
+  big.m = big.n = 511;  // 262,144 points: 2 MiB per array in double
+  const auto s = drape::detail::build_sheet<double>(big);
+  for (const auto* a : {&s.position.x, &s.position.y, &s.position.z, &s.velocity.z, &s.mass, &s.inv_mass})
+    EXPECT_EQ(offset(a->data(), huge_block), 0u);
 }
 
 TEST(World, RemovedSheetIdsAreRecognisedAsStale) {

@@ -2,6 +2,8 @@
 // per-instance structure-of-arrays buffers. Only engine/src sees these types.
 #pragma once
 
+#include "aligned.h"
+
 #include <drape/sheet.h>
 #include <drape/types.h>
 
@@ -126,21 +128,6 @@ struct Pins {
   std::vector<std::uint32_t> point;
   std::vector<Real> tx, ty, tz;
   bool empty() const { return point.empty(); }
-};
-
-// Allocates on 64-byte boundaries, so a sweep streams whole cache lines and no 64-byte
-// vector access straddles two of them (the machine-ceiling benchmark showed the sweep of a
-// sheet beyond the caches losing a third of its speed to misaligned arrays).
-template <class T>
-struct CacheAligned {
-  using value_type = T;
-  static constexpr std::size_t alignment = 64;
-  CacheAligned() = default;
-  template <class U>
-  constexpr CacheAligned(const CacheAligned<U>&) noexcept {}
-  T* allocate(std::size_t n) { return static_cast<T*>(::operator new(n * sizeof(T), std::align_val_t(alignment))); }
-  void deallocate(T* p, std::size_t) noexcept { ::operator delete(p, std::align_val_t(alignment)); }
-  friend bool operator==(const CacheAligned&, const CacheAligned&) { return true; }
 };
 
 template <class Real>

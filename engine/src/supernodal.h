@@ -17,6 +17,8 @@
 // largest packet (Aligned below).
 #pragma once
 
+#include "aligned.h"
+
 #include <Eigen/Core>
 #include <cstddef>
 #include <vector>
@@ -26,7 +28,7 @@ namespace drape::detail {
 template <class Scalar>
 class SupernodalFactor {
  public:
-  using Aligned = std::vector<Scalar, Eigen::aligned_allocator<Scalar>>;
+  using Aligned = std::vector<Scalar, CacheAligned<Scalar>>;
 
   // The point pattern of L: `columns` columns, column j's rows at row_index[column_start[j] ..
   // column_start[j + 1]).
