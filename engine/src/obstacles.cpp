@@ -663,9 +663,9 @@ bool may_touch(const Obstacle& o, const Aabb& box) {
   return lowest < o.reach_distance;
 }
 
-// One dispatch per call (a sheet's rows, or one row as the sweep finishes it): the rows,
-// the shapes' f and ∇f, the force scale, the projection and friction run on the widest
-// instruction set the CPU has.
+// One dispatch per call (a sheet's rows, a row block's, or the run of rows the sweep is
+// about to move): the rows, the shapes' f and ∇f, the force scale, the projection and
+// friction run on the widest instruction set the CPU has.
 template <class Real>
 void obstacle_forces(const Topology<Real>& t, const NearObstacle& near, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v,
                      const Real* inv_mass, Vec3Ptr<Real> f, std::uint32_t row_begin, std::uint32_t row_end) {

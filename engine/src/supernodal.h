@@ -13,8 +13,9 @@
 // depends only on the pattern and the values, so a factor is the same bit for bit whichever
 // thread computes it, provided the buffers' alignment is the same every time: Eigen's
 // vector kernels peel a different number of leading elements (another order of sums) at
-// another alignment, so every buffer they read, the caller's too, is aligned to Eigen's
-// largest packet (Aligned below).
+// another alignment, so every buffer they read, the caller's too, is aligned to at least
+// Eigen's largest packet (Aligned below: CacheAligned's 64 bytes, or 2 MiB for a large block,
+// a multiple of it).
 #pragma once
 
 #include "aligned.h"
