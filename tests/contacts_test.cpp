@@ -864,14 +864,17 @@ TEST(Contacts, SelfContactMatchesEveryPointAgainstEveryTriangleOutsideTheRing) {
 // is compiled per target, contraction off), and each gives the same forces, entry for entry
 // and bit for bit, as the first (the widest): a crumpled pair with friction and a jostled
 // fold against itself, over steps that search, keep lists (exact) or walk a kept set, and a
-// stack of two equal grids walking with friction, sliding past each other (the force in
-// lanes where there are vectors, its friction entry by entry), in both precisions. It fails if a target's vector gap test or tail rounds differently, or
-// finds a different set of cells.
+// stack of two equal grids walking with friction, sliding past each other, without and with
+// contact damping (the force, its friction and its damping in lanes where there are vectors),
+// in both precisions. It fails if a target's vector gap test or tail rounds differently, or
+// finds a different set of cells, or a lane's friction or damping reads another corner.
 template <class Real>
 std::vector<double> contact_forces_over_steps() {
   ContactParams<Real> walked = ContactParams<Real>::make(0.005, 0.002, 1e-4, 6.0), exact = walked;
   walked.dt = exact.dt = Real(1e-3);
   exact.exact = true;
+  ContactParams<Real> damped = walked;  // the stack again with contact damping (α, s/m)
+  damped.damping = Real(2);
   std::vector<double> out;
   auto record = [&](const ContactForces<Real>& f) {
     out.push_back(double(f.size()));
@@ -902,7 +905,7 @@ std::vector<double> contact_forces_over_steps() {
     lower.velocity.y[p] = Real(p % 3 == 0 ? 0.0 : 0.01 * std::sin(double(p)));
   }
   ContactScratch<Real> scratch;
-  PairContacts<Real> pair_walked, pair_exact, fold_walked, fold_exact, stack_walked;
+  PairContacts<Real> pair_walked, pair_exact, fold_walked, fold_exact, stack_walked, stack_damped;
   for (int step = 0; step < 6; ++step) {
     for (Sheet<Real>* sheet : {&a, &b, &s, &lower, &upper}) jostle(*sheet, rng);
     pair_contacts(a, boxes_of(a), b, boxes_of(b), walked, pair_walked, scratch);
@@ -918,6 +921,9 @@ std::vector<double> contact_forces_over_steps() {
     pair_contacts(lower, boxes_of(lower), upper, boxes_of(upper), walked, stack_walked, scratch);
     record(stack_walked.on_a);
     record(stack_walked.on_b);
+    pair_contacts(lower, boxes_of(lower), upper, boxes_of(upper), damped, stack_damped, scratch);
+    record(stack_damped.on_a);
+    record(stack_damped.on_b);
   }
   return out;
 }
