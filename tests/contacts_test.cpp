@@ -865,9 +865,9 @@ TEST(Contacts, SelfContactMatchesEveryPointAgainstEveryTriangleOutsideTheRing) {
 // and bit for bit, as the first (the widest): a crumpled pair with friction and a jostled
 // fold against itself, over steps that search, keep lists (exact) or walk a kept set, and a
 // stack of two equal grids walking with friction, sliding past each other, without and with
-// contact damping (the force, its friction and its damping in lanes where there are vectors),
-// in both precisions. It fails if a target's vector gap test or tail rounds differently, or
-// finds a different set of cells, or a lane's friction or damping reads another corner.
+// contact damping (the force in lanes where there are vectors, its friction and damping entry
+// by entry), in both precisions. It fails if a target's vector gap test or tail rounds
+// differently, or finds a different set of cells.
 template <class Real>
 std::vector<double> contact_forces_over_steps() {
   ContactParams<Real> walked = ContactParams<Real>::make(0.005, 0.002, 1e-4, 6.0), exact = walked;
