@@ -155,7 +155,7 @@ TEST(Contacts, ForceIsMinusGradientOfBruteForcePotentialOverAllCells) {
         axis[p] = x0;
         const double expected = -(up - down) / (2 * delta);
         double sum = 0;
-        const std::vector<double>& f = k == 0 ? got.fx : k == 1 ? got.fy : got.fz;
+        const auto& f = k == 0 ? got.fx : k == 1 ? got.fy : got.fz;
         for (std::size_t e = 0; e < got.size(); ++e)
           if (got.point[e] == p) sum += f[e];
         EXPECT_NEAR(sum, expected, 1e-5 * fmax) << (side == &a ? "a" : "b") << " point " << p << " axis " << k;

@@ -2,7 +2,9 @@
 #pragma once
 
 #include <cstddef>
+#include <memory>
 #include <new>
+#include <utility>
 
 namespace drape::detail {
 
@@ -37,6 +39,27 @@ struct CacheAligned {
   }
   void deallocate(T* p, std::size_t n) noexcept { ::operator delete(p, std::align_val_t(alignment_for(n * sizeof(T)))); }
   friend bool operator==(const CacheAligned&, const CacheAligned&) { return true; }
+};
+
+// std::allocator whose value-initialisation leaves the element uninitialised: growing a
+// buffer that is written before it is read (resize to make room) then costs no fill.
+template <class T>
+struct Uninitialised : std::allocator<T> {
+  template <class U>
+  struct rebind {
+    using other = Uninitialised<U>;
+  };
+  Uninitialised() = default;
+  template <class U>
+  constexpr Uninitialised(const Uninitialised<U>&) noexcept {}
+  template <class U>
+  void construct(U* p) noexcept {
+    ::new (static_cast<void*>(p)) U;
+  }
+  template <class U, class... Args>
+  void construct(U* p, Args&&... args) {
+    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
 };
 
 }  // namespace drape::detail
