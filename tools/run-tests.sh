@@ -7,7 +7,7 @@
 #      without ASan's use-after-scope check, see engine/CMakeLists.txt; a few heavy tests run
 #      smaller cases of the same code paths under DRAPE_SANITIZED), and with every optional package left out (-DDRAPE_OPTIONAL_PACKAGES=OFF: Bullet, ...), so
 #      this stage also proves that a machine with only what tools/setup.sh installs builds
-#      everything, the benchmarks included, whatever else this machine has; it is also the
+#      the engine, the programs and the tests, whatever else this machine has; it is also the
 #      portable build (-DDRAPE_NATIVE=OFF): its baseline is the compiler's default, where
 #      stage 1's is this CPU, and both run the same row sweep dispatched at run time;
 #   3. a short libFuzzer run of every reader (build-fuzz, clang), seeded with valid files.
@@ -36,9 +36,10 @@ if [[ "${DRAPE_SKIP_SANITIZE:-0}" != 1 ]]; then
   # -O1 keeps sanitized tests quick while the stack traces stay readable (-g1: line tables, all
   # a trace needs; full debug info made the vector kernels compile 1.8 times longer); the tests, programs
   # and benchmarks themselves are compiled at -O0 there (CMakeLists.txt, drape_keep_optimization),
-  # which halves their compile time and leaves the run time as it was. The benchmarks are
-  # built (not run) so that their optional sources are proved gated too; as they never run
-  # here, their own objects are not instrumented (bench/CMakeLists.txt).
+  # which halves their compile time and leaves the run time as it was. The benchmarks and the
+  # report generators in tools/ run no test, so this stage leaves them out (~55 s of CPU):
+  # stage 1 builds them, on CI's fresh machine without any optional package, and
+  # Build.OptionalPackagesAreGated checks that every optional package is looked for as one.
   # The kernels are compiled here for AVX2 and the scalar target only
   # (HWY_DISABLED_TARGETS = AVX3 | SSE4 on top of engine/src/simd/targets.h's AVX3_DL | SSSE3,
   # bits 8, 11, 7, 12): each target compiles the whole row sweep again, and stage 1 already
@@ -49,7 +50,8 @@ if [[ "${DRAPE_SKIP_SANITIZE:-0}" != 1 ]]; then
   # compiler's default baseline that this stage promises.
   cmake -S . -B build-asan $(generator build-asan) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" \
     -DCMAKE_CXX_FLAGS="-DHWY_DISABLED_TARGETS=6528" \
-    -DDRAPE_SANITIZE=ON -DDRAPE_WERROR=ON -DDRAPE_OPTIONAL_PACKAGES=OFF -DDRAPE_NATIVE=OFF | grep "optional packages"
+    -DDRAPE_SANITIZE=ON -DDRAPE_WERROR=ON -DDRAPE_OPTIONAL_PACKAGES=OFF -DDRAPE_NATIVE=OFF \
+    -DDRAPE_BUILD_BENCH=OFF -DDRAPE_BUILD_TOOLS=OFF | grep "optional packages"
   cmake --build build-asan -j"$jobs"
   ASAN_OPTIONS=abort_on_error=1:detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
     ctest --test-dir build-asan --output-on-failure -j"$jobs"
