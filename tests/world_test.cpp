@@ -396,6 +396,9 @@ TEST(Worlds, OneSheetMatchesDirectIntegrationBitForBit) {
     for (Integrator integrator : {Integrator::SemiImplicitEuler, Integrator::ForwardEuler, Integrator::LocalGlobal,
                                   Integrator::VertexBlockDescent})
       for (std::uint32_t block_points : {1u << 30, 2000u}) {
+        // only integrators that update each point alone split a sheet into row blocks; the
+        // others run it whole whatever block_points says (a second run would repeat the first)
+        if (block_points != 1u << 30 && !detail::updates_per_point(integrator)) continue;
         WorldDef wd;
         wd.dt = 2e-4;
         wd.integrator = integrator;
