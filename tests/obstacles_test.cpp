@@ -480,6 +480,55 @@ void expect_every_target_gives_eq9_bit_for_bit() {
 TEST(Obstacles, EveryInstructionSetGivesEq9BitForBit) { expect_every_target_gives_eq9_bit_for_bit<double>(); }
 TEST(Obstacles, EveryInstructionSetGivesEq9BitForBitInFloat) { expect_every_target_gives_eq9_bit_for_bit<float>(); }
 
+// The obstacle energy (energies(), and the guard after every step() call) runs in vectors on
+// each instruction set: it must be the sum over the points of potential_energy (one value at
+// a time, through the C library's exp), for every shape, with points within reach, beyond it
+// and past the exponent cap, and point counts that leave remainders of every width.
+template <class Real>
+void expect_obstacle_energy_sums_the_potential() {
+  drape::test::for_each_target([&](std::int64_t) {
+    std::mt19937 rng(29);
+    std::uniform_real_distribution<double> u(-0.8, 0.8);
+    const std::pair<std::uint32_t, std::uint32_t> sizes[] = {{0, 0}, {0, 6}, {2, 4}, {3, 70}};
+    for (ObstacleShape shape : all_shapes)
+      for (auto [m, n] : sizes)
+        for (double cap : {2.0, 40.0}) {  // 2: points deep inside are past it; 40: none is
+          const ObstacleDef d = kernel_def(shape, false);
+          const auto o = drape::detail::make_obstacle(d);
+          auto sheet = drape::detail::build_sheet<Real>(grid_def(m, n));
+          double expected = 0, scale = 0;
+          int within = 0, beyond = 0, past_cap = 0;
+          for (std::size_t p = 0; p < sheet.size(); ++p) {
+            const double away = p <= n && m > 1 ? 3.0 : 0.0;  // the first row beyond reach
+            sheet.position.x[p] = Real(d.center.x + u(rng) + away * o.rot[0][2]);
+            sheet.position.y[p] = Real(d.center.y + u(rng) + away * o.rot[1][2]);
+            sheet.position.z[p] = Real(d.center.z + u(rng) + away * o.rot[2][2]);
+            const double at[3] = {double(sheet.position.x[p]), double(sheet.position.y[p]), double(sheet.position.z[p])};
+            const double f = drape::detail::implicit_at(o, at).f;
+            const double e = drape::detail::potential_energy(d, f, cap);
+            expected += e;
+            scale += std::abs(e) + d.c;
+            (f < drape::detail::reach_exponent * d.xi ? within : beyond) += 1;
+            past_cap += -f / d.xi > cap;
+          }
+          const double got = drape::detail::obstacle_energy(sheet, o, cap);
+          EXPECT_NEAR(got, expected, 1e-12 * scale) << "shape " << int(shape) << " sheet " << m << "x" << n << " cap " << cap;
+          if (sheet.size() > 100) {
+            EXPECT_GT(within, 0);
+            EXPECT_GT(beyond, int(n));
+            if (cap == 2.0) {
+              EXPECT_GT(past_cap, 0) << "shape " << int(shape);
+            }
+          }
+        }
+  });
+}
+
+TEST(Obstacles, EnergyInVectorsSumsThePotentialOfEveryPoint) { expect_obstacle_energy_sums_the_potential<double>(); }
+TEST(Obstacles, EnergyInVectorsSumsThePotentialOfEveryPointInFloat) {
+  expect_obstacle_energy_sums_the_potential<float>();
+}
+
 drape::SheetDef point_def(Vec3 at, double mass = 0.01) {
   drape::SheetDef s;
   s.m = s.n = 0;

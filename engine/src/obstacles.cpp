@@ -8,9 +8,11 @@
 // ∇f with masks for their degenerate points, the force scale through a polynomial exp, the
 // projection on the sheet normal and friction, each lane doing the scalar formula's
 // operations in its order. Contraction into FMA is off here (engine/CMakeLists.txt) and no
-// op fuses, so every target, and a one-lane vector, gives the same bits. The rest
-// (validation, placement, energies) is compiled once and runs the build's own target's
-// copy of the same shapes and force scale one lane at a time.
+// op fuses, so every target, and a one-lane vector, gives the same bits. The potential's sum
+// over a sheet (its energy, which the guard reads after every step() call) runs in the same
+// vectors; it adds its lanes in an order of the vector's width, so targets may differ in its
+// last bits. The rest (validation, placement) is compiled once and runs the build's own
+// target's copy of the same shapes and force scale one lane at a time.
 #include "simd/targets.h"
 
 #undef HWY_TARGET_INCLUDE
@@ -219,6 +221,23 @@ struct ForceScale {
 ForceScale force_scale_of(const ObstacleDef& d, double cap) {
   return {d.c / d.xi, -(1.0 / d.xi), cap, std::exp(-reach_exponent), reach_exponent * d.xi};
 }
+
+// The potential whose −dE/df is ForceScale, where f < reach: c·(e^ê − t)·(1 + e − ê) −
+// c·t·(r + ê), e = −f/ξ, ê = min(e, cap), t = e^−r: the exponential below the cap (there
+// 1 + e − ê is 1), continued linearly in e past it. potential_energy is the same function
+// one value at a time, through the C library's exp.
+struct Potential {
+  double c, minus_inv_xi, cap, tail, reach;
+  template <class D, class V>
+  HWY_INLINE V within(D d, V f) const {
+    const V e = hn::Mul(f, hn::Set(d, minus_inv_xi));
+    const V capped = lanes::first_min(e, hn::Set(d, cap));
+    const V c_ = hn::Set(d, c), t = hn::Set(d, tail);
+    const V rising =
+        hn::Mul(hn::Mul(c_, hn::Sub(lanes::exp_lanes(d, capped), t)), hn::Add(hn::Set(d, 1.0), hn::Sub(e, capped)));
+    return hn::Sub(rising, hn::Mul(hn::Mul(c_, t), hn::Add(hn::Set(d, reach_exponent), capped)));
+  }
+};
 
 // Loads and stores of a sheet's Real through lanes l of doubles: a float sheet's lanes are
 // promoted on the way in and rounded back (as static_cast<float>) on the way out.
@@ -502,6 +521,51 @@ void repel(const Topology<Real>& t, const Obstacle& o, const NearObstacle& near,
   }
 }
 
+// Σ E(f) over `count` points (obstacle_energy): a vector of them at a time, f from the force
+// term's own sample_lanes; points at or beyond the reach add nothing, and a vector of them
+// only costs its f. Whole vectors sum in lanes, the remainder's lanes one by one after them.
+template <class Shape, class Real>
+double potential_sum(const Obstacle& o, ConstVec3Ptr<Real> x, std::size_t count, double cap) {
+  const Frame frame = frame_of(o);
+  const Potential potential{o.def.c, -(1.0 / o.def.xi), cap, std::exp(-reach_exponent), reach_exponent * o.def.xi};
+  const hn::ScalableTag<double> full;
+  auto whole = hn::Zero(full);
+  double rest = 0;
+  lanes::over_lanes<double>(count, [&](auto l, std::size_t p) __attribute__((always_inline)) {
+    const auto d = l.d;
+    using V = hn::Vec<decltype(d)>;
+    V f, gx, gy, gz;
+    sample_lanes<Shape>(d, frame, load_wide(l, x.x + p), load_wide(l, x.y + p), load_wide(l, x.z + p), f, gx, gy, gz);
+    const auto within = covered(l, hn::Lt(f, hn::Set(d, potential.reach)));
+    if (hn::AllFalse(d, within)) return;
+    const V e = hn::IfThenElseZero(within, potential.within(d, f));
+    if constexpr (std::is_same_v<decltype(l), lanes::Whole<decltype(full)>>)
+      whole = hn::Add(whole, e);
+    else
+      rest += hn::GetLane(hn::SumOfLanes(d, e));
+  });
+  return hn::GetLane(hn::SumOfLanes(full, whole)) + rest;
+}
+
+template <class Real>
+double obstacle_energy_of(const Obstacle& o, ConstVec3Ptr<Real> x, std::size_t count, double cap) {
+  switch (o.def.shape) {
+    case ObstacleShape::Plane: return potential_sum<PlaneF>(o, x, count, cap);
+    case ObstacleShape::Sphere: return potential_sum<SphereF>(o, x, count, cap);
+    case ObstacleShape::Ellipsoid: return potential_sum<EllipsoidF>(o, x, count, cap);
+    case ObstacleShape::Torus: return potential_sum<TorusF>(o, x, count, cap);
+    case ObstacleShape::Box: return potential_sum<BoxF>(o, x, count, cap);
+  }
+  return 0;
+}
+
+double ObstacleEnergyF64(const Obstacle& o, ConstVec3Ptr<double> x, std::size_t count, double cap) {
+  return obstacle_energy_of(o, x, count, cap);
+}
+double ObstacleEnergyF32(const Obstacle& o, ConstVec3Ptr<float> x, std::size_t count, double cap) {
+  return obstacle_energy_of(o, x, count, cap);
+}
+
 template <class Real>
 void obstacle_forces_of(const Topology<Real>& t, const NearObstacle& near, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v,
                         const Real* inv_mass, Vec3Ptr<Real> f, std::uint32_t row_begin, std::uint32_t row_end) {
@@ -583,6 +647,8 @@ namespace here = HWY_NAMESPACE;
 
 HWY_EXPORT(ObstacleForcesF64);
 HWY_EXPORT(ObstacleForcesF32);
+HWY_EXPORT(ObstacleEnergyF64);
+HWY_EXPORT(ObstacleEnergyF32);
 
 Obstacle make_obstacle(const ObstacleDef& def) {
   Obstacle o;
@@ -681,14 +747,16 @@ void obstacle_forces(const Topology<Real>& t, const NearObstacle& near, ConstVec
   obstacle_forces(t, near, x, v, inv_mass, f, 0, t.rows());
 }
 
+// One dispatch per sheet and obstacle, as the force: the guard runs this after every step()
+// call, and one std::exp per point (potential_energy's way) took three times a substep of
+// sheets resting on a floor.
 template <class Real>
 double obstacle_energy(const Sheet<Real>& s, const Obstacle& o, double cap) {
-  double e = 0;
-  for (std::size_t p = 0; p < s.size(); ++p) {
-    const double pos[3] = {double(s.position.x[p]), double(s.position.y[p]), double(s.position.z[p])};
-    e += potential_energy(o.def, implicit_at(o, pos).f, cap);
-  }
-  return e;
+  const ConstVec3Ptr<Real> x{s.position.x.data(), s.position.y.data(), s.position.z.data()};
+  if constexpr (std::is_same_v<Real, double>)
+    return HWY_DYNAMIC_DISPATCH(ObstacleEnergyF64)(o, x, s.size(), cap);
+  else
+    return HWY_DYNAMIC_DISPATCH(ObstacleEnergyF32)(o, x, s.size(), cap);
 }
 
 template void obstacle_forces<double>(const Topology<double>&, const NearObstacle&, ConstVec3Ptr<double>,

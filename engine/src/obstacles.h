@@ -78,6 +78,8 @@ template <class Real>
 void obstacle_forces(const Topology<Real>& topo, const NearObstacle& near, ConstVec3Ptr<Real> x, ConstVec3Ptr<Real> v,
                      const Real* inv_mass, Vec3Ptr<Real> f, std::uint32_t row_begin, std::uint32_t row_end);
 
+// Σ potential_energy over the sheet's points, in vectors on the widest instruction set (the
+// kernel's exp: within rounding of the sum of potential_energy, whose exp is the C library's).
 template <class Real>
 double obstacle_energy(const Sheet<Real>& sheet, const Obstacle& o, double cap);
 
