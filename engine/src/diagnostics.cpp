@@ -22,14 +22,18 @@ bool sheet_finite(const Sheet<Real>& s) {
 namespace {
 
 // Σ term(i) for i < count with eight independent partial sums, so the additions pipeline
-// (and vectorise) instead of each waiting for the previous one.
+// (and vectorise) instead of each waiting for the previous one. `omp simd` on the eight makes
+// them one vector: left to itself GCC vectorised across eight blocks at once and transposed
+// them back (vpermt2pd), and the guard's energies took more than a substep of free sheets.
 template <class Term>
 double lane_sum(std::size_t count, Term term) {
   constexpr int lanes = 8;
   double part[lanes] = {};
   std::size_t i = 0;
-  for (; i + lanes <= count; i += lanes)
+  for (; i + lanes <= count; i += lanes) {
+#pragma omp simd
     for (int lane = 0; lane < lanes; ++lane) part[lane] += term(i + lane);
+  }
   for (; i < count; ++i) part[0] += term(i);
   double sum = 0;
   for (double p : part) sum += p;
