@@ -35,12 +35,19 @@ BENCHMARK(BM_IntegratorStep)->ArgsProduct({{0, 1, 2, 3, 4}, {32, 128}});
 
 // World::check(): one pass over points and springs, run once per step() call (a frame).
 // Compare with BM_IntegratorStep × substeps per frame.
+// on_floor: the sheet rests on a floor (eq 9 acts on every point), whose potential the guard
+// adds to the energy.
 void BM_GuardCheck(benchmark::State& state) {
   const auto side = static_cast<std::uint32_t>(state.range(0));
   auto world = make_world(drape::Integrator::SemiImplicitEuler, side);
+  if (state.range(1) != 0) {
+    drape::SheetDef sd;
+    sd.m = sd.n = side - 1;
+    world.add_obstacle(drape::bench::floor_holding(sd));
+  }
   for (auto _ : state) benchmark::DoNotOptimize(world.check());
   state.counters["points"] = double(side) * side;
 }
-BENCHMARK(BM_GuardCheck)->Arg(32)->Arg(128);
+BENCHMARK(BM_GuardCheck)->ArgNames({"side", "on_floor"})->ArgsProduct({{32, 128}, {0, 1}});
 
 }  // namespace
