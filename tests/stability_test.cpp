@@ -4,9 +4,11 @@
 #include <drape/drape.h>
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <limits>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 namespace {
@@ -332,6 +334,39 @@ TEST(Guard, ReportsNonFiniteStateWrittenByTheCaller) {
   EXPECT_EQ(report.status, drape::StabilityStatus::NonFinite);
   EXPECT_EQ(report.sheet, id);
   EXPECT_NE(drape::describe(report).find("not finite"), std::string::npos);
+}
+
+// check() without stepping: one coordinate of one point not finite, in each of the six
+// arrays, as NaN, +inf and −inf, with gravity and without (then g·x alone would not carry an
+// infinite position), on a grid and on a single point (no spring to carry it either), is
+// reported; a finite state is not.
+template <class W>
+void expect_every_non_finite_coordinate_reported() {
+  for (const drape::Vec3 g : {drape::Vec3{0, 0, -9.81}, drape::Vec3{0, 0, 0}})
+    for (const std::uint32_t cells : {0u, 3u})
+      for (int array = 0; array < 6; ++array)
+        for (const double bad : {double(NAN), HUGE_VAL, -HUGE_VAL}) {
+          drape::WorldDef wd;
+          wd.gravity = g;
+          W world(wd);
+          drape::SheetDef d;
+          d.m = cells;
+          d.n = cells == 0 ? 0 : cells + 1;
+          const auto id = world.add_sheet(d);
+          EXPECT_TRUE(world.check().ok());
+          auto s = world.state(id);
+          auto* values = std::array{s.x.data(), s.y.data(), s.z.data(), s.vx.data(), s.vy.data(), s.vz.data()}[array];
+          values[s.size() / 2] = static_cast<std::remove_reference_t<decltype(values[0])>>(bad);
+          const auto report = world.check();
+          EXPECT_EQ(report.status, drape::StabilityStatus::NonFinite)
+              << "cells " << cells << " array " << array << " value " << bad << " g " << g.z;
+          EXPECT_EQ(report.sheet, id);
+        }
+}
+
+TEST(Guard, EveryNonFiniteCoordinateIsReportedByCheck) { expect_every_non_finite_coordinate_reported<drape::World>(); }
+TEST(Guard, EveryNonFiniteCoordinateIsReportedByCheckInFloat) {
+  expect_every_non_finite_coordinate_reported<drape::WorldF>();
 }
 
 // Adaptive mode takes safety × the critical step: a stiff sheet that explodes at the fixed
