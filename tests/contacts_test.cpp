@@ -1143,6 +1143,115 @@ TEST(Contacts, SkippedWalksGiveTheForcesOfWalkingEveryEntry) {
   });
 }
 
+// The bound a pair's kept lists take from the sheets' travel (measure_travel): between two
+// substeps in which the sheet was measured, no point moved farther than the later moved_hi
+// less the earlier moved_lo, whichever substeps advanced the travel between them (some
+// measured and advanced, as the world does, some only measured, some only advanced, some
+// neither), through jitter, a jump and a stretch, in both precisions.
+template <class Real>
+void expect_travel_bounds_every_move() {
+  SheetDef d;
+  d.m = 7;
+  d.n = 9;
+  auto s = build_sheet<Real>(d);
+  std::mt19937 rng(31);
+  std::uniform_real_distribution<double> jitter(-1e-3, 1e-3);
+  std::uniform_int_distribution<int> what(0, 3);
+  struct Seen {
+    Vec3Array<Real> at;
+    double lo, hi;
+  };
+  std::vector<Seen> seen;
+  int pairs = 0, tight = 0;
+  for (std::uint64_t step = 1; step <= 60; ++step) {
+    for (std::size_t p = 0; p < s.size(); ++p) {
+      // a rigid translation first (there the bound is exact but for its rounding up), then
+      // jitter, a jump and a stretch
+      const bool rigid = step <= 20;
+      const double jump = step == 30 ? 0.05 : 0.0, stretch = step > 45 ? 1e-3 * double(p % 9) : 0.0;
+      s.position.x[p] += Real((rigid ? 1e-3 : jitter(rng)) + jump + stretch);
+      s.position.y[p] += Real(rigid ? 5e-4 : jitter(rng));
+      s.position.z[p] += Real((rigid ? 0 : jitter(rng)) - 2e-4);
+    }
+    const int w = what(rng);
+    if (w == 0 || w == 1) {
+      measure_travel(s, step);
+      seen.push_back({s.position, s.moved_lo, s.moved_hi});
+      for (const Seen& then : seen) {  // every earlier measured substep, and this one itself
+        double most = 0;
+        for (std::size_t p = 0; p < s.size(); ++p) {
+          const double dx = double(s.position.x[p]) - then.at.x[p], dy = double(s.position.y[p]) - then.at.y[p],
+                       dz = double(s.position.z[p]) - then.at.z[p];
+          most = std::max(most, std::sqrt(dx * dx + dy * dy + dz * dz));
+        }
+        EXPECT_LE(most, s.moved_hi - then.lo) << "step " << step;
+        ++pairs;
+        tight += std::isfinite(s.moved_hi - then.lo) && s.moved_hi - then.lo < 2 * most + 0.01;
+      }
+    }
+    if (w == 0 || w == 2) advance_travel(s, step);
+  }
+  EXPECT_GT(pairs, 100);
+  EXPECT_GT(tight, 10);  // the bound is finite and not vacuous
+}
+
+TEST(Contacts, TravelBoundsEveryMoveBetweenMeasuredSubsteps) { expect_travel_bounds_every_move<double>(); }
+TEST(Contacts, TravelBoundsEveryMoveBetweenMeasuredSubstepsInFloat) { expect_travel_bounds_every_move<float>(); }
+
+// The travel bound answering lists_hold's first test for a pair (measure_travel, stamped
+// substeps) against the same pair with no stamp, which runs the exact test over its points
+// every time: the same forces bit for bit and the same searches, with the bound clearing the
+// pair on most substeps. Two 16×16 grids 8 mm apart, the upper one half over the lower one
+// (points beyond R: the kept sets have open patches, which the test is for), both jittered
+// by up to 20 µm a step, the upper one sliding 0.3 mm a step, so that lists fail and are
+// made again every few steps.
+TEST(Contacts, TravelBoundDecidesAsTheExactTestDoes) {
+  test::for_each_target([&](std::int64_t) {
+    SheetDef da;
+    da.m = da.n = 16;
+    da.width = da.height = 0.16;
+    SheetDef db = da;
+    db.center = {0.081, 0.002, 0.008};  // half over the lower one: the sets have open patches
+    auto a = build_sheet<double>(da), b = build_sheet<double>(db);
+    auto a2 = a, b2 = b;
+    std::mt19937 rng(37);
+    std::uniform_real_distribution<double> jitter(-2e-5, 2e-5);
+    PairContacts<double> bounded, exact;
+    ContactScratch<double> scratch;
+    // the sheets' travel starts here (before it, measure_travel knows no bound: −∞)
+    for (auto* s : {&a, &b, &a2, &b2}) advance_travel(*s);
+    int cleared = 0;
+    for (std::uint64_t step = 1; step <= 60; ++step) {
+      for (std::size_t p = 0; p < a.size(); ++p) {
+        const double move[6] = {jitter(rng), jitter(rng), jitter(rng), 3e-4 + jitter(rng), jitter(rng), jitter(rng)};
+        a.position.x[p] += move[0], a.position.y[p] += move[1], a.position.z[p] += move[2];
+        b.position.x[p] += move[3], b.position.y[p] += move[4], b.position.z[p] += move[5];
+        a2.position.x[p] = a.position.x[p], a2.position.y[p] = a.position.y[p], a2.position.z[p] = a.position.z[p];
+        b2.position.x[p] = b.position.x[p], b2.position.y[p] = b.position.y[p], b2.position.z[p] = b.position.z[p];
+      }
+      // as the world's contact stage: measured before the pair decides, advanced after
+      measure_travel(a, step);
+      measure_travel(b, step);
+      ContactParams<double> prm = kParams;
+      prm.stamp = step;
+      if (bounded.skin > 0 && a.moved_hi - bounded.moved_lo_a <= 0.45 * bounded.skin &&
+          b.moved_hi - bounded.moved_lo_b <= 0.45 * bounded.skin)
+        ++cleared;
+      pair_contacts(a, boxes(a), b, boxes(b), prm, bounded, scratch);
+      pair_contacts(a2, boxes(a2), b2, boxes(b2), kParams, exact, scratch);
+      advance_travel(a, step);
+      advance_travel(b, step);
+      advance_travel(a2);
+      advance_travel(b2);
+      expect_same_forces(bounded.on_a, exact.on_a, int(step));
+      expect_same_forces(bounded.on_b, exact.on_b, int(step));
+      EXPECT_EQ(bounded.searches, exact.searches) << "step " << step;
+    }
+    EXPECT_GT(cleared, 8);  // the bound served, not only the exact test
+    EXPECT_GT(bounded.on_a.size(), 0u);  // in contact
+  });
+}
+
 // Two equal grids, one 8 mm straight above the other, carried together along a drift and a
 // turn: every point lies over a vertex of the other sheet, where the triangles around it
 // are equally near, and rounding alone (different for each point, through the turn) makes

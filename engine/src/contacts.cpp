@@ -1337,8 +1337,13 @@ bool lists_hold(PairContacts<Real>& w, const Sheet<Real>& a, const Sheet<Real>& 
   }
   // No point moved more than 0.45·skin: no gap shrank by more than 0.9·skin (cheap, and
   // enough for a pair at rest); otherwise the patches' relative motion decides.
-  const Real limit2 = (Real(0.45) * w.skin) * (Real(0.45) * w.skin);
-  if (within(a, w.made_at_a, limit2) && (&a == &b || within(b, w.made_at_b, limit2))) {
+  const Real limit = Real(0.45) * w.skin, limit2 = limit * limit;
+  const auto still = [&](const Sheet<Real>& s, double lo, const Vec3Array<Real>& then) {
+    // the sheet's travel since the lists were made bounds every point's move (measure_travel)
+    if (prm.stamp != 0 && s.moved_stamp == prm.stamp && s.moved_hi - lo <= double(limit)) return true;
+    return within(s, then, limit2);
+  };
+  if (still(a, w.moved_lo_a, w.made_at_a) && (&a == &b || still(b, w.moved_lo_b, w.made_at_b))) {
     ++w.kept_for;
     return true;
   }
@@ -1407,7 +1412,13 @@ void remember(Vec3Array<Real>& to, const Sheet<Real>& s) {
 
 template <class Real>
 void keep_lists_for(PairContacts<Real>& w, const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sheet<Real>& b,
-                    const SheetBoxes<Real>& bb, Real skin, bool exact) {
+                    const SheetBoxes<Real>& bb, Real skin, const ContactParams<Real>& prm) {
+  const bool exact = prm.exact;
+  const auto lo = [&](const Sheet<Real>& s) {
+    return prm.stamp != 0 && s.moved_stamp == prm.stamp ? s.moved_lo : -std::numeric_limits<double>::infinity();
+  };
+  w.moved_lo_a = lo(a);
+  w.moved_lo_b = lo(b);
   patch_clearance(ba, bb, w.clearance);
   w.kept_exact = exact;
   w.skin = skin;
@@ -1564,7 +1575,7 @@ void contacts_of_pair(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sh
     std::swap(w.a_on_b, w.spare_a);
     std::swap(w.b_on_a, w.spare_b);
   }
-  keep_lists_for(w, a, ba, b, bb, skin, prm.exact);
+  keep_lists_for(w, a, ba, b, bb, skin, prm);
 }
 
 }  // namespace
@@ -1598,17 +1609,15 @@ void self_contacts(const Sheet<Real>& s, const SheetBoxes<Real>& boxes, const Co
   contacts_of_pair(s, boxes, s, boxes, int(self_contact_ring(s, prm)), prm, work, scratch);
 }
 
+namespace {
+
+// The largest distance of a point of s from travel_from (of the sheet's size), rounded up a
+// little: the square root and the sums round, and entries hold 0.99 of a slack. ∞ where a
+// displacement is not a number or infinite.
 template <class Real>
-void advance_travel(Sheet<Real>& s) {
-  Vec3Array<Real>& from = s.travel_from;
-  if (from.x.size() != s.size()) {
-    from.x.assign(s.position.x.begin(), s.position.x.end());
-    from.y.assign(s.position.y.begin(), s.position.y.end());
-    from.z.assign(s.position.z.begin(), s.position.z.end());
-    return;
-  }
+double largest_move(const Sheet<Real>& s) {
   const Real *x = s.position.x.data(), *y = s.position.y.data(), *z = s.position.z.data();
-  Real *__restrict fx = from.x.data(), *__restrict fy = from.y.data(), *__restrict fz = from.z.data();
+  const Real *fx = s.travel_from.x.data(), *fy = s.travel_from.y.data(), *fz = s.travel_from.z.data();
   Real most = 0, bad = 0;  // bad: NaN where a displacement is not a number or infinite
   const std::size_t count = s.size();
 #pragma omp simd reduction(max : most) reduction(+ : bad)
@@ -1616,12 +1625,33 @@ void advance_travel(Sheet<Real>& s) {
     const Real dx = x[p] - fx[p], dy = y[p] - fy[p], dz = z[p] - fz[p];
     most = std::max(most, dx * dx + dy * dy + dz * dz);
     bad += (dx + dy + dz) * Real(0);
-    fx[p] = x[p];
-    fy[p] = y[p];
-    fz[p] = z[p];
   }
-  // rounded up a little: the square root and the sum round, and entries hold 0.99 of a slack
-  s.travel = bad == 0 ? s.travel + std::sqrt(double(most)) * (1 + 1e-6) : std::numeric_limits<double>::infinity();
+  return bad == 0 ? std::sqrt(double(most)) * (1 + 1e-6) : std::numeric_limits<double>::infinity();
+}
+
+}  // namespace
+
+template <class Real>
+void measure_travel(Sheet<Real>& s, std::uint64_t stamp) {
+  s.moved_stamp = stamp;
+  s.moved = s.travel_from.x.size() == s.size() ? largest_move(s) : std::numeric_limits<double>::infinity();
+  s.moved_lo = s.travel - s.moved;
+  s.moved_hi = s.travel + s.moved;
+}
+
+template <class Real>
+void advance_travel(Sheet<Real>& s, std::uint64_t stamp) {
+  Vec3Array<Real>& from = s.travel_from;
+  const bool sized = from.x.size() == s.size();
+  if (sized) s.travel += stamp != 0 && s.moved_stamp == stamp ? s.moved : largest_move(s);
+  from.x.assign(s.position.x.begin(), s.position.x.end());
+  from.y.assign(s.position.y.begin(), s.position.y.end());
+  from.z.assign(s.position.z.begin(), s.position.z.end());
+}
+
+template <class Real>
+void advance_travel(Sheet<Real>& s) {
+  advance_travel(s, 0);
 }
 
 template <class Real>
@@ -1652,6 +1682,8 @@ void gather_contacts(std::span<const ContactForces<Real>* const> sources, Vec3Ar
                                     PairContacts<Real>&, ContactScratch<Real>&);                               \
   template std::uint32_t self_contact_ring<Real>(const Sheet<Real>&, const ContactParams<Real>&);            \
   template void advance_travel<Real>(Sheet<Real>&);                                                            \
+  template void advance_travel<Real>(Sheet<Real>&, std::uint64_t);                                             \
+  template void measure_travel<Real>(Sheet<Real>&, std::uint64_t);                                             \
   template void gather_contacts<Real>(std::span<const ContactForces<Real>* const>, Vec3Array<Real>&,           \
                                       std::size_t, std::size_t);
 DRAPE_CONTACTS(double)

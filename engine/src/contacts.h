@@ -81,6 +81,9 @@ struct ContactParams {
   // its own). A kept entry beyond R skips its walk while the sheets have not travelled the
   // entry's slack since its last test (KeptContacts::until). NaN, unknown: none skips.
   double travel = std::numeric_limits<double>::quiet_NaN();
+  // The substep this pair runs in, as the world counts them from 1 (0: none): a sheet's
+  // moved_lo / moved_hi serve only when measured in it (measure_travel).
+  std::uint64_t stamp = 0;
 
   static ContactParams make(double thickness, double xi, double strength, double range_in_xi);
 };
@@ -224,6 +227,20 @@ struct KeptContacts {
 // infinite: no entry skips again.
 template <class Real>
 void advance_travel(Sheet<Real>& s);
+// The same, taking the distance measure_travel found in substep `stamp` if it ran then (the
+// same value: the pass is not made twice).
+template <class Real>
+void advance_travel(Sheet<Real>& s, std::uint64_t stamp);
+
+// The largest distance of a point of s from travel_from now, rounded up as advance_travel
+// rounds it, and where that puts the sheet on its travel scale (Sheet::moved_lo, moved_hi),
+// for substep `stamp`. A pair's kept lists hold while no point moved more than 0.45·skin
+// since they were made (lists_hold); the sheet's moved_hi now less its moved_lo then bounds
+// that, so one pass per sheet answers for all of its pairs, and only a pair the bound does
+// not clear runs the exact test over its points. The bound implies the exact test (the
+// rounding up covers the rounding of both), so every decision, and every bit, is the same.
+template <class Real>
+void measure_travel(Sheet<Real>& s, std::uint64_t stamp);
 
 // The contact work of one overlapping pair of sheets (a < b), or of one sheet with itself
 // (a == b, only on_a used). Written by one task, read by the gather: no sharing.
@@ -268,6 +285,9 @@ struct PairContacts {
   // Per point of a (against b) and of b (against a): its nearest cell last substep (first
   // corner; ~0 for none), tested first; and the grids those cells belong to.
   std::vector<std::uint32_t> last_a, last_b;
+  // Sheet::moved_lo of a and b in the substep the kept lists were made (−∞: not measured).
+  double moved_lo_a = -std::numeric_limits<double>::infinity();
+  double moved_lo_b = -std::numeric_limits<double>::infinity();
   const Topology<Real>* guessed_a = nullptr;
   const Topology<Real>* guessed_b = nullptr;
   std::uint64_t searches = 0;            // how often the lists were made (for tests)

@@ -76,6 +76,7 @@ detail::ContactParams<Real> BasicWorld<Real>::Impl::contact_params(double h) con
   params.dt = static_cast<Real>(h);
   params.exact = def.contact_exact;
   params.damping = static_cast<Real>(def.contact_damping);
+  params.stamp = steps + 1;
   return params;
 }
 
@@ -192,6 +193,12 @@ void BasicWorld<Real>::Impl::contact_boxes(double h) {
   const auto params = contact_params(h);
   const std::size_t count = active.size();
   keep_pair_work(pairs, pair_work);
+  // every sheet in a pair: where it is on its travel scale, for all of its pairs' decisions
+  in_pair.assign(count, 0);
+  for (const auto& pair : pairs) in_pair[pair.first] = in_pair[pair.second] = 1;
+  parallel(count, [&](std::size_t k) {
+    if (in_pair[k]) detail::measure_travel(at(k), params.stamp);
+  });
   parallel(pairs.size(), [&](std::size_t q) {
     auto& w = pair_work[q];
     detail::pair_needs_boxes(at(w.a), at(w.b), params, w, contact_scratch.local());
@@ -210,7 +217,7 @@ void BasicWorld<Real>::Impl::contact_boxes(double h) {
   }
   if (sheet_boxes.size() < count) sheet_boxes.resize(count);
   parallel(count, [&](std::size_t k) {
-    if (in_pair[k] & 2) detail::advance_travel(at(k));
+    if (in_pair[k] & 2) detail::advance_travel(at(k), params.stamp);
     if (in_pair[k] & 1) detail::build_boxes(at(k), sheet_boxes[k]);
   });
 }
