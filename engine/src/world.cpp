@@ -193,6 +193,12 @@ void BasicWorld<Real>::remove_sheet(SheetId id) {
   auto& slot = impl_->slots[id.index];
   slot.sheet.reset();
   impl_->sheet_ids.release(id.index);
+  // A sheet added into this slot later has the removed one's address, so a pair's kept lists
+  // may still pass as made for it (contacts.cpp, made_for); their exact tests compare
+  // positions and decide rightly, but their travel bounds (PairContacts::moved_lo_a/b) are
+  // on the removed sheet's travel scale, not the new sheet's: forgotten, for every pair.
+  for (auto& w : impl_->pair_work)
+    w.moved_lo_a = w.moved_lo_b = -std::numeric_limits<double>::infinity();
   std::erase(impl_->active, id.index);
   if (held) impl_->constraints_changed();  // the sheets it was joined to lost anchors
   impl_->broad_phase.reset();
