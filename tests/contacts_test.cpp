@@ -1176,7 +1176,7 @@ void expect_travel_bounds_every_move() {
     const int w = what(rng);
     if (w == 0 || w == 1) {
       measure_travel(s, step);
-      seen.push_back({s.position, s.moved_lo, s.moved_hi});
+      seen.push_back({s.position, s.moved_lo(), s.moved_hi()});
       for (const Seen& then : seen) {  // every earlier measured substep, and this one itself
         double most = 0;
         for (std::size_t p = 0; p < s.size(); ++p) {
@@ -1184,9 +1184,9 @@ void expect_travel_bounds_every_move() {
                        dz = double(s.position.z[p]) - then.at.z[p];
           most = std::max(most, std::sqrt(dx * dx + dy * dy + dz * dz));
         }
-        EXPECT_LE(most, s.moved_hi - then.lo) << "step " << step;
+        EXPECT_LE(most, s.moved_hi() - then.lo) << "step " << step;
         ++pairs;
-        tight += std::isfinite(s.moved_hi - then.lo) && s.moved_hi - then.lo < 2 * most + 0.01;
+        tight += std::isfinite(s.moved_hi() - then.lo) && s.moved_hi() - then.lo < 2 * most + 0.01;
       }
     }
     if (w == 0 || w == 2) advance_travel(s, step);
@@ -1234,8 +1234,8 @@ TEST(Contacts, TravelBoundDecidesAsTheExactTestDoes) {
       measure_travel(b, step);
       ContactParams<double> prm = kParams;
       prm.stamp = step;
-      if (bounded.skin > 0 && a.moved_hi - bounded.moved_lo_a <= 0.45 * bounded.skin &&
-          b.moved_hi - bounded.moved_lo_b <= 0.45 * bounded.skin)
+      if (bounded.skin > 0 && a.moved_hi() - bounded.moved_lo_a <= 0.45 * bounded.skin &&
+          b.moved_hi() - bounded.moved_lo_b <= 0.45 * bounded.skin)
         ++cleared;
       pair_contacts(a, boxes(a), b, boxes(b), prm, bounded, scratch);
       pair_contacts(a2, boxes(a2), b2, boxes(b2), kParams, exact, scratch);

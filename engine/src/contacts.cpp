@@ -1340,7 +1340,7 @@ bool lists_hold(PairContacts<Real>& w, const Sheet<Real>& a, const Sheet<Real>& 
   const Real limit = Real(0.45) * w.skin, limit2 = limit * limit;
   const auto still = [&](const Sheet<Real>& s, double lo, const Vec3Array<Real>& then) {
     // the sheet's travel since the lists were made bounds every point's move (measure_travel)
-    if (prm.stamp != 0 && s.moved_stamp == prm.stamp && s.moved_hi - lo <= double(limit)) return true;
+    if (measured_in(s, prm.stamp) && s.moved_hi() - lo <= double(limit)) return true;
     return within(s, then, limit2);
   };
   if (still(a, w.moved_lo_a, w.made_at_a) && (&a == &b || still(b, w.moved_lo_b, w.made_at_b))) {
@@ -1415,7 +1415,7 @@ void keep_lists_for(PairContacts<Real>& w, const Sheet<Real>& a, const SheetBoxe
                     const SheetBoxes<Real>& bb, Real skin, const ContactParams<Real>& prm) {
   const bool exact = prm.exact;
   const auto lo = [&](const Sheet<Real>& s) {
-    return prm.stamp != 0 && s.moved_stamp == prm.stamp ? s.moved_lo : -std::numeric_limits<double>::infinity();
+    return measured_in(s, prm.stamp) ? s.moved_lo() : -std::numeric_limits<double>::infinity();
   };
   w.moved_lo_a = lo(a);
   w.moved_lo_b = lo(b);
@@ -1635,15 +1635,14 @@ template <class Real>
 void measure_travel(Sheet<Real>& s, std::uint64_t stamp) {
   s.moved_stamp = stamp;
   s.moved = s.travel_from.x.size() == s.size() ? largest_move(s) : std::numeric_limits<double>::infinity();
-  s.moved_lo = s.travel - s.moved;
-  s.moved_hi = s.travel + s.moved;
+  s.moved_travel = s.travel;
 }
 
 template <class Real>
 void advance_travel(Sheet<Real>& s, std::uint64_t stamp) {
   Vec3Array<Real>& from = s.travel_from;
   const bool sized = from.x.size() == s.size();
-  if (sized) s.travel += stamp != 0 && s.moved_stamp == stamp ? s.moved : largest_move(s);
+  if (sized) s.travel += measured_in(s, stamp) ? s.moved : largest_move(s);
   from.x.assign(s.position.x.begin(), s.position.x.end());
   from.y.assign(s.position.y.begin(), s.position.y.end());
   from.z.assign(s.position.z.begin(), s.position.z.end());

@@ -233,7 +233,7 @@ template <class Real>
 void advance_travel(Sheet<Real>& s, std::uint64_t stamp);
 
 // The largest distance of a point of s from travel_from now, rounded up as advance_travel
-// rounds it, and where that puts the sheet on its travel scale (Sheet::moved_lo, moved_hi),
+// rounds it, and where that puts the sheet on its travel scale (Sheet::moved_lo(), moved_hi()),
 // for substep `stamp`. A pair's kept lists hold while no point moved more than 0.45·skin
 // since they were made (lists_hold); the sheet's moved_hi now less its moved_lo then bounds
 // that, so one pass per sheet answers for all of its pairs, and only a pair the bound does
@@ -241,6 +241,11 @@ void advance_travel(Sheet<Real>& s, std::uint64_t stamp);
 // rounding up covers the rounding of both), so every decision, and every bit, is the same.
 template <class Real>
 void measure_travel(Sheet<Real>& s, std::uint64_t stamp);
+// Whether measure_travel ran on s in substep `stamp` (0: no substep, never).
+template <class Real>
+bool measured_in(const Sheet<Real>& s, std::uint64_t stamp) {
+  return stamp != 0 && s.moved_stamp == stamp;
+}
 
 // The contact work of one overlapping pair of sheets (a < b), or of one sheet with itself
 // (a == b, only on_a used). Written by one task, read by the gather: no sharing.

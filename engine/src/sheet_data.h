@@ -194,13 +194,14 @@ struct Sheet {
   // moved farther apart than the growth of `travel` between two of those substeps.
   double travel = 0;
   Vec3Array<Real> travel_from;
-  // Where the sheet is on that scale in the substep `moved_stamp` (measure_travel): D, the
-  // largest distance of a point from travel_from (rounded up; ∞ unknown or not a number),
-  // moved_lo = travel − D and moved_hi = travel + D then. No point moved farther between two
-  // measured substeps than the later moved_hi less the earlier moved_lo.
-  double moved = std::numeric_limits<double>::infinity();
-  double moved_lo = -std::numeric_limits<double>::infinity(), moved_hi = std::numeric_limits<double>::infinity();
+  // Where the sheet is on that scale in the substep `moved_stamp` (measure_travel): within
+  // `moved` of `moved_travel` (the travel then), `moved` the largest distance of a point from
+  // travel_from, rounded up (∞ unknown or not a number). No point moved farther between two
+  // measured substeps than the later moved_travel + moved less the earlier moved_travel − moved.
+  double moved = std::numeric_limits<double>::infinity(), moved_travel = 0;
   std::uint64_t moved_stamp = 0;
+  double moved_lo() const { return moved_travel - moved; }
+  double moved_hi() const { return moved_travel + moved; }
   // Obstacles whose reach overlaps this sheet's bounding box, chosen by the world's host
   // stage every substep (the world clears these lists whenever its obstacle pool changes).
   std::vector<NearObstacle> near_obstacles;
