@@ -323,6 +323,113 @@ TEST(Guard, SlowGeometricGrowthIsCaughtAtTheLimit) {
   EXPECT_LT(world.energies().total() / e0, 2 * wd.guard_energy_growth);  // and it stopped soon after
 }
 
+// Contacts and joins pass energy from sheet to sheet: a sheet struck by another, or pulled
+// along by one joined to it, gains energy that is none of its own, many times its own scale
+// when it was at rest (without gravity its scale is next to 0). The guard judges sheets that
+// met together, so none of these sound runs is halted: a sheet thrown at a resting one in free
+// space, a heavy sheet dropped on a light pinned one, and a resting sheet jerked along by a
+// join to a thrown one (each was halted as "energy grew" when each sheet was judged alone).
+TEST(Guard, SheetsPassingEnergyToEachOtherAreNotHalted) {
+  auto run = [](drape::World& world, double seconds, const char* what) {
+    drape::StabilityReport report;
+    for (int frame = 0; frame < int(seconds * 100) && report.ok(); ++frame) report = world.advance(0.01);
+    EXPECT_TRUE(report.ok()) << what << ": " << drape::describe(report);
+    EXPECT_TRUE(world.all_finite()) << what;
+  };
+  drape::SheetDef d;
+  d.m = d.n = 12;
+  d.stiffness = 100;
+  {
+    drape::WorldDef wd;
+    wd.gravity = {0, 0, 0};
+    wd.dt = 2e-4;
+    drape::World world(wd);
+    d.mass = 0.2;
+    const auto still = world.add_sheet(d);
+    d.center = {0.05, 0.02, 0.1};
+    d.width = d.height = 0.8;
+    d.initial_velocity = {0, 0, -2};
+    world.add_sheet(d);
+    run(world, 0.3, "thrown at a resting sheet");
+    const auto v = world.view(still);
+    double kinetic = 0;
+    for (std::size_t p = 0; p < v.size(); ++p) kinetic += v.vx[p] * v.vx[p] + v.vy[p] * v.vy[p] + v.vz[p] * v.vz[p];
+    EXPECT_GT(0.5 * 0.2 / double(v.size()) * kinetic, 0.01) << "the struck sheet must have taken energy";
+  }
+  {
+    drape::WorldDef wd;
+    wd.dt = 2e-4;
+    drape::World world(wd);
+    d = {};
+    d.m = d.n = 12;
+    d.mass = 0.02;
+    d.stiffness = 100;
+    d.pins = drape::corner_points(d.m, d.n);
+    world.add_sheet(d);
+    d.pins = {};
+    d.mass = 2;
+    d.stiffness = 2000;
+    d.width = d.height = 0.8;
+    d.center = {0, 0, 0.5};
+    world.add_sheet(d);
+    run(world, 1.0, "heavy sheet dropped on a light pinned one");
+  }
+  {
+    drape::WorldDef wd;
+    wd.gravity = {0, 0, 0};
+    wd.dt = 2e-4;
+    wd.contact_strength = 0;  // the join alone
+    drape::World world(wd);
+    d = {};
+    d.m = d.n = 5;
+    d.width = d.height = 0.2;
+    d.mass = 0.01;
+    const auto a = world.add_sheet(d);
+    d.center = {0.3, 0, 0};
+    d.mass = 0.5;
+    d.initial_velocity = {3, 0, 0};
+    const auto b = world.add_sheet(d);
+    drape::ConstraintDef join;
+    join.kind = drape::ConstraintKind::PointToPoint;
+    join.stiffness = 300;
+    join.rest_length = 0.1;
+    join.sheet = a;
+    join.other_sheet = b;
+    join.points = {17};
+    join.other_points = {18};
+    world.add_constraint(join);
+    run(world, 0.5, "resting sheet jerked along by a join");
+  }
+}
+
+// ... and a sheet that blows up among others it touches is still caught: the group's energy
+// grows with it. A stiff sheet at 1.5× its critical step, resting on a soft one in contact
+// range (and the soft one on a third), both stepped one substep per call.
+TEST(Guard, ABlowUpAmongTouchingSheetsIsStillCaught) {
+  drape::WorldDef wd;
+  wd.gravity = {0, 0, 0};
+  drape::World world(wd);
+  drape::SheetDef d;
+  d.m = d.n = 10;
+  d.stiffness = 50;
+  world.add_sheet(d);
+  d.center = {0, 0, 0.008};
+  world.add_sheet(d);
+  d.center = {0.02, 0.01, 0.016};
+  d.stiffness = 1e4;
+  d.rest_length_h = d.rest_length_v = 0.09;  // prestress sets it vibrating
+  const auto stiff = world.add_sheet(d);
+  world.set_dt(1.5 * world.stable_step_estimate(stiff));
+  ASSERT_LT(1.5 * world.stable_step_estimate(stiff), 0.5 * world.stable_step_estimate(world.sheets()[0]));
+  drape::StabilityReport report;
+  int steps = 0;
+  for (; steps < 20000 && report.ok(); ++steps) report = world.step(1);
+  ASSERT_FALSE(report.ok()) << "1.5× the critical step must blow up";
+  EXPECT_EQ(report.status, drape::StabilityStatus::EnergyGrowth) << drape::describe(report);
+  EXPECT_EQ(report.sheet, stiff);
+  EXPECT_GT(world.contact_pair_count(), 0u) << "the sheets must have been in contact";
+}
+
 TEST(Guard, ReportsNonFiniteStateWrittenByTheCaller) {
   drape::World world;
   drape::SheetDef d;

@@ -397,6 +397,16 @@ std::vector<SheetId> ConstraintPool<Real>::driven_sheets() const {
   return driven;
 }
 
+template <class Real>
+std::vector<std::pair<SheetId, SheetId>> ConstraintPool<Real>::joined_sheets() const {
+  std::vector<std::pair<SheetId, SheetId>> joined;
+  for (std::uint32_t index : active_) {
+    const ConstraintDef& d = slots_[index]->def;
+    if (d.kind == ConstraintKind::PointToPoint && d.other_sheet != d.sheet) joined.emplace_back(d.sheet, d.other_sheet);
+  }
+  return joined;
+}
+
 template class ConstraintPool<double>;
 template class ConstraintPool<float>;
 

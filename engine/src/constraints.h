@@ -10,6 +10,7 @@
 
 #include <functional>
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include "id_pool.h"
@@ -64,6 +65,9 @@ class ConstraintPool {
   // point-to-point (directly or through others): prescribed motion does work on them, so
   // their energy may grow without any instability.
   std::vector<SheetId> driven_sheets() const;
+
+  // The two sheets of every point-to-point join between different sheets, in order added.
+  std::vector<std::pair<SheetId, SheetId>> joined_sheets() const;
 
  private:
   struct Entry {

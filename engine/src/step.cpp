@@ -133,6 +133,7 @@ void BasicWorld<Real>::Impl::find_pairs() {
   if (!contacting) return;
   const std::size_t count = active.size();
   broad_phase.find_pairs(grown, pairs);
+  for (const auto& pair : pairs) guard_meet(active[pair.first], active[pair.second]);  // they may pass energy
   if (std::any_of(active.begin(), active.end(), [&](auto i) { return slots[i].sheet->self_collision; })) {
     for (std::uint32_t k = 0; k < count; ++k)
       if (at(k).self_collision) pairs.push_back({k, k});

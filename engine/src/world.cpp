@@ -190,6 +190,8 @@ template <class Real>
 void BasicWorld<Real>::remove_sheet(SheetId id) {
   impl_->sheet(id);  // throws on a stale id
   const bool held = impl_->constraints.forget(id, impl_->access());
+  // the energy its group passed through it leaves with it: the others start afresh
+  impl_->guard_forget_group(id.index);
   auto& slot = impl_->slots[id.index];
   slot.sheet.reset();
   impl_->sheet_ids.release(id.index);

@@ -218,6 +218,14 @@ struct BasicWorld<Real>::Impl {
   void take_reference(Slot& slot);
   void take_references();
   StabilityReport check() const;
+  // Contacts and joins pass energy between sheets, so the guard judges sheets that met
+  // since their references together (check): guard_group[slot] is a slot of the same group
+  // (a forest of slots; a root is its own), and guard_meet puts two slots in one group.
+  std::vector<std::uint32_t> guard_group;
+  std::uint32_t guard_root(std::uint32_t index) const;
+  void guard_meet(std::uint32_t a, std::uint32_t b);
+  // The slot's group has its references retaken at the next step (remove_sheet).
+  void guard_forget_group(std::uint32_t index);
   StabilityReport finish_step();
 };
 

@@ -138,9 +138,12 @@ enum class StabilityStatus {
 // add_sheet, and again at the first step after state()/set_state() handed out the state,
 // after obstacles were added or removed, or after the stepping changed (set_dt, ...). S is
 // the energy scale at that reference: kinetic + spring + bending + anchor + obstacle energy, and at
-// least the work gravity does over the sheet's extent (≥ 1 mm). Energy that only changes
-// form (a sheet falling) leaves E − E₀ near 0 however large it gets. 1 means energy
-// conserved, below 1 dissipation; an unstable explicit step grows it geometrically.
+// least the work gravity does over the sheet's extent (≥ 1 mm) and what rounding makes a
+// sheet at rest vibrate with. Energy that only changes form (a sheet falling) leaves E − E₀
+// near 0 however large it gets. 1 means energy conserved, below 1 dissipation; an unstable
+// explicit step grows it geometrically. Sheets that came within contact range of each other
+// since their references, or are joined point to point, pass energy between them: their
+// growth is that of their sums, and the one whose energy grew most is reported.
 // Implicit Euler is halted only by non-finite state: at steps that move points by a sizeable
 // part of a spring its linearisation can add energy for a step, which then decays.
 struct StabilityReport {
