@@ -290,6 +290,7 @@ void bind_world(py::module_& m, const char* name, const char* doc) {
   w.def_property("step_count", &W::step_count, &W::set_step_count);
   w.def("diagnostics", &W::diagnostics, py::arg("sheet"));
   w.def("energies", &W::energies);
+  w.def("contact_energy", &W::contact_energy, "J: the sheet-sheet contact potential energies() leaves out (a search).");
   w.def("all_finite", &W::all_finite);
   w.def("stable_step_estimate", py::overload_cast<SheetId>(&W::stable_step_estimate, py::const_), py::arg("sheet"));
   w.def("stable_step_estimate", py::overload_cast<>(&W::stable_step_estimate, py::const_));

@@ -49,6 +49,16 @@ inline double skip_until(double travel, double dist2, double range) {
   return travel + 0.99 * (std::sqrt(dist2) - range);
 }
 
+// The energy whose −d/dd is the repulsion at distance d (repel, before damping and friction):
+// E = c·(eˣ − t) − c·t·(x + (R − h)/ξ) with x = (h − d)/ξ and t the tail, zero at d = R;
+// past the exponent cap it goes on linearly, with the capped force's slope.
+template <class Real>
+double contact_potential(double dist, const ContactParams<Real>& prm) {
+  const double c = prm.strength, t = prm.tail, xi = prm.xi, h = prm.thickness;
+  const double x = (h - dist) / xi, capped = std::min(x, double(prm.exponent_cap)), e = std::exp(capped);
+  return c * (e - t) - c * t * (capped + (double(prm.range) - h) / xi) + c * (e - t) * (x - capped);
+}
+
 }  // namespace
 }  // namespace drape::detail
 #endif  // DRAPE_CONTACTS_SHARED_
@@ -313,6 +323,52 @@ void repel_nearest(const Sheet<Real>& q, std::uint32_t p, V3<Real> x, const Shee
   } else {
     last = kNoCell;
   }
+}
+
+// The contact potential (J) of the points of q against the surface of s, bs its boxes made
+// from its positions now: each point's nearest triangle within R (cells within `ring` rows
+// and columns of the point left out when ring ≥ 0, as the search leaves them), through
+// the patch, strip and cell boxes nearer than the best triangle so far, in point order.
+template <class Real>
+double contact_energy(const Sheet<Real>& q, const Sheet<Real>& s, const SheetBoxes<Real>& bs, int ring,
+                      const ContactParams<Real>& prm) {
+  if (bs.m == 0 || bs.n == 0) return 0;  // a line of points has no surface
+  constexpr std::uint32_t P = SheetBoxes<Real>::kPatch;
+  const std::uint32_t cols = s.topology->cols(), qcols = q.topology->cols();
+  const Real R2 = prm.range * prm.range;
+  auto gap2 = [](V3<Real> x, const std::vector<Real>(&lo)[3], const std::vector<Real>(&hi)[3], std::size_t k) {
+    const Real c[3] = {x.x, x.y, x.z};
+    Real g2 = 0;
+    for (int a = 0; a < 3; ++a) {
+      const Real e = positive_part(lo[a][k] - c[a]) + positive_part(c[a] - hi[a][k]);
+      g2 += e * e;
+    }
+    return g2;
+  };
+  double energy = 0;
+  for (std::uint32_t p = 0; p < q.size(); ++p) {
+    const V3<Real> x = at(q, p);
+    const std::int64_t pi = p / qcols, pj = p % qcols;
+    Nearest<Real> best{};
+    best.dist2 = R2;
+    best.key = ~std::uint32_t(0);
+    for (std::uint32_t pr = 0; pr < bs.patch_rows; ++pr)
+      for (std::uint32_t pc = 0; pc < bs.patch_cols; ++pc) {
+        if (!(gap2(x, bs.patch_lo, bs.patch_hi, std::size_t(pr) * bs.patch_cols + pc) < best.dist2)) continue;
+        const std::uint32_t i1 = std::min(pr * P + P, bs.m), j1 = std::min(pc * P + P, bs.n);
+        for (std::uint32_t i = pr * P; i < i1; ++i) {
+          if (!(gap2(x, bs.strip_lo, bs.strip_hi, std::size_t(i) * bs.patch_cols + pc) < best.dist2)) continue;
+          const bool ring_row = ring >= 0 && std::int64_t(i) >= pi - ring && std::int64_t(i) < pi + ring;
+          for (std::uint32_t j = pc * P; j < j1; ++j) {
+            if (ring_row && std::int64_t(j) >= pj - ring && std::int64_t(j) < pj + ring) continue;
+            const std::uint32_t cell = i * cols + j;
+            if (gap2(x, bs.cell_lo, bs.cell_hi, cell) < best.dist2) test_cell(s, cols, x, cell, best);
+          }
+        }
+      }
+    if (best.dist2 < R2) energy += contact_potential(std::sqrt(double(best.dist2)), prm);
+  }
+  return energy;
 }
 
 // Points of q against the cells of s through both sheets' boxes (contacts.h): block by
@@ -1082,6 +1138,10 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
                              std::size_t e0, std::size_t e1, const ContactParams<Real>& prm,                         \
                              ContactForces<Real>& on_q, ContactForces<Real>& on_s, std::uint32_t* last) {            \
     points_walking(q, s, ring, kept, e0, e1, prm, on_q, on_s, last);                                                 \
+  }                                                                                                                  \
+  double ContactEnergy##Suffix(const Sheet<Real>& q, const Sheet<Real>& s, const SheetBoxes<Real>& bs, int ring,      \
+                               const ContactParams<Real>& prm) {                                                     \
+    return contact_energy(q, s, bs, ring, prm);                                                                      \
   }
 DRAPE_CONTACTS_ENTRIES(F64, double)
 DRAPE_CONTACTS_ENTRIES(F32, float)
@@ -1112,6 +1172,8 @@ HWY_EXPORT(PointsAgainstListsF64);
 HWY_EXPORT(PointsAgainstListsF32);
 HWY_EXPORT(PointsWalkingF64);
 HWY_EXPORT(PointsWalkingF32);
+HWY_EXPORT(ContactEnergyF64);
+HWY_EXPORT(ContactEnergyF32);
 
 namespace {
 
@@ -1609,6 +1671,16 @@ void self_contacts(const Sheet<Real>& s, const SheetBoxes<Real>& boxes, const Co
   contacts_of_pair(s, boxes, s, boxes, int(self_contact_ring(s, prm)), prm, work, scratch);
 }
 
+template <class Real>
+double contact_energy(const Sheet<Real>& q, const Sheet<Real>& s, const SheetBoxes<Real>& boxes_s,
+                      const ContactParams<Real>& prm) {
+  const int ring = &q == &s ? int(self_contact_ring(s, prm)) : -1;
+  if constexpr (std::is_same_v<Real, double>)
+    return HWY_DYNAMIC_DISPATCH(ContactEnergyF64)(q, s, boxes_s, ring, prm);
+  else
+    return HWY_DYNAMIC_DISPATCH(ContactEnergyF32)(q, s, boxes_s, ring, prm);
+}
+
 namespace {
 
 // The largest distance of a point of s from travel_from (of the sheet's size), rounded up a
@@ -1680,6 +1752,8 @@ void gather_contacts(std::span<const ContactForces<Real>* const> sources, Vec3Ar
   template void self_contacts<Real>(const Sheet<Real>&, const SheetBoxes<Real>&, const ContactParams<Real>&,  \
                                     PairContacts<Real>&, ContactScratch<Real>&);                               \
   template std::uint32_t self_contact_ring<Real>(const Sheet<Real>&, const ContactParams<Real>&);            \
+  template double contact_energy<Real>(const Sheet<Real>&, const Sheet<Real>&, const SheetBoxes<Real>&,       \
+                                       const ContactParams<Real>&);                                            \
   template void advance_travel<Real>(Sheet<Real>&);                                                            \
   template void advance_travel<Real>(Sheet<Real>&, std::uint64_t);                                             \
   template void measure_travel<Real>(Sheet<Real>&, std::uint64_t);                                             \

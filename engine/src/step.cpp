@@ -80,6 +80,14 @@ detail::ContactParams<Real> BasicWorld<Real>::Impl::contact_params(double h) con
   return params;
 }
 
+// For the pair's lightest point, never below 0 (ContactParams::exponent_cap).
+template <class Real>
+Real BasicWorld<Real>::Impl::pair_exponent_cap(std::size_t a, std::size_t b, double h) const {
+  const double lightest = std::min(slots[active[a]].lightest_point, slots[active[b]].lightest_point);
+  return static_cast<Real>(
+      std::max(0.0, detail::stiffness_exponent_cap(def.contact_strength, def.contact_xi, lightest, h)));
+}
+
 template <class Real>
 void BasicWorld<Real>::Impl::contact_bounds(double h) {
   const std::size_t count = active.size();
@@ -230,11 +238,8 @@ void BasicWorld<Real>::Impl::narrow_phase(double h) {
   parallel(pairs.size(), [&](std::size_t q) {
     auto& w = pair_work[q];
     auto& scratch = contact_scratch.local();
-    // The exponent cap for the pair's lightest point (contacts.h), from the substep h.
     auto pair = params;
-    const double lightest = std::min(slots[active[w.a]].lightest_point, slots[active[w.b]].lightest_point);
-    pair.exponent_cap = static_cast<Real>(
-        std::max(0.0, detail::stiffness_exponent_cap(def.contact_strength, def.contact_xi, lightest, h)));
+    pair.exponent_cap = pair_exponent_cap(w.a, w.b, h);
     if (!params.exact) pair.travel = at(w.a).travel + at(w.b).travel;
     if (w.a == w.b)
       detail::self_contacts(at(w.a), sheet_boxes[w.a], pair, w, scratch);
@@ -403,6 +408,7 @@ void BasicWorld<Real>::Impl::count_substeps(double h, std::uint64_t count) {
   template bool BasicWorld<Real>::Impl::contacts_possible() const;                                    \
   template void BasicWorld<Real>::Impl::run_stage(Stage, double);                                     \
   template detail::ContactParams<Real> BasicWorld<Real>::Impl::contact_params(double) const;          \
+  template Real BasicWorld<Real>::Impl::pair_exponent_cap(std::size_t, std::size_t, double) const;     \
   template void BasicWorld<Real>::Impl::contact_bounds(double);                                       \
   template void BasicWorld<Real>::Impl::active_bounds(std::vector<detail::Aabb>&) const;               \
   template void BasicWorld<Real>::Impl::find_pairs();                                                 \

@@ -497,6 +497,39 @@ Energies BasicWorld<Real>::energies() const {
 }
 
 template <class Real>
+double BasicWorld<Real>::contact_energy() const {
+  if (!impl_->contacts_possible()) return 0;
+  const auto params = impl_->contact_params(impl_->def.dt);
+  const std::size_t count = impl_->active.size();
+  auto sheet = [&](std::size_t k) -> const detail::Sheet<Real>& { return *impl_->slots[impl_->active[k]].sheet; };
+  // the pairs the narrow phase would take now: grown boxes that meet, and self-colliding sheets
+  std::vector<detail::Aabb> grown(count);
+  for (std::size_t k = 0; k < count; ++k) grown[k] = detail::sheet_bounds(sheet(k)).inflated(0.5 * double(params.range));
+  std::vector<detail::BoxPair> pairs;
+  detail::BroadPhase().find_pairs(grown, pairs);
+  for (std::uint32_t k = 0; k < count; ++k)
+    if (sheet(k).self_collision) pairs.push_back({k, k});
+  std::vector<char> used(count, 0);
+  for (const auto& pair : pairs) used[pair.first] = used[pair.second] = 1;
+  std::vector<detail::SheetBoxes<Real>> boxes(count);
+  impl_->parallel(count, [&](std::size_t k) {
+    if (used[k]) detail::build_boxes(sheet(k), boxes[k]);
+  });
+  // each pair's share computed apart and summed in pair order: the same on any thread count
+  std::vector<double> share(pairs.size());
+  impl_->parallel(pairs.size(), [&](std::size_t q) {
+    const auto [a, b] = pairs[q];
+    auto pair = params;
+    pair.exponent_cap = impl_->pair_exponent_cap(a, b, impl_->def.dt);
+    share[q] = detail::contact_energy(sheet(a), sheet(b), boxes[b], pair);
+    if (a != b) share[q] += detail::contact_energy(sheet(b), sheet(a), boxes[a], pair);
+  });
+  double energy = 0;
+  for (double e : share) energy += e;
+  return energy;
+}
+
+template <class Real>
 bool BasicWorld<Real>::all_finite() const {
   return std::all_of(impl_->active.begin(), impl_->active.end(),
                      [&](std::uint32_t index) { return detail::sheet_finite(*impl_->slots[index].sheet); });

@@ -180,6 +180,8 @@ struct BasicWorld<Real>::Impl {
   void assign_obstacles(double h);
   void run_stage(Stage stage, double h);
   detail::ContactParams<Real> contact_params(double h) const;
+  // The exponent cap (contacts.h) of the pair of active sheets a, b at the substep h.
+  Real pair_exponent_cap(std::size_t a, std::size_t b, double h) const;
   void contact_bounds(double h);
   void find_pairs();
   void contact_boxes(double h);

@@ -136,6 +136,20 @@ def test_free_fall_matches_the_closed_form_of_semi_implicit_euler():
     assert e.kinetic == pytest.approx(0.5 * 1.0 * (g * k * dt) ** 2, rel=1e-12)
 
 
+def test_contact_energy_is_the_potential_of_two_stacked_sheets():
+    # Two equal 5x5-point sheets 6 mm apart: each point's nearest triangle is straight across,
+    # so the potential is 2 * 25 * E(6 mm), E written out here from docs/api.md's formula.
+    c, h, xi, reach = 1e-3, 0.005, 0.002, 6.0
+    world = drape.World(gravity=(0, 0, 0), contact_strength=c, contact_thickness=h, contact_xi=xi,
+                        contact_range=reach, threads=1)
+    world.add_sheet(m=4, n=4)
+    world.add_sheet(m=4, n=4, center=(0, 0, 0.006))
+    d, t = 0.006, np.exp(-reach)
+    energy = c * (np.exp((h - d) / xi) - t) - c * t * (h + reach * xi - d) / xi
+    assert world.contact_energy() == pytest.approx(2 * 25 * energy, rel=1e-12)
+    assert world.energies().total == pytest.approx(0.0, abs=1e-12)  # not in energies()
+
+
 def test_step_releases_the_gil():
     # While one thread is inside step(), the main thread keeps running Python. With the GIL
     # held through the step, no main-thread iteration could fall in the middle of it.

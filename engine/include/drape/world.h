@@ -306,6 +306,14 @@ class BasicWorld {
 
   SheetDiagnostics diagnostics(SheetId id) const;
   Energies energies() const;  // summed over sheets
+  // The potential (J) of the sheet–sheet contacts, which energies() leaves out: for every
+  // pair of sheets within contact range, both ways, and every self-colliding sheet against
+  // itself, Σ over points of c·(e^((h − d)/ξ) − t) − c·t·(R − d)/ξ at the point's nearest
+  // triangle within R (t = e^(−(R − h)/ξ): zero at R, its −gradient the repulsion; linear
+  // where the exponent cap at dt binds). energies().total() + contact_energy() is the energy
+  // the frictionless, undamped model conserves. A search of every such pair, about what a
+  // substep's contact search costs: call it per frame, not per substep. 0 without contacts.
+  double contact_energy() const;
   bool all_finite() const;
 
   // Largest step at which the explicit integrators stay stable on this sheet, from a
