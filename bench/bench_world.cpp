@@ -76,6 +76,18 @@ void BM_World48SheetsInContactExact(benchmark::State& state) {
 }
 BENCHMARK(BM_World48SheetsInContactExact)->UseRealTime();
 
+// World::contact_energy on the same stack after its warm-up (one thread): the exact search
+// of every pair it makes, priced against a substep of BM_World48SheetsInContact/1.
+void BM_ContactEnergy(benchmark::State& state) {
+  drape::World world = stack_world(1, touching);
+  world.step(kStackWarmUp);
+  double energy = 0;
+  for (auto _ : state) benchmark::DoNotOptimize(energy = world.contact_energy());
+  state.counters["energy_J"] = energy;
+  state.counters["pairs"] = double(world.contact_pair_count());
+}
+BENCHMARK(BM_ContactEnergy)->Unit(benchmark::kMillisecond)->UseRealTime();
+
 // Arg: 0 Coulomb friction between the sheets (μ = 0.5), 1 contact damping (α = 2 s/m, the
 // default, which stops the layers rattling beside their pins: docs/scene-format.md), 2 both.
 // One thread, priced against BM_World48SheetsInContact/1, the frictionless, undamped contact

@@ -325,17 +325,19 @@ void repel_nearest(const Sheet<Real>& q, std::uint32_t p, V3<Real> x, const Shee
   }
 }
 
-// The contact potential (J) of the points of q against the surface of s, bs its boxes made
-// from its positions now: each point's nearest triangle within R (cells within `ring` rows
-// and columns of the point left out when ring ≥ 0, as the search leaves them), through
-// the patch, strip and cell boxes nearer than the best triangle so far, in point order.
+// The contact potential (J) of the points of q against the surface of s (bq, bs: their
+// boxes made from their positions now): each point's nearest triangle within R (cells
+// within `ring` rows and columns of the point left out when ring ≥ 0, as the search leaves
+// them), block by block of q as the search goes (the patches of s within R of the block's
+// box, then per point the patch, strip and cell boxes nearer than the best triangle so far).
 template <class Real>
-double contact_energy(const Sheet<Real>& q, const Sheet<Real>& s, const SheetBoxes<Real>& bs, int ring,
-                      const ContactParams<Real>& prm) {
+double contact_energy(const Sheet<Real>& q, const SheetBoxes<Real>& bq, const Sheet<Real>& s,
+                      const SheetBoxes<Real>& bs, int ring, const ContactParams<Real>& prm) {
   if (bs.m == 0 || bs.n == 0) return 0;  // a line of points has no surface
   constexpr std::uint32_t P = SheetBoxes<Real>::kPatch;
   const std::uint32_t cols = s.topology->cols(), qcols = q.topology->cols();
   const Real R2 = prm.range * prm.range;
+  const double reach = double(prm.range) * (1 + 1e-6) + 1e-12;  // widened against rounding
   auto gap2 = [](V3<Real> x, const std::vector<Real>(&lo)[3], const std::vector<Real>(&hi)[3], std::size_t k) {
     const Real c[3] = {x.x, x.y, x.z};
     Real g2 = 0;
@@ -345,29 +347,50 @@ double contact_energy(const Sheet<Real>& q, const Sheet<Real>& s, const SheetBox
     }
     return g2;
   };
+  auto box = [](const SheetBoxes<Real>& b, std::size_t patch) {
+    Aabb out;
+    for (int k = 0; k < 3; ++k) {
+      out.lo[k] = b.patch_lo[k][patch];
+      out.hi[k] = b.patch_hi[k][patch];
+    }
+    return out;
+  };
+  std::vector<std::uint32_t> near;  // patches of s within R of the block
   double energy = 0;
-  for (std::uint32_t p = 0; p < q.size(); ++p) {
-    const V3<Real> x = at(q, p);
-    const std::int64_t pi = p / qcols, pj = p % qcols;
-    Nearest<Real> best{};
-    best.dist2 = R2;
-    best.key = ~std::uint32_t(0);
-    for (std::uint32_t pr = 0; pr < bs.patch_rows; ++pr)
-      for (std::uint32_t pc = 0; pc < bs.patch_cols; ++pc) {
-        if (!(gap2(x, bs.patch_lo, bs.patch_hi, std::size_t(pr) * bs.patch_cols + pc) < best.dist2)) continue;
-        const std::uint32_t i1 = std::min(pr * P + P, bs.m), j1 = std::min(pc * P + P, bs.n);
-        for (std::uint32_t i = pr * P; i < i1; ++i) {
-          if (!(gap2(x, bs.strip_lo, bs.strip_hi, std::size_t(i) * bs.patch_cols + pc) < best.dist2)) continue;
-          const bool ring_row = ring >= 0 && std::int64_t(i) >= pi - ring && std::int64_t(i) < pi + ring;
-          for (std::uint32_t j = pc * P; j < j1; ++j) {
-            if (ring_row && std::int64_t(j) >= pj - ring && std::int64_t(j) < pj + ring) continue;
-            const std::uint32_t cell = i * cols + j;
-            if (gap2(x, bs.cell_lo, bs.cell_hi, cell) < best.dist2) test_cell(s, cols, x, cell, best);
+  for (std::uint32_t bi = 0; bi < bq.patch_rows; ++bi)
+    for (std::uint32_t bj = 0; bj < bq.patch_cols; ++bj) {
+      const Aabb block = box(bq, std::size_t(bi) * bq.patch_cols + bj).inflated(reach);
+      near.clear();
+      for (std::uint32_t t = 0; t < bs.patch_rows * bs.patch_cols; ++t)
+        if (overlaps(block, box(bs, t))) near.push_back(t);
+      if (near.empty()) continue;
+      const std::uint32_t i1 = bq.end_point(bi, bq.patch_rows, bq.m), j1 = bq.end_point(bj, bq.patch_cols, bq.n);
+      for (std::uint32_t pi = bq.first(bi); pi < i1; ++pi)
+        for (std::uint32_t pj = bq.first(bj); pj < j1; ++pj) {
+          const std::uint32_t p = pi * qcols + pj;
+          const V3<Real> x = at(q, p);
+          Nearest<Real> best{};
+          best.dist2 = R2;
+          best.key = ~std::uint32_t(0);
+          for (std::uint32_t t : near) {
+            if (!(gap2(x, bs.patch_lo, bs.patch_hi, t) < best.dist2)) continue;
+            const std::uint32_t tr = t / bs.patch_cols, tc = t % bs.patch_cols;
+            const std::uint32_t ci1 = std::min(tr * P + P, bs.m), cj1 = std::min(tc * P + P, bs.n);
+            for (std::uint32_t i = tr * P; i < ci1; ++i) {
+              if (!(gap2(x, bs.strip_lo, bs.strip_hi, std::size_t(i) * bs.patch_cols + tc) < best.dist2)) continue;
+              const bool ring_row = ring >= 0 && std::int64_t(i) >= std::int64_t(pi) - ring &&
+                                    std::int64_t(i) < std::int64_t(pi) + ring;
+              for (std::uint32_t j = tc * P; j < cj1; ++j) {
+                if (ring_row && std::int64_t(j) >= std::int64_t(pj) - ring && std::int64_t(j) < std::int64_t(pj) + ring)
+                  continue;
+                const std::uint32_t cell = i * cols + j;
+                if (gap2(x, bs.cell_lo, bs.cell_hi, cell) < best.dist2) test_cell(s, cols, x, cell, best);
+              }
+            }
           }
+          if (best.dist2 < R2) energy += contact_potential(std::sqrt(double(best.dist2)), prm);
         }
-      }
-    if (best.dist2 < R2) energy += contact_potential(std::sqrt(double(best.dist2)), prm);
-  }
+    }
   return energy;
 }
 
@@ -1139,9 +1162,9 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
                              ContactForces<Real>& on_q, ContactForces<Real>& on_s, std::uint32_t* last) {            \
     points_walking(q, s, ring, kept, e0, e1, prm, on_q, on_s, last);                                                 \
   }                                                                                                                  \
-  double ContactEnergy##Suffix(const Sheet<Real>& q, const Sheet<Real>& s, const SheetBoxes<Real>& bs, int ring,      \
-                               const ContactParams<Real>& prm) {                                                     \
-    return contact_energy(q, s, bs, ring, prm);                                                                      \
+  double ContactEnergy##Suffix(const Sheet<Real>& q, const SheetBoxes<Real>& bq, const Sheet<Real>& s,               \
+                               const SheetBoxes<Real>& bs, int ring, const ContactParams<Real>& prm) {               \
+    return contact_energy(q, bq, s, bs, ring, prm);                                                                  \
   }
 DRAPE_CONTACTS_ENTRIES(F64, double)
 DRAPE_CONTACTS_ENTRIES(F32, float)
@@ -1672,13 +1695,13 @@ void self_contacts(const Sheet<Real>& s, const SheetBoxes<Real>& boxes, const Co
 }
 
 template <class Real>
-double contact_energy(const Sheet<Real>& q, const Sheet<Real>& s, const SheetBoxes<Real>& boxes_s,
-                      const ContactParams<Real>& prm) {
+double contact_energy(const Sheet<Real>& q, const SheetBoxes<Real>& boxes_q, const Sheet<Real>& s,
+                      const SheetBoxes<Real>& boxes_s, const ContactParams<Real>& prm) {
   const int ring = &q == &s ? int(self_contact_ring(s, prm)) : -1;
   if constexpr (std::is_same_v<Real, double>)
-    return HWY_DYNAMIC_DISPATCH(ContactEnergyF64)(q, s, boxes_s, ring, prm);
+    return HWY_DYNAMIC_DISPATCH(ContactEnergyF64)(q, boxes_q, s, boxes_s, ring, prm);
   else
-    return HWY_DYNAMIC_DISPATCH(ContactEnergyF32)(q, s, boxes_s, ring, prm);
+    return HWY_DYNAMIC_DISPATCH(ContactEnergyF32)(q, boxes_q, s, boxes_s, ring, prm);
 }
 
 namespace {
@@ -1752,8 +1775,8 @@ void gather_contacts(std::span<const ContactForces<Real>* const> sources, Vec3Ar
   template void self_contacts<Real>(const Sheet<Real>&, const SheetBoxes<Real>&, const ContactParams<Real>&,  \
                                     PairContacts<Real>&, ContactScratch<Real>&);                               \
   template std::uint32_t self_contact_ring<Real>(const Sheet<Real>&, const ContactParams<Real>&);            \
-  template double contact_energy<Real>(const Sheet<Real>&, const Sheet<Real>&, const SheetBoxes<Real>&,       \
-                                       const ContactParams<Real>&);                                            \
+  template double contact_energy<Real>(const Sheet<Real>&, const SheetBoxes<Real>&, const Sheet<Real>&,       \
+                                       const SheetBoxes<Real>&, const ContactParams<Real>&);                   \
   template void advance_travel<Real>(Sheet<Real>&);                                                            \
   template void advance_travel<Real>(Sheet<Real>&, std::uint64_t);                                             \
   template void measure_travel<Real>(Sheet<Real>&, std::uint64_t);                                             \

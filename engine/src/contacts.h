@@ -327,14 +327,14 @@ void self_contacts(const Sheet<Real>& s, const SheetBoxes<Real>& boxes, const Co
 template <class Real>
 std::uint32_t self_contact_ring(const Sheet<Real>& s, const ContactParams<Real>& params);
 
-// The contact potential (J) of the points of q against the surface of s (boxes_s made from
-// its positions now): Σ over q's points of the energy whose −gradient the repulsion is,
+// The contact potential (J) of the points of q against the surface of s (both boxes made
+// from their positions now): Σ over q's points of the energy whose −gradient the repulsion is,
 // E(d) = c·(e^((h − d)/ξ) − t) − c·t·((h − d)/ξ + (R − h)/ξ), t the tail (zero at R, linear
 // past the exponent cap), at each point's exact nearest triangle within R. q == s: the
 // sheet against itself, without the cells self_contacts leaves out.
 template <class Real>
-double contact_energy(const Sheet<Real>& q, const Sheet<Real>& s, const SheetBoxes<Real>& boxes_s,
-                      const ContactParams<Real>& params);
+double contact_energy(const Sheet<Real>& q, const SheetBoxes<Real>& boxes_q, const Sheet<Real>& s,
+                      const SheetBoxes<Real>& boxes_s, const ContactParams<Real>& params);
 
 // Writes the sum of `sources` into points [begin, end) of `out` (zeroing them first),
 // adding in source order and, within a source, in entry order: the same bits whatever

@@ -521,8 +521,8 @@ double BasicWorld<Real>::contact_energy() const {
     const auto [a, b] = pairs[q];
     auto pair = params;
     pair.exponent_cap = impl_->pair_exponent_cap(a, b, impl_->def.dt);
-    share[q] = detail::contact_energy(sheet(a), sheet(b), boxes[b], pair);
-    if (a != b) share[q] += detail::contact_energy(sheet(b), sheet(a), boxes[a], pair);
+    share[q] = detail::contact_energy(sheet(a), boxes[a], sheet(b), boxes[b], pair);
+    if (a != b) share[q] += detail::contact_energy(sheet(b), boxes[b], sheet(a), boxes[a], pair);
   });
   double energy = 0;
   for (double e : share) energy += e;

@@ -311,8 +311,9 @@ class BasicWorld {
   // itself, Σ over points of c·(e^((h − d)/ξ) − t) − c·t·(R − d)/ξ at the point's nearest
   // triangle within R (t = e^(−(R − h)/ξ): zero at R, its −gradient the repulsion; linear
   // where the exponent cap at dt binds). energies().total() + contact_energy() is the energy
-  // the frictionless, undamped model conserves. A search of every such pair, about what a
-  // substep's contact search costs: call it per frame, not per substep. 0 without contacts.
+  // the frictionless, undamped model conserves. An exact search of every such pair, as
+  // costly as several substeps of sheets in contact: call it per frame, not per substep
+  // (BM_ContactEnergy prices it). 0 without contacts.
   double contact_energy() const;
   bool all_finite() const;
 
