@@ -41,12 +41,12 @@ void BasicWorld<Real>::Impl::take_reference(Slot& slot) {
   // rounding moves such a sheet: its springs' lengths are rounded, so a sheet at rest in
   // free space vibrates at about 1e-16 of its coordinates (double) and that energy, divided
   // by ~0, halted it. So the scale is also at least the energy of the sheet vibrating at its
-  // highest frequency ω_max with an amplitude of 10⁴ rounding units of its largest
+  // highest frequency ω_max with an amplitude of 100 rounding units of its largest
   // coordinate: far above what rounding does, far below any motion worth seeing.
   const double extent = std::max(std::sqrt(extent2), 1e-3);
   double reach2 = 0;
   for (int k = 0; k < 3; ++k) reach2 += std::max(box.lo[k] * box.lo[k], box.hi[k] * box.hi[k]);
-  const double amplitude = 1e4 * std::numeric_limits<Real>::epsilon() * (std::sqrt(reach2) + extent);
+  const double amplitude = 1e2 * std::numeric_limits<Real>::epsilon() * (std::sqrt(reach2) + extent);
   const double rounding = 0.5 * mass * slot.omega_max * slot.omega_max * amplitude * amplitude;
   slot.guard.floor =
       std::max({mass * g * extent, std::isfinite(rounding) ? rounding : 0.0, std::numeric_limits<double>::min()});
