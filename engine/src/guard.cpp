@@ -93,13 +93,17 @@ void BasicWorld<Real>::Impl::guard_forget_group(std::uint32_t index) {
 // each sheet on its own, with its joins to other sheets (a join passes energy for good).
 template <class Real>
 void BasicWorld<Real>::Impl::take_references() {
-  std::vector<std::uint32_t> roots;
+  std::vector<char> retake(slots.size(), 0);  // by the group's root
+  bool any = false;
   for (std::uint32_t index : active)
-    if (!slots[index].guard.has_reference) roots.push_back(guard_root(index));
-  if (roots.empty()) return;
+    if (!slots[index].guard.has_reference) {
+      retake[guard_root(index)] = 1;
+      any = true;
+    }
+  if (!any) return;
   std::vector<std::uint32_t> retaken;
   for (std::uint32_t index : active)
-    if (std::find(roots.begin(), roots.end(), guard_root(index)) != roots.end()) retaken.push_back(index);
+    if (retake[guard_root(index)]) retaken.push_back(index);
   for (std::uint32_t index : retaken) {
     take_reference(slots[index]);
     if (index < guard_group.size()) guard_group[index] = index;
@@ -137,7 +141,7 @@ StabilityReport BasicWorld<Real>::Impl::check() const {
   struct Group {
     double energy = 0, reference = 0, scale = 0;
     bool driven = false;
-    std::size_t members = 0, gained_most = 0;  // the member whose energy grew most, in J
+    std::size_t gained_most = 0;  // the member whose energy grew most, in J
     double gain = -std::numeric_limits<double>::infinity();
   };
   std::vector<Group> group(slots.size());
@@ -145,7 +149,6 @@ StabilityReport BasicWorld<Real>::Impl::check() const {
     const Slot& slot = slots[active[k]];
     Group& g = group[root[k]];
     g.driven = g.driven || slot.driven;
-    ++g.members;
     if (!slot.guard.has_reference || !std::isfinite(energies[k].total())) continue;
     g.energy += energies[k].total();
     g.reference += slot.guard.reference_energy;
@@ -167,9 +170,8 @@ StabilityReport BasicWorld<Real>::Impl::check() const {
       status = StabilityStatus::NonFinite;
       growth = std::numeric_limits<double>::infinity();
     } else if (slot->guard.has_reference) {
-      // a sheet that met others: their growth together
-      growth = g.members > 1 ? 1 + (g.energy - g.reference) / g.scale
-                             : 1 + (energy.total() - slot->guard.reference_energy) / slot->guard.scale;
+      // a sheet that met others: their growth together (alone: its own, the same bits)
+      growth = 1 + (g.energy - g.reference) / g.scale;
       // Implicit Euler cannot grow geometrically; its one linearised Newton step can inject
       // energy for a step when a point moves a sizeable part of a spring in one step (the
       // linearisation misses the geometric stiffening), which its damping then removes.
