@@ -390,6 +390,9 @@ PYBIND11_MODULE(drape, m) {
       .value("Stable", StabilityStatus::Stable)
       .value("EnergyGrowth", StabilityStatus::EnergyGrowth)
       .value("NonFinite", StabilityStatus::NonFinite);
+  py::enum_<StepLimit>(m, "StepLimit")
+      .value("Springs", StepLimit::Springs)
+      .value("Contact", StepLimit::Contact);
 
   bind_id<SheetId>(m, "SheetId");
   bind_id<ObstacleId>(m, "ObstacleId");
@@ -566,6 +569,7 @@ PYBIND11_MODULE(drape, m) {
       .def_readonly("dt", &StabilityReport::dt)
       .def_readonly("stable_dt", &StabilityReport::stable_dt)
       .def_readonly("stable_integrator", &StabilityReport::stable_integrator)
+      .def_readonly("step_limit", &StabilityReport::step_limit)
       .def_readonly("unconverged_solves", &StabilityReport::unconverged_solves)
       .def_property_readonly("ok", &StabilityReport::ok)
       .def("__bool__", &StabilityReport::ok)

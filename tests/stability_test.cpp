@@ -465,6 +465,54 @@ TEST(Guard, ABlowUpAmongTouchingSheetsIsStillCaught) {
   EXPECT_GT(world.contact_pair_count(), 0u) << "the sheets must have been in contact";
 }
 
+// A contact stiffer than the step holds (c/ξ² above m/dt² for the lightest point, where the
+// exponent cap stops at 0) blows up at a step the springs hold: the report names the contact
+// and a step from ξ·√(m/c) (hand-computed here), which then holds the same throw, and does
+// not advise another integrator, none of which resolves a contact implicitly.
+TEST(Guard, AContactTooStiffForTheStepIsNamedWithAStepThatHoldsIt) {
+  drape::WorldDef wd;
+  wd.gravity = {0, 0, 0};
+  wd.contact_strength = 1e-2;
+  wd.contact_xi = 1e-4;
+  drape::SheetDef d;
+  d.m = d.n = 10;
+  d.mass = 0.121;  // 1 g a point
+  d.stiffness = 40;
+  d.pins = drape::corner_points(d.m, d.n);
+  drape::SheetDef thrown = d;
+  thrown.pins.clear();
+  thrown.width = thrown.height = 0.8;
+  thrown.center = {0, 0, 0.05};
+  thrown.initial_velocity = {0, 0, -1};
+  const auto run = [&](double dt) {
+    drape::World world(wd);
+    world.add_sheet(d);
+    world.add_sheet(thrown);
+    world.set_dt(dt);
+    drape::StabilityReport report;
+    for (double t = 0; t < 0.2 && report.ok(); t += 10 * dt) report = world.step(10);
+    return report;
+  };
+  const double dt = 1e-3;
+  const drape::StabilityReport report = run(dt);
+  ASSERT_FALSE(report.ok()) << "the contact is about 300 times stiffer than 1 ms holds";
+  const double point_mass = 1e-3;
+  ASSERT_GT(drape::integrator_critical_step(Integrator::SemiImplicitEuler, 2.0 / [&] {
+    drape::World w(wd);
+    return w.stable_step_estimate(w.add_sheet(thrown));
+  }()), 2 * dt) << "the springs alone must hold this step";
+  EXPECT_EQ(report.step_limit, drape::StepLimit::Contact) << drape::describe(report);
+  EXPECT_NEAR(report.stable_dt, wd.adaptive_safety * 2 * wd.contact_xi * std::sqrt(point_mass / wd.contact_strength),
+              1e-9 * report.stable_dt);
+  EXPECT_EQ(report.stable_integrator, Integrator::SemiImplicitEuler);
+  const std::string what = drape::describe(report);
+  EXPECT_NE(what.find("contact_strength"), std::string::npos) << what;
+  EXPECT_EQ(what.find("use semi_implicit_euler"), std::string::npos) << what;
+  const drape::StabilityReport held = run(report.stable_dt);
+  EXPECT_TRUE(held.ok()) << drape::describe(held);
+  EXPECT_LT(held.energy_growth, 1.5);
+}
+
 TEST(Guard, ReportsNonFiniteStateWrittenByTheCaller) {
   drape::World world;
   drape::SheetDef d;
@@ -476,6 +524,8 @@ TEST(Guard, ReportsNonFiniteStateWrittenByTheCaller) {
   EXPECT_EQ(report.status, drape::StabilityStatus::NonFinite);
   EXPECT_EQ(report.sheet, id);
   EXPECT_NE(drape::describe(report).find("not finite"), std::string::npos);
+  // the step in use is within the estimate: not advised again, the state named instead
+  EXPECT_NE(drape::describe(report).find("within its stable-step estimate"), std::string::npos) << drape::describe(report);
 }
 
 // check() without stepping: one coordinate of one point not finite, in each of the six

@@ -143,12 +143,20 @@ StabilityReport BasicWorld<Real>::Impl::check() const {
     bool driven = false;
     std::size_t gained_most = 0;  // the member whose energy grew most, in J
     double gain = -std::numeric_limits<double>::infinity();
+    // may the members touch (two or more of them, or one colliding with itself), and the
+    // lightest point among them, which the contact stiffness must hold
+    bool contact = false;
+    std::size_t members = 0;
+    double lightest = std::numeric_limits<double>::infinity();
   };
   std::vector<Group> group(slots.size());
   for (std::size_t k = 0; k < active.size(); ++k) {
     const Slot& slot = slots[active[k]];
     Group& g = group[root[k]];
     g.driven = g.driven || slot.driven;
+    ++g.members;
+    g.contact = g.contact || slot.sheet->self_collision || g.members > 1;
+    g.lightest = std::min(g.lightest, slot.lightest_point);
     if (!slot.guard.has_reference || !std::isfinite(energies[k].total())) continue;
     g.energy += energies[k].total();
     g.reference += slot.guard.reference_energy;
@@ -197,6 +205,19 @@ StabilityReport BasicWorld<Real>::Impl::check() const {
           report.stable_integrator = i;
           break;
         }
+      // The contact's stiffness at the thickness, c/ξ², is what the pair's exponent cap
+      // cannot bring under m/dt² (pair_exponent_cap): an explicit force in every integrator,
+      // bound as semi-implicit Euler's springs are in the implicit ones.
+      if (g.contact && def.contact_strength > 0) {
+        const double omega = std::sqrt(def.contact_strength / g.lightest) / def.contact_xi;
+        const Integrator bound = integrator_is_explicit(def.integrator) ? def.integrator : Integrator::SemiImplicitEuler;
+        const double contact_dt = def.adaptive_safety * integrator_critical_step(bound, omega);
+        if (contact_dt < report.stable_dt) {
+          report.stable_dt = contact_dt;
+          report.stable_integrator = def.integrator;
+          report.step_limit = StepLimit::Contact;
+        }
+      }
     }
   }
   if (report.ok()) report.energy_growth = largest_growth;

@@ -70,9 +70,19 @@ std::string describe(const StabilityReport& r) {
     out << "energy grew " << r.energy_growth << "-fold";
   out << " by step " << r.step << " (t = " << r.time << " s) with " << integrator_name(r.integrator) << " at dt = " << r.dt
       << " s; ";
-  if (std::isfinite(r.stable_dt) && r.stable_dt > 0)
-    out << "stable below dt ~ " << r.stable_dt << " s (estimate), or ";
-  out << "use " << integrator_name(r.stable_integrator) << " at this dt";
+  if (r.step_limit == StepLimit::Contact) {
+    out << "its contact with other sheets is stiffer than this step holds (contact_strength / contact_xi² against its "
+           "lightest point): stable below dt ~ "
+        << r.stable_dt << " s (estimate) with any integrator, or use a smaller contact_strength or a larger contact_xi";
+  } else if (r.dt > r.stable_dt) {
+    if (r.stable_dt > 0) out << "stable below dt ~ " << r.stable_dt << " s (estimate), or ";
+    out << "use " << integrator_name(r.stable_integrator) << " at this dt";
+  } else {
+    // neither the springs nor the contact explain it: say so rather than advise a step in use
+    out << "dt is within its stable-step estimate";
+    if (std::isfinite(r.stable_dt)) out << " (~" << r.stable_dt << " s)";
+    out << ", so its stiffness does not explain this: look for state set between steps, or try a smaller dt";
+  }
   if (r.unconverged_solves > 0) out << " (" << r.unconverged_solves << " implicit solves stopped before their tolerance)";
   return out.str();
 }

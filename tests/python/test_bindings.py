@@ -237,6 +237,18 @@ def test_unstable_world_reports_instead_of_raising():
     assert not report.ok and report.status != drape.StabilityStatus.Stable
     assert report.sheet == sheet and world.halted
     assert "forward_euler" in str(report)
+    assert report.step_limit == drape.StepLimit.Springs and report.stable_dt < report.dt
+
+
+def test_a_contact_too_stiff_for_the_step_is_named():
+    # c/ξ² about 300 times m/dt² for the 1 g points (stability_test.cpp has the C++ case)
+    world = drape.World(dt=1e-3, gravity=(0, 0, 0), contact_strength=1e-2, contact_xi=1e-4, threads=1)
+    world.add_sheet(m=10, n=10, mass=0.121, stiffness=40, pins=drape.corner_points(10, 10))
+    world.add_sheet(m=10, n=10, mass=0.121, stiffness=40, width=0.8, height=0.8, center=(0, 0, 0.05),
+                    initial_velocity=(0, 0, -1))
+    report = world.advance(0.2)
+    assert not report.ok and report.step_limit == drape.StepLimit.Contact
+    assert report.stable_dt < report.dt and "contact_strength" in str(report)
 
 
 def test_definitions_take_keywords_and_tuples():

@@ -130,6 +130,16 @@ enum class StabilityStatus {
   NonFinite,     // a position or velocity is NaN or infinite
 };
 
+// The stiffest term of a failing sheet, the one its stable step comes from.
+enum class StepLimit {
+  Springs,  // its springs and anchors (every integrator but the implicit ones is bound by them)
+  // the sheet–sheet contact (a sheet that met others or collides with itself): at the contact
+  // thickness its stiffness is contact_strength/contact_xi², which its lightest point must
+  // hold. Every integrator applies the contact force explicitly, so no integrator resolves
+  // it: only a shorter step or a softer contact (smaller contact_strength, larger contact_xi).
+  Contact,
+};
+
 // What the stability guard found. For a failure: the first failing sheet (in the order the
 // sheets were added), when it was detected and how bad it was, and what would be stable.
 //
@@ -155,18 +165,22 @@ struct StabilityReport {
   Integrator integrator = Integrator::SemiImplicitEuler;  // in use
   double dt = 0;                // s, the substep in use
   // The largest step the integrator in use takes stably on that sheet (estimate, safety
-  // applied); and the cheapest integrator stable at the step in use (semi-implicit Euler,
-  // RK4, else implicit Euler; forward Euler is never suggested).
+  // applied), from its stiffest term; and the cheapest integrator stable at the step in use
+  // (semi-implicit Euler, RK4, else implicit Euler; forward Euler is never suggested; with
+  // StepLimit::Contact the integrator in use, as none resolves the contact).
   double stable_dt = 0;
   Integrator stable_integrator = Integrator::ImplicitEuler;
+  StepLimit step_limit = StepLimit::Springs;
   // Implicit integrators: solves, over all sheets since they were added, that stopped
   // before reaching their tolerance (solver_stats() has each sheet's last one).
   std::uint64_t unconverged_solves = 0;
   bool ok() const { return status == StabilityStatus::Stable; }
 };
 
-// One line for a person, e.g. "sheet 2: energy grew 3.1e+05-fold by step 1200 (t = 1.2 s)
-// with forward_euler at dt = 0.001 s; stable below dt ≈ 0.00021 s, or use implicit_euler".
+// One line for a person, with what to change, e.g. "sheet 2: energy grew 3.1e+05-fold by step
+// 1200 (t = 1.2 s) with forward_euler at dt = 0.001 s; stable below dt ~ 0.00021 s
+// (estimate), or use implicit_euler at this dt". Where the step in use is within the stable
+// step of every term the guard knows (state written between steps, say), it says so.
 std::string describe(const StabilityReport& report);
 
 template <class Real>
