@@ -316,6 +316,8 @@ SheetState<Real> BasicWorld<Real>::state(SheetId id) {
 
 template <class Real>
 StabilityReport BasicWorld<Real>::step(int substeps) {
+  if (substeps < 0)
+    throw std::invalid_argument("drape: step() needs a non-negative number of substeps (got " + std::to_string(substeps) + ")");
   if (impl_->failure) return *impl_->failure;
   impl_->take_references();
   if (substeps > 0) {

@@ -238,6 +238,8 @@ def test_unstable_world_reports_instead_of_raising():
     assert report.sheet == sheet and world.halted
     assert "forward_euler" in str(report)
     assert report.step_limit == drape.StepLimit.Springs and report.stable_dt < report.dt
+    with pytest.raises(ValueError, match="non-negative number of substeps"):
+        world.step(-1)
 
 
 def test_a_contact_too_stiff_for_the_step_is_named():

@@ -228,12 +228,12 @@ class BasicWorld {
   SheetView<Real> view(SheetId id) const;
   SheetState<Real> state(SheetId id);
 
-  // Advances every sheet by `substeps` steps of def().dt (with def().adaptive: by
-  // substeps·dt seconds in adaptive substeps, see WorldDef), then runs the stability guard
-  // when def().guard is on. A halted world (the guard failed) does not step until
-  // set_dt/set_integrator/set_adaptive; it returns the failure again. step(n) gives the same
-  // bits as n calls of step(1), and is faster: substeps that nothing couples (no contact,
-  // no obstacle near) run while each sheet is in cache (docs/architecture.md).
+  // Advances every sheet by `substeps` (≥ 0, else std::invalid_argument) steps of def().dt
+  // (with def().adaptive: by substeps·dt seconds in adaptive substeps, see WorldDef), then
+  // runs the stability guard when def().guard is on. A halted world (the guard failed) does
+  // not step until set_dt/set_integrator/set_adaptive; it returns the failure again. step(n)
+  // gives the same bits as n calls of step(1), and is faster: substeps that nothing couples
+  // (no contact, no obstacle near) run while each sheet is in cache (docs/architecture.md).
   StabilityReport step(int substeps = 1);
   // Advances by `seconds` in equal substeps no longer than the step in use (def().dt, or the
   // adaptive step), landing exactly on time() + seconds; then the guard as in step().
@@ -248,12 +248,13 @@ class BasicWorld {
 
   // The per-frame loop of an embedding program: `frames` times, step(substeps_per_frame),
   // then on_frame(frame) with frame = 1, 2, ... . The callback may read view(), write
-  // state(), add or remove sheets; if it returns bool, false stops the run early.
-  // Returns the number of frames run.
+  // state(), add or remove sheets; if it returns bool, false stops the run early. A frame
+  // whose step the guard fails ends the run before its callback (halted() and check() say
+  // why). Returns the number of frames run, each handed to on_frame.
   template <class OnFrame>
   int run_frames(int frames, int substeps_per_frame, OnFrame&& on_frame) {
     for (int frame = 1; frame <= frames; ++frame) {
-      step(substeps_per_frame);
+      if (!step(substeps_per_frame).ok()) return frame - 1;
       if constexpr (std::is_same_v<std::invoke_result_t<OnFrame&, int>, bool>) {
         if (!on_frame(frame)) return frame;
       } else {
