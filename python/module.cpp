@@ -289,6 +289,8 @@ void bind_world(py::module_& m, const char* name, const char* doc) {
   w.def_property_readonly("contact_pair_count", &W::contact_pair_count);
   w.def_property("step_count", &W::step_count, &W::set_step_count);
   w.def("diagnostics", &W::diagnostics, py::arg("sheet"));
+  w.def("obstacle_penetration", &W::obstacle_penetration, py::arg("sheet"),
+        "How deep the sheet's deepest point lies inside an obstacle (depth in m, obstacle, point).");
   w.def("energies", &W::energies);
   w.def("contact_energy", &W::contact_energy, "J: the sheet-sheet contact potential energies() leaves out (a search).");
   w.def("all_finite", &W::all_finite);
@@ -559,6 +561,10 @@ PYBIND11_MODULE(drape, m) {
       .def_readonly("energy", &SheetDiagnostics::energy)
       .def_readonly("max_strain", &SheetDiagnostics::max_strain)
       .def_readonly("finite", &SheetDiagnostics::finite);
+  py::class_<ObstaclePenetration>(m, "ObstaclePenetration")
+      .def_readonly("depth", &ObstaclePenetration::depth)
+      .def_readonly("obstacle", &ObstaclePenetration::obstacle)
+      .def_readonly("point", &ObstaclePenetration::point);
   py::class_<StabilityReport>(m, "StabilityReport", "What the stability guard found; str() describes it.")
       .def_readonly("status", &StabilityReport::status)
       .def_readonly("sheet", &StabilityReport::sheet)

@@ -233,6 +233,24 @@ TEST_F(Cli, ExportedFramesReadBackEqualTheStateFloat32) { expect_frames_equal_st
 
 // dt far above the stable step: a warning naming a stable dt, then a stop with exit 1 once
 // the state is non-finite; the frames written before hold no NaN or inf.
+// A sheet that falls into a sphere whose potential decays within 0.1 mm (far past the safe
+// speed ξ/(2·dt) = 5 cm/s) is warned about once, naming the sheet and the obstacle; the same
+// fall onto the sphere with ξ = 1 cm (safe below 5 m/s) is not. Both runs finish.
+TEST_F(Cli, PointsInsideAnObstacleAreWarnedAboutOnce) {
+  for (const char* xi : {"0.0001", "0.01"}) {
+    const fs::path scene = write("s.json", std::string(R"({"duration": 1, "dt": 0.001, "sheets": [{"name": "cloth",
+      "grid": [8, 8], "size": [0.6, 0.6], "center": [0, 0, 0.45], "stiffness": 40, "mass": 0.1}],
+      "obstacles": [{"type": "sphere", "radius": 0.3, "c": 1, "xi": )") + xi + "}]}");
+    const Result r = drape("run " + scene.string() + " --out " + (dir / "out").string() + " --format obj");
+    EXPECT_EQ(r.code, 0) << r.err;
+    std::size_t warnings = 0;
+    for (std::size_t at = r.err.find("inside obstacles[0]"); at != std::string::npos; at = r.err.find("inside obstacles[0]", at + 1))
+      ++warnings;
+    EXPECT_EQ(warnings, std::string(xi) == "0.0001" ? 1u : 0u) << "xi = " << xi << ": " << r.err;
+    if (warnings) EXPECT_NE(r.err.find("sheets[0] (cloth)"), std::string::npos) << r.err;
+  }
+}
+
 TEST_F(Cli, UnstableRunWarnsThenStopsWithoutWritingNaN) {
   const fs::path scene = write("s.json", R"({"frames": 200, "dt": 0.05, "substeps": 5, "sheets": [{"grid": [6, 6],
     "size": [1, 1], "stiffness": 500, "mass": 0.05, "anchors": [{"at": "corners", "stiffness": 100}]}]})");

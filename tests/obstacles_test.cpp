@@ -3,6 +3,8 @@
 #include <drape/drape.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <functional>
@@ -1023,6 +1025,52 @@ TEST(Obstacles, SheetsThrownAtTheSafeSpeedStopOutside) {
         for (std::size_t q = 0; q < p.size(); ++q) rebound += p.vz[q];
         EXPECT_GT(rebound, 0.0) << "shape " << int(shape) << " tilt " << tilt;
       }
+}
+
+// obstacle_penetration against depths computed here from the shapes' geometry: a sphere's
+// r − |p − c|, a turned box's smallest (half extent − |local coordinate|), a plane's height
+// below it; of every point and obstacle the deepest, and 0 with no obstacle for a sheet
+// outside all of them.
+TEST(Obstacles, PenetrationIsTheDeepestPointsDistanceInsideTheSurface) {
+  drape::World world;
+  ObstacleDef sphere;
+  sphere.center = {0.1, 0.05, 0};
+  sphere.size = {0.3, 0, 0};
+  ObstacleDef box;
+  box.shape = ObstacleShape::Box;
+  box.center = {2, 0, 0};
+  box.size = {0.35, 0.4, 0.5};
+  const double turn = 0.3;
+  box.orientation = drape::quat_from_axis_angle({0, 0, 1}, turn);
+  ObstacleDef plane;  // outside is +z, above z = −0.2
+  plane.shape = ObstacleShape::Plane;
+  plane.center = {0, 0, -0.2};
+  const drape::ObstacleId ids[3] = {world.add_obstacle(sphere), world.add_obstacle(box), world.add_obstacle(plane)};
+  const auto depths = [&](Vec3 p) {
+    const double lx = std::cos(turn) * (p.x - 2) + std::sin(turn) * p.y, ly = -std::sin(turn) * (p.x - 2) + std::cos(turn) * p.y;
+    const double inside_box = std::min({0.35 - std::abs(lx), 0.4 - std::abs(ly), 0.5 - std::abs(p.z)});
+    return std::array<double, 3>{0.3 - std::hypot(p.x - 0.1, p.y - 0.05, p.z), inside_box, -0.2 - p.z};
+  };
+  drape::SheetDef s;
+  s.m = s.n = 8;
+  s.orientation = drape::quat_from_axis_angle({1, 0, 0}, 0.2);  // points at several heights
+  for (Vec3 center : {Vec3{0, 0, 0}, Vec3{2, 0.05, 0.1}, Vec3{-3, 0, -0.3}, Vec3{5, 5, 1}}) {
+    s.center = center;
+    const auto id = world.add_sheet(s);
+    const auto v = world.view(id);
+    drape::ObstaclePenetration expected;
+    for (std::uint32_t p = 0; p < v.size(); ++p) {
+      const auto d = depths({v.x[p], v.y[p], v.z[p]});
+      for (int o = 0; o < 3; ++o)
+        if (d[o] > expected.depth) expected = {d[o], ids[o], p};
+    }
+    const drape::ObstaclePenetration got = world.obstacle_penetration(id);
+    EXPECT_NEAR(got.depth, expected.depth, 1e-12) << "sheet at x = " << center.x;
+    EXPECT_EQ(got.obstacle, expected.obstacle) << "sheet at x = " << center.x;
+    EXPECT_EQ(got.point, expected.point) << "sheet at x = " << center.x;
+    if (center.x == 5) EXPECT_EQ(got.depth, 0.0) << "a sheet outside every obstacle";
+    else EXPECT_GT(got.depth, 0.05) << "each of the others is inside one";
+  }
 }
 
 TEST(Obstacles, RemovedObstacleNoLongerActsAndItsIdIsStale) {

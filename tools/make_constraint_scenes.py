@@ -21,7 +21,7 @@ dump('flag_pole.json', {
   "dt": 0.0004, "fps": 30, "duration": 3.0,
   "sheets": [{"name": "flag", "grid": [16, 24], "size": [0.9, 0.6], "center": [0.47, 0, 1.6],
               "orientation": rot_x90(), "mass": 0.3, "stiffness": 300.0, "damping": 0.002}],
-  "obstacles": [{"type": "box", "center": [0, 0, 1.0], "half_extents": [0.01, 0.01, 1.0], "c": 0.0001, "xi": 0.002,
+  "obstacles": [{"type": "box", "center": [0, 0, 1.0], "half_extents": [0.01, 0.01, 1.0], "c": 0.001, "xi": 0.002,
                  "motion": {"pivot": [0, 0, 0], "repeat": True, "keyframes": [
                     {"time": 0.0},
                     {"time": 0.5, "rotation": {"axis": [1, 0, 0], "degrees": 12}},

@@ -7,7 +7,9 @@
 #include <cstdio>
 #include <iomanip>
 #include <limits>
+#include <set>
 #include <sstream>
+#include <utility>
 
 #include "checkpoint.h"
 #include "export.h"
@@ -207,6 +209,25 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
   double points = 0;
   for (SheetId id : world.sheets()) points += double(world.view(id).x.size());
   Progress progress(log, "frame", frames, opt.progress_bar, first_frame - 1);
+  // A point inside an obstacle by more than the obstacle's ξ came faster than its potential
+  // stops it, or rests on a potential too weak for its weight: said once per sheet and
+  // obstacle, the first frame it happens (the run goes on; the frames show it).
+  const std::vector<ObstacleId> obstacle_ids = world.obstacles();
+  std::set<std::pair<std::size_t, std::size_t>> inside;
+  const auto warn_inside = [&](int frame) {
+    for (std::size_t k = 0; k < ids.size() && !obstacle_ids.empty(); ++k) {
+      const ObstaclePenetration deepest = world.obstacle_penetration(ids[k]);
+      const auto o = std::size_t(std::find(obstacle_ids.begin(), obstacle_ids.end(), deepest.obstacle) - obstacle_ids.begin());
+      if (o == obstacle_ids.size() || !(deepest.depth > scene.obstacles[o].xi) || !inside.insert({k, o}).second) continue;
+      progress.finish();
+      log << "drape: warning: " << scene.file << ": frame " << frame << ": sheets[" << k << "] (" << scene.sheet_names[k]
+          << ") is " << std::setprecision(3) << deepest.depth << " m inside obstacles[" << o << "] at point "
+          << deepest.point << ": it started inside, arrived faster than the obstacle's potential stops it (safe below "
+          << "about xi/(2·dt) = " << scene.obstacles[o].xi / (2 * world.substep_dt())
+          << " m/s), or weighs more than its c holds; raise the obstacle's xi or c, or lower dt\n"
+          << std::setprecision(6);
+    }
+  };
   try {
     if (!opt.resume_dir) write_frame(0);
     for (int frame = first_frame; frame <= frames; ++frame) {
@@ -224,6 +245,7 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
         return exit_unstable;
       }
       write_frame(frame);
+      warn_inside(frame);
       // after the frame's files: a checkpoint of frame K implies frames 0..K are on disk
       if (opt.checkpoint_every > 0 && frame % opt.checkpoint_every == 0 && frame < frames)
         save_checkpoint(world, dir / checkpoint_file_name, scene.fingerprint);

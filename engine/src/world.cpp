@@ -494,6 +494,24 @@ SheetDiagnostics BasicWorld<Real>::diagnostics(SheetId id) const {
 }
 
 template <class Real>
+ObstaclePenetration BasicWorld<Real>::obstacle_penetration(SheetId id) const {
+  const auto& sheet = impl_->sheet(id);  // checks the id
+  const auto& slot = impl_->slots[id.index];
+  const detail::Aabb box = impl_->current_bounds(slot);
+  ObstaclePenetration deepest;
+  for (std::uint32_t o : impl_->active_obstacles) {
+    const detail::Obstacle& obstacle = *impl_->obstacle_slots[o].obstacle;
+    if (!detail::may_touch(obstacle, box)) continue;
+    for (std::size_t p = 0; p < sheet.position.x.size(); ++p) {
+      const double x[3] = {double(sheet.position.x[p]), double(sheet.position.y[p]), double(sheet.position.z[p])};
+      const double depth = -detail::implicit_at(obstacle, x).f;
+      if (depth > deepest.depth) deepest = {depth, impl_->obstacle_ids.id(o), std::uint32_t(p)};
+    }
+  }
+  return deepest;
+}
+
+template <class Real>
 Energies BasicWorld<Real>::energies() const {
   Energies total;
   for (SheetId id : sheets()) {

@@ -242,6 +242,14 @@ def test_unstable_world_reports_instead_of_raising():
         world.step(-1)
 
 
+def test_obstacle_penetration_is_the_depth_inside_a_sphere():
+    world = drape.World(threads=1)
+    ball = world.add_obstacle(shape=drape.ObstacleShape.Sphere, center=(0, 0, 0), size=(0.3, 0, 0))
+    sheet = world.add_sheet(m=2, n=2, width=0.2, height=0.2, center=(0, 0, 0.1))  # centre point 0.2 inside
+    deepest = world.obstacle_penetration(sheet)
+    assert deepest.obstacle == ball and deepest.point == 4 and abs(deepest.depth - 0.2) < 1e-12
+
+
 def test_a_contact_too_stiff_for_the_step_is_named():
     # c/ξ² about 300 times m/dt² for the 1 g points (stability_test.cpp has the C++ case)
     world = drape.World(dt=1e-3, gravity=(0, 0, 0), contact_strength=1e-2, contact_xi=1e-4, threads=1)

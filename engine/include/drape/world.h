@@ -106,6 +106,17 @@ struct SheetDiagnostics {
   bool finite = true;     // every position and velocity is finite
 };
 
+// How deep a sheet's deepest point lies inside an obstacle: −f there, in m (f is the
+// distance from the surface for a plane, sphere, torus and box; for an ellipsoid its
+// smallest semi-axis times the scaled radius less 1, near the distance close to the
+// surface). A point gets inside when it arrives faster than the potential stops it
+// (docs/scene-format.md, safe speeds) or rests on a potential too weak for its weight.
+struct ObstaclePenetration {
+  double depth = 0;     // m; 0 when every point is outside every obstacle
+  ObstacleId obstacle;  // the obstacle it is inside (of several, the deepest); invalid when depth is 0
+  std::uint32_t point = 0;  // the sheet's point that lies deepest
+};
+
 // Read-only, zero-copy view of one sheet's state; row-major point order of eqs (2)–(3).
 template <class Real>
 struct SheetView {
@@ -320,6 +331,9 @@ class BasicWorld {
   void set_contact_memory(std::span<const std::uint64_t> memory);
 
   SheetDiagnostics diagnostics(SheetId id) const;
+  // The deepest any point of the sheet lies inside an obstacle now: one pass over the points
+  // near each obstacle (the broad phase's box test first), O(points) per obstacle reached.
+  ObstaclePenetration obstacle_penetration(SheetId id) const;
   Energies energies() const;  // summed over sheets
   // The potential (J) of the sheet–sheet contacts, which energies() leaves out: for every
   // pair of sheets within contact range, both ways, and every self-colliding sheet against
