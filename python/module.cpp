@@ -297,6 +297,7 @@ void bind_world(py::module_& m, const char* name, const char* doc) {
   w.def("stable_step_estimate", py::overload_cast<SheetId>(&W::stable_step_estimate, py::const_), py::arg("sheet"));
   w.def("stable_step_estimate", py::overload_cast<>(&W::stable_step_estimate, py::const_));
   w.def("critical_step", &W::critical_step, py::arg("integrator"));
+  w.def("contact_step_estimate", &W::contact_step_estimate, py::arg("sheet"));
   w.attr("dtype") = py::dtype::of<Real>();
 
   py::class_<typename W::SolverStats>(w, "SolverStats")

@@ -247,7 +247,33 @@ TEST_F(Cli, PointsInsideAnObstacleAreWarnedAboutOnce) {
     for (std::size_t at = r.err.find("inside obstacles[0]"); at != std::string::npos; at = r.err.find("inside obstacles[0]", at + 1))
       ++warnings;
     EXPECT_EQ(warnings, std::string(xi) == "0.0001" ? 1u : 0u) << "xi = " << xi << ": " << r.err;
-    if (warnings) EXPECT_NE(r.err.find("sheets[0] (cloth)"), std::string::npos) << r.err;
+    if (warnings) {
+      EXPECT_NE(r.err.find("sheets[0] (cloth)"), std::string::npos) << r.err;
+    }
+  }
+}
+
+// A contact stiffer than dt holds (c/ξ² = 1e6 N/m against 1 g points) is warned about
+// before the run, once, naming the sheet with the lightest point and a stable dt; the
+// default contact is not.
+TEST_F(Cli, AContactTooStiffForDtIsWarnedAboutBeforeTheRun) {
+  for (const char* strength : {"0.01", "0.001"}) {
+    const fs::path scene = write("s.json", std::string(R"({"frames": 1, "dt": 0.001, "contact_xi": )") +
+                                               (std::string(strength) == "0.01" ? "0.0001" : "0.002") +
+                                               R"(, "contact_strength": )" + strength + R"(, "gravity": [0, 0, 0],
+      "sheets": [{"name": "a", "grid": [10, 10], "size": [1, 1], "stiffness": 40, "mass": 0.242},
+                 {"name": "b", "grid": [10, 10], "size": [1, 1], "stiffness": 40, "mass": 0.121, "center": [0, 0, 1]}]})");
+    const Result r = drape("run " + scene.string() + " --out " + (dir / "out").string() + " --format obj");
+    EXPECT_EQ(r.code, 0) << r.err;
+    const std::size_t at = r.err.find("of its contact with other sheets");
+    if (std::string(strength) == "0.01") {
+      ASSERT_NE(at, std::string::npos) << r.err;
+      EXPECT_EQ(r.err.find("of its contact with other sheets", at + 1), std::string::npos) << "once: " << r.err;
+      EXPECT_NE(r.err.find("sheets[1] (b)"), std::string::npos) << r.err;
+      EXPECT_NE(r.err.find("a stable choice is dt ="), std::string::npos) << r.err;
+    } else {
+      EXPECT_EQ(at, std::string::npos) << r.err;
+    }
   }
 }
 

@@ -1068,8 +1068,11 @@ TEST(Obstacles, PenetrationIsTheDeepestPointsDistanceInsideTheSurface) {
     EXPECT_NEAR(got.depth, expected.depth, 1e-12) << "sheet at x = " << center.x;
     EXPECT_EQ(got.obstacle, expected.obstacle) << "sheet at x = " << center.x;
     EXPECT_EQ(got.point, expected.point) << "sheet at x = " << center.x;
-    if (center.x == 5) EXPECT_EQ(got.depth, 0.0) << "a sheet outside every obstacle";
-    else EXPECT_GT(got.depth, 0.05) << "each of the others is inside one";
+    if (center.x == 5) {
+      EXPECT_EQ(got.depth, 0.0) << "a sheet outside every obstacle";
+    } else {
+      EXPECT_GT(got.depth, 0.05) << "each of the others is inside one";
+    }
   }
 }
 

@@ -502,8 +502,8 @@ TEST(Guard, AContactTooStiffForTheStepIsNamedWithAStepThatHoldsIt) {
     return w.stable_step_estimate(w.add_sheet(thrown));
   }()), 2 * dt) << "the springs alone must hold this step";
   EXPECT_EQ(report.step_limit, drape::StepLimit::Contact) << drape::describe(report);
-  EXPECT_NEAR(report.stable_dt, wd.adaptive_safety * 2 * wd.contact_xi * std::sqrt(point_mass / wd.contact_strength),
-              1e-9 * report.stable_dt);
+  const double contact_step = 2 * wd.contact_xi * std::sqrt(point_mass / wd.contact_strength);
+  EXPECT_NEAR(report.stable_dt, wd.adaptive_safety * contact_step, 1e-9 * report.stable_dt);
   EXPECT_EQ(report.stable_integrator, Integrator::SemiImplicitEuler);
   const std::string what = drape::describe(report);
   EXPECT_NE(what.find("contact_strength"), std::string::npos) << what;
@@ -511,6 +511,29 @@ TEST(Guard, AContactTooStiffForTheStepIsNamedWithAStepThatHoldsIt) {
   const drape::StabilityReport held = run(report.stable_dt);
   EXPECT_TRUE(held.ok()) << drape::describe(held);
   EXPECT_LT(held.energy_growth, 1.5);
+
+  // The adaptive step takes the contact's step where sheets may touch (here, where one
+  // sheet alone would take the springs'), and holds the same throw.
+  drape::WorldDef adaptive = wd;
+  adaptive.adaptive = true;
+  drape::World alone(adaptive);
+  const auto first = alone.add_sheet(d);
+  EXPECT_NEAR(alone.contact_step_estimate(first), contact_step, 1e-12 * contact_step);
+  EXPECT_EQ(alone.substep_dt(), adaptive.adaptive_safety * alone.critical_step(Integrator::SemiImplicitEuler));
+  drape::World both(adaptive);
+  both.add_sheet(d);
+  both.add_sheet(thrown);
+  EXPECT_NEAR(both.substep_dt(), adaptive.adaptive_safety * contact_step, 1e-9 * contact_step);
+  bool met = false;
+  for (int frame = 0; frame < 20; ++frame) {  // 10 ms each
+    const drape::StabilityReport adaptive_report = both.step(10);
+    ASSERT_TRUE(adaptive_report.ok()) << drape::describe(adaptive_report);
+    met = met || both.contact_pair_count() > 0;
+  }
+  EXPECT_TRUE(met) << "the sheets must have met";
+  wd.contact_strength = 0;
+  drape::World off(wd);
+  EXPECT_EQ(off.contact_step_estimate(off.add_sheet(d)), std::numeric_limits<double>::infinity());
 }
 
 TEST(Guard, ReportsNonFiniteStateWrittenByTheCaller) {

@@ -155,6 +155,24 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
             << st.semi_implicit_euler << " s)\n";
     }
   }
+  // ... and above the sheet–sheet contact's, once, for the sheet with the lightest point: no
+  // integrator resolves a contact implicitly (World::contact_step_estimate).
+  const bool may_touch = ids.size() > 1 || std::any_of(scene.sheets.begin(), scene.sheets.end(),
+                                                         [](const SheetDef& s) { return s.self_collision; });
+  if (may_touch && !scene.world.adaptive) {
+    std::size_t lightest = 0;
+    for (std::size_t k = 1; k < ids.size(); ++k)
+      if (world.contact_step_estimate(ids[k]) < world.contact_step_estimate(ids[lightest])) lightest = k;
+    const Integrator bound =
+        integrator_is_explicit(scene.world.integrator) ? scene.world.integrator : Integrator::SemiImplicitEuler;
+    const double limit = integrator_critical_step(bound, 2.0 / world.contact_step_estimate(ids[lightest]));
+    if (dt > limit)
+      log << "drape: warning: " << scene.file << ": sheets[" << lightest << "] (" << scene.sheet_names[lightest]
+          << "): dt = " << dt << " s is above the estimated stable step " << limit << " s of its contact with "
+          << "other sheets (contact_strength / contact_xi² against its lightest point), with any integrator; a stable "
+          << "choice is dt = " << std::setprecision(2) << 0.9 * limit << std::setprecision(6)
+          << " s, or a smaller contact_strength or larger contact_xi\n";
+  }
 
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);

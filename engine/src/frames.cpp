@@ -168,12 +168,24 @@ double BasicWorld<Real>::Impl::omega_max() const {
   return w;
 }
 
+template <class Real>
+double BasicWorld<Real>::Impl::contact_omega(double lightest) const {
+  return std::sqrt(def.contact_strength / lightest) / def.contact_xi;
+}
+
 // The longest substep allowed now: dt, or in adaptive mode the explicit integrator's
-// critical step on the stiffest sheet times the safety factor.
+// critical step on the stiffest sheet, or on the sheet–sheet contact of the lightest point
+// where sheets may touch, times the safety factor.
 template <class Real>
 double BasicWorld<Real>::Impl::max_substep() const {
   if (!def.adaptive || !integrator_is_explicit(def.integrator)) return def.dt;
-  const double h = def.adaptive_safety * integrator_critical_step(def.integrator, omega_max());
+  double omega = omega_max();
+  if (contacts_possible()) {
+    double lightest = std::numeric_limits<double>::infinity();
+    for (std::uint32_t index : active) lightest = std::min(lightest, slots[index].lightest_point);
+    omega = std::max(omega, contact_omega(lightest));
+  }
+  const double h = def.adaptive_safety * integrator_critical_step(def.integrator, omega);
   return std::isfinite(h) ? h : std::numeric_limits<double>::infinity();
 }
 
@@ -195,6 +207,7 @@ void BasicWorld<Real>::Impl::advance(double seconds) {
   template bool BasicWorld<Real>::Impl::try_frame(double, std::uint64_t);                                     \
   template void BasicWorld<Real>::Impl::substeps(double, std::uint64_t);                                      \
   template double BasicWorld<Real>::Impl::omega_max() const;                                                  \
+  template double BasicWorld<Real>::Impl::contact_omega(double) const;                                        \
   template double BasicWorld<Real>::Impl::max_substep() const;                                                \
   template void BasicWorld<Real>::Impl::advance(double);
 DRAPE_WORLD_FRAMES(double)

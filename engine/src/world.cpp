@@ -576,6 +576,12 @@ double BasicWorld<Real>::critical_step(Integrator integrator) const {
 }
 
 template <class Real>
+double BasicWorld<Real>::contact_step_estimate(SheetId id) const {
+  impl_->sheet(id);  // checks the id
+  return 2.0 / impl_->contact_omega(impl_->slots[id.index].lightest_point);
+}
+
+template <class Real>
 double BasicWorld<Real>::stable_step_estimate() const {
   double dt = std::numeric_limits<double>::infinity();
   for (SheetId id : sheets()) dt = std::min(dt, stable_step_estimate(id));

@@ -209,6 +209,9 @@ struct BasicWorld<Real>::Impl {
   bool try_frame(double h, std::uint64_t count);
   void substeps(double h, std::uint64_t count);
   double omega_max() const;
+  // ω of the sheet–sheet contact for a point of mass `lightest`: √(c/m)/ξ (0 when c = 0),
+  // what contact_step_estimate, the adaptive step and the guard's report use.
+  double contact_omega(double lightest) const;
   double max_substep() const;
   void advance(double seconds);
 

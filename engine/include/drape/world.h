@@ -353,6 +353,14 @@ class BasicWorld {
   double stable_step_estimate() const;  // minimum over sheets; +inf for an empty world
   // integrator_critical_step(integrator, ω_max) of the stiffest sheet; +inf for an empty world.
   double critical_step(Integrator integrator) const;
+  // The same interval for the sheet–sheet contact on this sheet: its stiffness at the contact
+  // thickness, contact_strength/contact_xi², against the sheet's lightest point m, so
+  // 2·contact_xi·√(m/contact_strength); +inf when contact_strength is 0. The contact's
+  // exponent cap keeps it resolvable at any step up to this (architecture.md); beyond it a
+  // contact may blow up whatever the integrator, as every integrator applies the contact
+  // force explicitly. Adaptive steps and the guard's report take it into account where
+  // sheets may touch (docs/integrators.md).
+  double contact_step_estimate(SheetId id) const;
 
  private:
   struct Impl;
