@@ -90,6 +90,9 @@ TEST_F(Cli, InfoShowsContactSettingsAndSelfCollisionFromTheScene) {
   ASSERT_NE(r.out.find("sheets[1]"), std::string::npos) << r.out;
   ASSERT_NE(r.out.find("collides with itself"), std::string::npos) << r.out;
   EXPECT_GT(r.out.find("collides with itself"), r.out.find("sheets[1]")) << "only the second sheet collides with itself: " << r.out;
+  // its contact's stable step 2ξ·√(m/c), m = 1 kg / 9 points: 0.004·√(27.78) s
+  ASSERT_NE(r.out.find("its contact 0.0210819 s"), std::string::npos) << r.out;
+  EXPECT_GT(r.out.find("its contact 0.0210819 s"), r.out.find("sheets[1]")) << r.out;
 }
 
 TEST_F(Cli, InfoListsConstraintsAndMovingObstacles) {

@@ -70,6 +70,13 @@ double min_gamma(const SheetDef& s) {
   return gamma;
 }
 
+// Two sheets or more, or one colliding with itself, with the contact on: the contact may act.
+bool sheets_may_touch(const Scene& scene) {
+  return scene.world.contact_strength > 0 &&
+         (scene.sheets.size() > 1 ||
+          std::any_of(scene.sheets.begin(), scene.sheets.end(), [](const SheetDef& s) { return s.self_collision; }));
+}
+
 template <class Real>
 int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
   const int frames = opt.frames.value_or(scene.frames);
@@ -157,9 +164,7 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
   }
   // ... and above the sheet–sheet contact's, once, for the sheet with the lightest point: no
   // integrator resolves a contact implicitly (World::contact_step_estimate).
-  const bool may_touch = ids.size() > 1 || std::any_of(scene.sheets.begin(), scene.sheets.end(),
-                                                         [](const SheetDef& s) { return s.self_collision; });
-  if (may_touch && !scene.world.adaptive) {
+  if (sheets_may_touch(scene) && !scene.world.adaptive) {
     std::size_t lightest = 0;
     for (std::size_t k = 1; k < ids.size(); ++k)
       if (world.contact_step_estimate(ids[k]) < world.contact_step_estimate(ids[lightest])) lightest = k;
@@ -300,8 +305,7 @@ void describe_world(const Scene& scene, std::ostream& out) {
       << " frames (" << scene.frames * scene.frame_time() << " s simulated)"
       << (scene.world.adaptive ? ", adaptive substeps" : "") << '\n';
   const WorldDef& w = scene.world;
-  if (w.contact_strength > 0 && (scene.sheets.size() > 1 || std::any_of(scene.sheets.begin(), scene.sheets.end(),
-                                                                         [](const SheetDef& s) { return s.self_collision; }))) {
+  if (sheets_may_touch(scene)) {
     out << "contacts between sheets: thickness " << w.contact_thickness << " m, xi " << w.contact_xi << " m, strength "
         << w.contact_strength << " J, range " << w.contact_range << " xi";
     if (w.contact_damping > 0) out << ", damping " << w.contact_damping << " s/m";
@@ -320,8 +324,9 @@ void describe_world(const Scene& scene, std::ostream& out) {
         << point_count(s.m, s.n) << " points, " << spring_count(s.m, s.n) << " springs, about "
         << estimated_bytes(s, scene.precision) / 1024.0 << " KiB; stable step: semi_implicit_euler "
         << st.semi_implicit_euler << " s, forward_euler " << st.forward_euler << " s"
-        << (st.forward_euler == 0 ? " (undamped: unstable at any step)" : "")
-        << (s.self_collision ? "; collides with itself" : "") << (s.shear ? "; shear springs" : "")
+        << (st.forward_euler == 0 ? " (undamped: unstable at any step)" : "");
+    if (sheets_may_touch(scene)) out << ", its contact " << world.contact_step_estimate(ids[k]) << " s";
+    out << (s.self_collision ? "; collides with itself" : "") << (s.shear ? "; shear springs" : "")
         << (s.bending ? "; bending" : "") << (s.air ? "; air" : "") << '\n';
   }
   auto motion_text = [](const Motion& m) {
