@@ -230,6 +230,28 @@ TEST(Checkpoint, ResumedRunWithSheetsInContactEqualsUninterruptedRunBitForBit) {
   }
 }
 
+// A sheet removed mid-run (the first of three layers in contact): the pairs' kept work is
+// renumbered with the sheets after it, so a checkpoint taken later resumes into a world
+// built and cut the same way and runs on bit for bit. (The memory named the removed
+// sheet's place and was refused as naming "a pair of sheets the world lacks".)
+TEST(Checkpoint, ResumedRunAfterASheetWasRemovedEqualsUninterruptedRun) {
+  const auto cut = [](drape::World& w) { w.remove_sheet(w.sheets()[0]); };
+  drape::World uninterrupted = contact_scene(false);
+  uninterrupted.step(20);
+  ASSERT_GT(uninterrupted.contact_pair_count(), 1u);
+  cut(uninterrupted);
+  uninterrupted.step(20);
+  const auto bytes = drape::encode_checkpoint(drape::capture_checkpoint(uninterrupted));
+  ASSERT_FALSE(drape::decode_checkpoint(bytes, "c.ckpt").contact_memory.empty());
+  uninterrupted.step(100);
+
+  drape::World resumed = contact_scene(false);
+  cut(resumed);
+  drape::apply_checkpoint(drape::decode_checkpoint(bytes, "c.ckpt"), resumed, "c.ckpt");
+  resumed.step(100);
+  EXPECT_EQ(state_bytes(resumed), state_bytes(uninterrupted));
+}
+
 // A format 2 checkpoint (before contact memory) still resumes: the same bytes without the
 // contact memory's count, its run searching afresh.
 TEST(Checkpoint, FormatTwoCheckpointStillResumes) {

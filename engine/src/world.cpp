@@ -211,6 +211,15 @@ void BasicWorld<Real>::remove_sheet(SheetId id) {
   // on the removed sheet's travel scale, not the new sheet's: forgotten, for every pair.
   for (auto& w : impl_->pair_work)
     w.moved_lo_a = w.moved_lo_b = -std::numeric_limits<double>::infinity();
+  // Pairs name sheets by their place in `active`: the removed sheet's go, and those after it
+  // move down one, so the work kept for the others still names them (and contact_memory()
+  // names only sheets the world has: a checkpoint after a removal resumes).
+  const auto gone = std::uint32_t(std::find(impl_->active.begin(), impl_->active.end(), id.index) - impl_->active.begin());
+  std::erase_if(impl_->pair_work, [&](const auto& w) { return w.a == gone || w.b == gone; });
+  for (auto& w : impl_->pair_work) {
+    w.a -= w.a > gone ? 1 : 0;
+    w.b -= w.b > gone ? 1 : 0;
+  }
   std::erase(impl_->active, id.index);
   if (held) impl_->constraints_changed();  // the sheets it was joined to lost anchors
   impl_->broad_phase.reset();
