@@ -75,6 +75,20 @@ namespace {
 
 using namespace drape;
 
+// An enum from its value or from its scene-format name: a name goes through the enum's own
+// constructor, whose ValueError names what is unknown ("unknown integrator \"leapfrog\""),
+// where pybind11's implicit conversion would report only "incompatible function arguments".
+template <class E>
+E enum_value(const py::object& value) {
+  if (py::isinstance<py::str>(value)) return py::type::of<E>()(value).template cast<E>();
+  try {
+    return value.cast<E>();
+  } catch (const py::cast_error&) {
+    throw py::type_error(std::string("expected a ") + std::string(py::str(py::type::of<E>().attr("__name__"))) +
+                         " or its name, got " + std::string(py::str(value.get_type().attr("__name__"))));
+  }
+}
+
 // A definition struct bound field by field: one line per field, and the class gets a
 // constructor taking any of them as keyword arguments (an unknown name is a TypeError) and
 // a repr listing them. A field added to SheetDef/WorldDef/ObstacleDef is one .field(...) line.
@@ -85,7 +99,13 @@ class Fields {
 
   template <class M>
   Fields& field(const char* name, M T::*member, const char* doc) {
-    cls_.def_readwrite(name, member, doc);
+    if constexpr (std::is_enum_v<M>) {
+      cls_.def_property(
+          name, [member](const T& self) { return self.*member; },
+          [member](T& self, const py::object& value) { self.*member = enum_value<M>(value); }, doc);
+    } else {
+      cls_.def_readwrite(name, member, doc);
+    }
     names_->push_back(name);
     return *this;
   }
@@ -279,7 +299,8 @@ void bind_world(py::module_& m, const char* name, const char* doc) {
   w.def_property_readonly("substep_dt", &W::substep_dt);
   w.def_property_readonly("definition", [](const W& self) { return WorldDef(self.def()); },
                           "A copy of the world's WorldDef (change it with set_dt, set_integrator, ...).");
-  w.def("set_integrator", &W::set_integrator, py::arg("integrator"));
+  w.def("set_integrator", [](W& self, const py::object& i) { self.set_integrator(enum_value<Integrator>(i)); },
+        py::arg("integrator"));
   w.def("set_dt", &W::set_dt, py::arg("dt"));
   w.def("set_adaptive", &W::set_adaptive, py::arg("adaptive"), py::arg("safety") = 0.8);
   w.def("set_cg", &W::set_cg, py::arg("tolerance"), py::arg("max_iterations"));
@@ -296,7 +317,8 @@ void bind_world(py::module_& m, const char* name, const char* doc) {
   w.def("all_finite", &W::all_finite);
   w.def("stable_step_estimate", py::overload_cast<SheetId>(&W::stable_step_estimate, py::const_), py::arg("sheet"));
   w.def("stable_step_estimate", py::overload_cast<>(&W::stable_step_estimate, py::const_));
-  w.def("critical_step", &W::critical_step, py::arg("integrator"));
+  w.def("critical_step", [](const W& self, const py::object& i) { return self.critical_step(enum_value<Integrator>(i)); },
+        py::arg("integrator"));
   w.def("contact_step_estimate", &W::contact_step_estimate, py::arg("sheet"));
   w.attr("dtype") = py::dtype::of<Real>();
 

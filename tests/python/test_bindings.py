@@ -215,6 +215,16 @@ def test_errors_arrive_as_python_exceptions_with_the_engine_message(tmp_path):
         world.set_state(other, *(np.zeros(3) for _ in range(6)))
     with pytest.raises(ValueError, match="unknown integrator"):
         drape.Integrator("leapfrog")
+    # a name wherever an enum is taken says which name, not pybind11's "incompatible arguments"
+    with pytest.raises(ValueError, match='unknown integrator "leapfrog"'):
+        drape.World(integrator="leapfrog")
+    with pytest.raises(ValueError, match='unknown integrator "leapfrog"'):
+        drape.World().set_integrator("leapfrog")
+    with pytest.raises(ValueError, match='unknown constraint kind "join"'):
+        drape.ConstraintDef(kind="join")
+    with pytest.raises(TypeError, match="expected a ConstraintKind or its name, got float"):
+        drape.ConstraintDef(kind=3.5)
+    assert drape.WorldDef(cg_preconditioner="cholesky").cg_preconditioner == drape.Preconditioner.Cholesky
     with pytest.raises(ValueError, match="advance"):
         world.advance(-1.0)
     missing = tmp_path / "missing.json"
