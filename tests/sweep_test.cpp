@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "cli_fixture.h"
+#include "run.h"
 #include "sweep.h"
 
 namespace {
@@ -117,6 +118,23 @@ TEST_F(Cli, SweepRowEqualsTheSingleRunWithThatValue) {
 // Forward Euler without enough damping grows every oscillation (its amplification factor is
 // above 1 for an undamped spring); a dt far above 2/ω_max blows up semi-implicit Euler too.
 // Both are rows with stable = false and empty metrics; the sound run keeps its numbers.
+// A run the engine's guard halts is unstable in the sweep too, with the frames before the
+// halt, even where the state stays within the sweep's own energy bound: forward Euler gains
+// energy slowly, and a guard limit of 1.05 halts it long before that bound. The reference is
+// the scene's world stepped frame by frame until the guard fails.
+TEST(Sweep, ARunTheGuardHaltsIsUnstableWithTheFramesBeforeTheHalt) {
+  const drape::app::Scene scene = drape::app::parse_scene(
+      sheet_scene(R"("integrator": "forward_euler", "guard_energy_growth": 1.05, )"), "s.json");
+  std::vector<drape::SheetId> ids;
+  drape::World world = drape::app::build_world<double>(scene, 1, ids);
+  int before_halt = 0;
+  while (before_halt < scene.frames && world.step(scene.substeps).ok()) ++before_halt;
+  ASSERT_LT(before_halt, scene.frames) << "the guard must halt this run";
+  const drape::app::SweepOutcome outcome = drape::app::simulate(scene);
+  EXPECT_FALSE(outcome.stable);
+  EXPECT_EQ(outcome.frames_run, before_halt);
+}
+
 TEST_F(Cli, UnstableCombinationIsReportedUnstableNotNaN) {
   const fs::path scene = write("s.json", sheet_scene());
   const fs::path csv = dir / "r.csv";

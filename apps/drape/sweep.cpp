@@ -59,10 +59,12 @@ SweepOutcome simulate_in(const Scene& scene, int frames) {
   auto sound = [&] { return world.all_finite() && world.energies().total() <= energy_bound; };
 
   SweepOutcome outcome;
+  // The run ends early when sound() fails after a frame (that frame was run: not counted),
+  // or when the engine's guard halts the world (run_frames stops before that frame's callback).
   outcome.frames_run = world.run_frames(frames, scene.substeps, [&](int) { return sound(); });
-  outcome.stable = sound();
+  outcome.stable = !world.halted() && sound();
   if (!outcome.stable) {
-    --outcome.frames_run;  // the last frame run is the one that went non-finite
+    if (!world.halted()) --outcome.frames_run;
   } else {
     outcome.max_sag = -std::numeric_limits<double>::infinity();
     for (std::size_t k = 0; k < ids.size(); ++k) {
