@@ -164,6 +164,29 @@ std::string python_name(std::string_view table_name) {
   return out;
 }
 
+// An enum whose values the engine names (name(E(k)) for k = 0, 1, ... until "unknown"): each
+// value under its name in CamelCase, a constructor from the scene format's name (ValueError
+// naming an unknown one), `label` the name, and the name accepted wherever the enum is.
+template <class E>
+void bind_named_enum(py::module_& m, const char* cls, std::string_view (*name)(E), const std::string& what) {
+  std::vector<E> values;
+  for (int k = 0; name(E(k)) != "unknown"; ++k) values.push_back(E(k));
+  py::enum_<E> e(m, cls);
+  std::string names;
+  for (E v : values) {
+    e.value(python_name(name(v)).c_str(), v);
+    names += (names.empty() ? "\"" : ", \"") + std::string(name(v)) + "\"";
+  }
+  e.def(py::init([values, name, what](const std::string& text) {
+          for (E v : values)
+            if (name(v) == text) return v;
+          throw py::value_error("unknown " + what + " \"" + text + "\"");
+        }),
+        py::arg("name"), ("From the scene format's name: " + names).c_str())
+      .def_property_readonly("label", [name](E v) { return std::string(name(v)); }, "the scene format's name");
+  py::implicitly_convertible<std::string, E>();
+}
+
 // A definition from an optional object of its type and keyword arguments that change it.
 template <class T>
 T definition(const std::optional<T>& def, const py::kwargs& kwargs) {
@@ -405,12 +428,7 @@ PYBIND11_MODULE(drape, m) {
            py::arg("name"), "From the scene format's name: \"auto\", \"block_jacobi\", \"cholesky\"");
   py::implicitly_convertible<std::string, Preconditioner>();
 
-  py::enum_<ObstacleShape>(m, "ObstacleShape")
-      .value("Plane", ObstacleShape::Plane)
-      .value("Sphere", ObstacleShape::Sphere)
-      .value("Ellipsoid", ObstacleShape::Ellipsoid)
-      .value("Torus", ObstacleShape::Torus)
-      .value("Box", ObstacleShape::Box);
+  bind_named_enum<ObstacleShape>(m, "ObstacleShape", obstacle_shape_name, "obstacle shape");
   py::enum_<StabilityStatus>(m, "StabilityStatus")
       .value("Stable", StabilityStatus::Stable)
       .value("EnergyGrowth", StabilityStatus::EnergyGrowth)
@@ -422,21 +440,7 @@ PYBIND11_MODULE(drape, m) {
   bind_id<SheetId>(m, "SheetId");
   bind_id<ObstacleId>(m, "ObstacleId");
   bind_id<ConstraintId>(m, "ConstraintId");
-  // The kinds the engine names (constraint_kind_name), in the enum's order.
-  std::vector<ConstraintKind> kinds;
-  for (int k = 0; constraint_kind_name(ConstraintKind(k)) != "unknown"; ++k) kinds.push_back(ConstraintKind(k));
-  py::enum_<ConstraintKind> constraint_kind(m, "ConstraintKind");
-  for (ConstraintKind k : kinds) constraint_kind.value(python_name(constraint_kind_name(k)).c_str(), k);
-  constraint_kind
-      .def(py::init([kinds](const std::string& name) {
-             for (ConstraintKind k : kinds)
-               if (constraint_kind_name(k) == name) return k;
-             throw py::value_error("unknown constraint kind \"" + name + "\"");
-           }),
-           py::arg("name"), "From the scene format's name: \"point_to_point\", \"path\", \"frame\", \"rail\"")
-      .def_property_readonly("label", [](ConstraintKind k) { return std::string(constraint_kind_name(k)); },
-                             "the scene format's name");
-  py::implicitly_convertible<std::string, ConstraintKind>();
+  bind_named_enum<ConstraintKind>(m, "ConstraintKind", constraint_kind_name, "constraint kind");
 
   Fields<StiffnessRegion>(m, "StiffnessRegion", "Springs inside rows/columns [begin, end] get this stiffness (§5.1).")
       .field("row_begin", &StiffnessRegion::row_begin, "")

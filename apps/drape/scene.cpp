@@ -372,35 +372,40 @@ ObstacleDef read_obstacle(const Node& node) {
   if (!node.value().is_object()) node.fail("must be an object, got " + type_name(node.value()));
   const std::string type = node.required("type").string();
   ObstacleDef d;
-  if (type == "plane") {
-    node.expect_object({"type", "center", "normal", "c", "xi", "full_gradient", "max_exponent",
-                        "friction", "damping", "motion"});
-    d.shape = ObstacleShape::Plane;
-    if (node.has("normal")) d.orientation = rotation_to(node.child("normal"), node.child("normal").vec3());
-  } else if (type == "sphere") {
-    node.expect_object({"type", "center", "orientation", "radius", "c", "xi", "full_gradient", "max_exponent",
-                        "friction", "damping", "motion"});
-    d.shape = ObstacleShape::Sphere;
-    d.size = {node.required("radius").positive(), 0, 0};
-  } else if (type == "ellipsoid") {
-    node.expect_object({"type", "center", "orientation", "semi_axes", "c", "xi", "full_gradient", "max_exponent",
-                        "friction", "damping", "motion"});
-    d.shape = ObstacleShape::Ellipsoid;
-    d.size = node.required("semi_axes").vec3();
-    node.child("semi_axes").positives(3);
-  } else if (type == "torus") {
-    node.expect_object({"type", "center", "orientation", "major_radius", "minor_radius", "c", "xi", "full_gradient",
-                        "max_exponent", "friction", "damping", "motion"});
-    d.shape = ObstacleShape::Torus;
-    d.size = {node.required("major_radius").positive(), node.required("minor_radius").positive(), 0};
-  } else if (type == "box") {
-    node.expect_object({"type", "center", "orientation", "half_extents", "c", "xi", "full_gradient", "max_exponent",
-                        "friction", "damping", "motion"});
-    d.shape = ObstacleShape::Box;
-    d.size = node.required("half_extents").vec3();
-    node.child("half_extents").positives(3);
-  } else {
-    node.child("type").fail("unknown obstacle type \"" + type + "\" (known: plane, sphere, ellipsoid, torus, box)");
+  std::optional<ObstacleShape> shape;
+  std::string known;  // the shapes the engine names, in the enum's order
+  for (int k = 0; obstacle_shape_name(ObstacleShape(k)) != "unknown"; ++k) {
+    const std::string_view name = obstacle_shape_name(ObstacleShape(k));
+    known += (k ? ", " : "") + std::string(name);
+    if (name == type) shape = ObstacleShape(k);
+  }
+  if (!shape) node.child("type").fail("unknown obstacle type \"" + type + "\" (known: " + known + ")");
+  d.shape = *shape;
+  switch (d.shape) {
+    case ObstacleShape::Plane:
+      node.expect_object({"type", "center", "normal", "c", "xi", "full_gradient", "max_exponent", "friction", "damping",
+                          "motion"});
+      if (node.has("normal")) d.orientation = rotation_to(node.child("normal"), node.child("normal").vec3());
+      break;
+    case ObstacleShape::Sphere:
+      node.expect_object({"type", "center", "orientation", "radius", "c", "xi", "full_gradient", "max_exponent",
+                          "friction", "damping", "motion"});
+      d.size = {node.required("radius").positive(), 0, 0};
+      break;
+    case ObstacleShape::Torus:
+      node.expect_object({"type", "center", "orientation", "major_radius", "minor_radius", "c", "xi", "full_gradient",
+                          "max_exponent", "friction", "damping", "motion"});
+      d.size = {node.required("major_radius").positive(), node.required("minor_radius").positive(), 0};
+      break;
+    case ObstacleShape::Ellipsoid:
+    case ObstacleShape::Box: {  // three positive lengths along the local axes
+      const char* sizes = d.shape == ObstacleShape::Box ? "half_extents" : "semi_axes";
+      node.expect_object({"type", "center", "orientation", sizes, "c", "xi", "full_gradient", "max_exponent", "friction",
+                          "damping", "motion"});
+      d.size = node.required(sizes).vec3();
+      node.child(sizes).positives(3);
+      break;
+    }
   }
   if (node.has("center")) d.center = node.child("center").vec3();
   if (node.has("orientation")) d.orientation = read_orientation(node.child("orientation"));

@@ -603,6 +603,17 @@ bool positive(double v) { return std::isfinite(v) && v > 0; }
 
 }  // namespace
 
+std::string_view obstacle_shape_name(ObstacleShape shape) {
+  switch (shape) {
+    case ObstacleShape::Plane: return "plane";
+    case ObstacleShape::Sphere: return "sphere";
+    case ObstacleShape::Ellipsoid: return "ellipsoid";
+    case ObstacleShape::Torus: return "torus";
+    case ObstacleShape::Box: return "box";
+  }
+  return "unknown";
+}
+
 std::string validate(const ObstacleDef& d) {
   std::ostringstream out;
   auto fail = [&](const char* field, const char* what, double got) {

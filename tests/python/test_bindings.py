@@ -224,6 +224,11 @@ def test_errors_arrive_as_python_exceptions_with_the_engine_message(tmp_path):
         drape.ConstraintDef(kind="join")
     with pytest.raises(TypeError, match="expected a ConstraintKind or its name, got float"):
         drape.ConstraintDef(kind=3.5)
+    # obstacle shapes by the scene format's type too
+    assert [s.label for s in drape.ObstacleShape.__members__.values()] == ["plane", "sphere", "ellipsoid", "torus", "box"]
+    assert drape.ObstacleDef(shape="torus").shape == drape.ObstacleShape.Torus
+    with pytest.raises(ValueError, match='unknown obstacle shape "cube"'):
+        drape.World().add_obstacle(shape="cube")
     assert drape.WorldDef(cg_preconditioner="cholesky").cg_preconditioner == drape.Preconditioner.Cholesky
     with pytest.raises(ValueError, match="advance"):
         world.advance(-1.0)

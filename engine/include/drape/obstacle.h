@@ -9,6 +9,7 @@
 
 #include <optional>
 #include <string>
+#include <string_view>
 
 namespace drape {
 
@@ -52,6 +53,10 @@ struct ObstacleDef {
   // its carrier (constraint.h).
   std::optional<Motion> motion;
 };
+
+// The scene format's name of a shape ("plane", "sphere", "ellipsoid", "torus", "box");
+// "unknown" for a value outside the enum.
+std::string_view obstacle_shape_name(ObstacleShape shape);
 
 // The obstacle where its motion has it at `time` (s): center and orientation posed, no motion.
 // Without a motion, the definition itself.
