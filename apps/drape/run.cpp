@@ -176,7 +176,8 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
           << "): dt = " << dt << " s is above the estimated stable step " << limit << " s of its contact with "
           << "other sheets (contact_strength / contact_xi² against its lightest point), with any integrator; a stable "
           << "choice is dt = " << std::setprecision(2) << 0.9 * limit << std::setprecision(6)
-          << " s, or a smaller contact_strength or larger contact_xi\n";
+          << " s, or a larger contact_xi (a smaller contact_strength softens the contact too, but lowers the barrier "
+          << "that keeps fast sheets apart)\n";
   }
 
   std::error_code ec;

@@ -73,7 +73,8 @@ std::string describe(const StabilityReport& r) {
   if (r.step_limit == StepLimit::Contact) {
     out << "its contact with other sheets is stiffer than this step holds (contact_strength / contact_xi² against its "
            "lightest point): stable below dt ~ "
-        << r.stable_dt << " s (estimate) with any integrator, or use a smaller contact_strength or a larger contact_xi";
+        << r.stable_dt << " s (estimate) with any integrator, or a larger contact_xi (a smaller contact_strength "
+           "softens the contact too, but lowers the barrier that keeps fast sheets apart)";
   } else if (r.dt > r.stable_dt) {
     if (r.stable_dt > 0) out << "stable below dt ~ " << r.stable_dt << " s (estimate), or ";
     out << "use " << integrator_name(r.stable_integrator) << " at this dt";

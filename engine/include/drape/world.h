@@ -147,7 +147,8 @@ enum class StepLimit {
   // the sheet–sheet contact (a sheet that met others or collides with itself): at the contact
   // thickness its stiffness is contact_strength/contact_xi², which its lightest point must
   // hold. Every integrator applies the contact force explicitly, so no integrator resolves
-  // it: only a shorter step or a softer contact (smaller contact_strength, larger contact_xi).
+  // it: only a shorter step or a softer contact (a larger contact_xi; a smaller
+  // contact_strength also lowers the barrier that keeps fast sheets apart).
   Contact,
 };
 
