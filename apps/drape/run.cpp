@@ -165,12 +165,10 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
   // ... and above the sheet–sheet contact's, once, for the sheet with the lightest point: no
   // integrator resolves a contact implicitly (World::contact_step_estimate).
   if (sheets_may_touch(scene) && !scene.world.adaptive) {
-    std::size_t lightest = 0;
-    for (std::size_t k = 1; k < ids.size(); ++k)
-      if (world.contact_step_estimate(ids[k]) < world.contact_step_estimate(ids[lightest])) lightest = k;
-    const Integrator bound =
-        integrator_is_explicit(scene.world.integrator) ? scene.world.integrator : Integrator::SemiImplicitEuler;
-    const double limit = integrator_critical_step(bound, 2.0 / world.contact_step_estimate(ids[lightest]));
+    std::vector<double> contact_steps;
+    for (SheetId id : ids) contact_steps.push_back(world.contact_step_estimate(id));
+    const auto lightest = std::size_t(std::min_element(contact_steps.begin(), contact_steps.end()) - contact_steps.begin());
+    const double limit = explicit_force_critical_step(scene.world.integrator, 2.0 / contact_steps[lightest]);
     if (dt > limit)
       log << "drape: warning: " << scene.file << ": sheets[" << lightest << "] (" << scene.sheet_names[lightest]
           << "): dt = " << dt << " s is above the estimated stable step " << limit << " s of its contact with "

@@ -209,9 +209,8 @@ StabilityReport BasicWorld<Real>::Impl::check() const {
       // cannot bring under m/dt² (pair_exponent_cap): an explicit force in every integrator,
       // bound as semi-implicit Euler's springs are in the implicit ones.
       if (g.contact && def.contact_strength > 0) {
-        const double omega = contact_omega(g.lightest);
-        const Integrator bound = integrator_is_explicit(def.integrator) ? def.integrator : Integrator::SemiImplicitEuler;
-        const double contact_dt = def.adaptive_safety * integrator_critical_step(bound, omega);
+        const double contact_dt =
+            def.adaptive_safety * explicit_force_critical_step(def.integrator, contact_omega(g.lightest));
         if (contact_dt < report.stable_dt) {
           report.stable_dt = contact_dt;
           report.stable_integrator = def.integrator;

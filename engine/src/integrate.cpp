@@ -343,4 +343,8 @@ double integrator_critical_step(Integrator integrator, double omega_max) {
   return row_of(integrator).critical_step(omega_max);
 }
 
+double explicit_force_critical_step(Integrator integrator, double omega) {
+  return integrator_critical_step(integrator_is_explicit(integrator) ? integrator : Integrator::SemiImplicitEuler, omega);
+}
+
 }  // namespace drape

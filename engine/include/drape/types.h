@@ -105,5 +105,8 @@ bool integrator_is_explicit(Integrator integrator);
 //     second, ln 2 / ω² (from (1 + ω²dt²)^(1/dt) ≈ exp(ω²dt));
 //   implicit Euler, local/global and vertex block descent: +inf (unconditionally stable).
 double integrator_critical_step(Integrator integrator, double omega_max);
+// The same for a force every integrator applies explicitly (the sheet–sheet contact): the
+// explicit integrators' own step, semi-implicit Euler's for the implicit ones.
+double explicit_force_critical_step(Integrator integrator, double omega);
 
 }  // namespace drape
