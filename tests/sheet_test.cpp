@@ -122,6 +122,58 @@ TEST(World, RemovedSheetIdsAreRecognisedAsStale) {
   EXPECT_EQ(world.sheets(), std::vector<drape::SheetId>{b});
 }
 
+// view() spans point into the sheet's own buffers: nothing but the sheet's removal moves or
+// frees them (not adding sheets, which regrows the world's slots, nor removing others,
+// contacts, frames tried and undone, another integrator or set_state), and take_sheet hands
+// them over with the sheet's last state, so spans taken before stay readable (the
+// sanitizer build reads them after the removal).
+template <class W>
+void expect_buffers_stay_until_taken() {
+  using Real = typename W::Scalar;
+  W world;
+  drape::SheetDef d;
+  d.m = d.n = 8;
+  d.pins = drape::corner_points(d.m, d.n);
+  const auto sheet = world.add_sheet(d);
+  drape::SheetDef far = d;
+  far.center = {0.0, 0.0, 5.0};
+  const auto other = world.add_sheet(far);
+  const drape::SheetView<Real> before = world.view(sheet);
+  const Real* x = before.x.data();
+  const Real* vz = before.vz.data();
+  for (int k = 0; k < 40; ++k) {
+    far.center = {0.0, 0.0, 10.0 + k};
+    world.add_sheet(far);
+  }
+  world.remove_sheet(other);
+  drape::SheetDef falling = d;  // meets the sheet within the frame: the frame is tried, then undone
+  falling.pins.clear();
+  falling.center = {0.0, 0.0, 0.05};
+  falling.initial_velocity = {0.0, 0.0, -2.0};
+  world.add_sheet(falling);
+  world.step(30);
+  world.set_integrator(drape::Integrator::ImplicitEuler);
+  world.step(2);
+  const drape::SheetView<Real> now = world.view(sheet);
+  world.set_state(sheet, now);
+  EXPECT_EQ(world.view(sheet).x.data(), x);
+  EXPECT_EQ(world.view(sheet).vz.data(), vz);
+  const std::vector<Real> last_x(now.x.begin(), now.x.end()), last_vz(now.vz.begin(), now.vz.end());
+  EXPECT_GT(std::abs(last_vz[drape::center_point(d.m, d.n)]), 0.0);  // it moved: the check below can tell
+
+  const drape::RemovedSheet<Real> taken = world.take_sheet(sheet);
+  EXPECT_FALSE(world.contains(sheet));
+  EXPECT_EQ(taken.view().x.data(), x);
+  EXPECT_EQ(taken.view().m, d.m);
+  world.add_sheet(d);  // into the freed slot; the world steps on without the taken sheet
+  world.step(5);
+  EXPECT_EQ(std::vector<Real>(before.x.begin(), before.x.end()), last_x);
+  EXPECT_EQ(std::vector<Real>(before.vz.begin(), before.vz.end()), last_vz);
+}
+
+TEST(World, SheetBuffersStayUntilTheSheetIsTakenOut) { expect_buffers_stay_until_taken<drape::World>(); }
+TEST(World, SheetBuffersStayUntilTheSheetIsTakenOutInFloat) { expect_buffers_stay_until_taken<drape::WorldF>(); }
+
 TEST(World, FloatAndDoubleWorldsBuildTheSameGrid) {
   drape::SheetDef d;
   d.m = 4;

@@ -199,11 +199,21 @@ SheetId BasicWorld<Real>::add_sheet(const SheetDef& def) {
 
 template <class Real>
 void BasicWorld<Real>::remove_sheet(SheetId id) {
+  take_sheet(id);  // its buffers freed with the result
+}
+
+template <class Real>
+RemovedSheet<Real> BasicWorld<Real>::take_sheet(SheetId id) {
   impl_->sheet(id);  // throws on a stale id
   const bool held = impl_->constraints.forget(id, impl_->access());
   // the energy its group passed through it leaves with it: the others start afresh
   impl_->guard_forget_group(id.index);
   auto& slot = impl_->slots[id.index];
+  // Moved, not copied: the vectors' storage, which the caller's spans point into, goes along.
+  auto taken = std::make_shared<const detail::Sheet<Real>>(std::move(*slot.sheet));
+  const auto& s = *taken;
+  const SheetView<Real> last{s.topology->m, s.topology->n, s.position.x, s.position.y, s.position.z,
+                             s.velocity.x,  s.velocity.y,  s.velocity.z};
   slot.sheet.reset();
   impl_->sheet_ids.release(id.index);
   // A sheet added into this slot later has the removed one's address, so a pair's kept lists
@@ -225,6 +235,7 @@ void BasicWorld<Real>::remove_sheet(SheetId id) {
   if (held) impl_->constraints_changed();  // the sheets it was joined to lost anchors
   impl_->broad_phase.reset();
   impl_->swept_broad_phase.reset();
+  return RemovedSheet<Real>(std::move(taken), last);
 }
 
 template <class Real>

@@ -1,6 +1,7 @@
 // BasicWorld<Real>: owns every sheet's structure-of-arrays buffers and steps them.
-// Callers hold SheetIds, never pointers; spans returned by view()/state() stay valid until
-// the next add_sheet/remove_sheet on the same world (stepping never reallocates).
+// Callers hold SheetIds, never pointers. A sheet's buffers never move while it is in the
+// world: spans returned by view()/state() stay valid until that sheet is removed (stepping,
+// adding and removing other sheets never reallocate them), or longer with take_sheet.
 // Real is the storage and arithmetic type of the hot loops (double or float).
 #pragma once
 
@@ -135,6 +136,22 @@ struct SheetState {
   std::size_t size() const { return x.size(); }
 };
 
+// A sheet taken out of a world (BasicWorld::take_sheet): it owns the sheet's buffers, moved
+// out unchanged, so spans that view() and state() gave for it stay valid (showing its last
+// state) while this object lives. Movable; empty when default-constructed.
+template <class Real>
+class RemovedSheet {
+ public:
+  RemovedSheet() = default;
+  RemovedSheet(std::shared_ptr<const void> storage, SheetView<Real> view) : storage_(std::move(storage)), view_(view) {}
+  const SheetView<Real>& view() const { return view_; }
+  bool empty() const { return storage_ == nullptr; }
+
+ private:
+  std::shared_ptr<const void> storage_;
+  SheetView<Real> view_;
+};
+
 enum class StabilityStatus {
   Stable,        // every sheet finite, no energy growth beyond the guard's limit
   EnergyGrowth,  // finite, but energy grew past WorldDef::guard_energy_growth: blowing up
@@ -209,7 +226,12 @@ class BasicWorld {
 
   // Throws std::invalid_argument with validate()'s message for a bad definition.
   SheetId add_sheet(const SheetDef& def);
+  // Removes the sheet, its constraints and its contact work; spans of it become invalid.
   void remove_sheet(SheetId id);
+  // remove_sheet that hands over the sheet's buffers instead of freeing them: spans of it
+  // taken before stay valid while the result lives (what keeps a removed sheet's NumPy
+  // arrays readable in Python).
+  RemovedSheet<Real> take_sheet(SheetId id);
   bool contains(SheetId id) const;
   std::size_t sheet_count() const;
   std::vector<SheetId> sheets() const;  // in the order they were added
