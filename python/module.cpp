@@ -214,6 +214,37 @@ SheetArrays arrays(const View& v, py::handle owner, bool writeable) {
   return {v.m, v.n, g(v.x), g(v.y), g(v.z), g(v.vx), g(v.vy), g(v.vz)};
 }
 
+// What the arrays of one sheet from view()/state() hold on to: the world, and from the
+// sheet's removal on its buffers (remove_sheet hands them over while such arrays live), so
+// an array of a removed sheet reads the sheet's last state, never freed memory.
+struct SheetKeeper {
+  py::object world;
+  std::shared_ptr<const void> removed;
+};
+
+// The world's keepers, weakly, by (index, generation) of their sheet.
+py::dict sheet_keepers(py::handle world) {
+  return world.attr("__dict__").attr("setdefault")("_sheet_keepers", py::dict());
+}
+
+py::tuple keeper_key(SheetId id) { return py::make_tuple(id.index, id.generation); }
+
+// The live keeper of the sheet's arrays (None if there is none).
+py::object live_keeper(py::handle world, SheetId id) {
+  const py::dict keepers = sheet_keepers(world);
+  const py::tuple key = keeper_key(id);
+  return keepers.contains(key) ? keepers[key]() : py::none();
+}
+
+// The keeper for new arrays of the sheet: the live one, else a new one.
+py::object keeper_for(py::object world, SheetId id) {
+  py::object keeper = live_keeper(world, id);
+  if (!keeper.is_none()) return keeper;
+  keeper = py::cast(SheetKeeper{world, nullptr});
+  sheet_keepers(world)[keeper_key(id)] = py::module_::import("weakref").attr("ref")(keeper);
+  return keeper;
+}
+
 template <class Real>
 std::span<const Real> flat(const py::array_t<Real, py::array::c_style | py::array::forcecast>& a) {
   return {a.data(), std::size_t(a.size())};
@@ -223,16 +254,28 @@ template <class Real>
 void bind_world(py::module_& m, const char* name, const char* doc) {
   using W = BasicWorld<Real>;
   using Array = py::array_t<Real, py::array::c_style | py::array::forcecast>;
-  py::class_<W> w(m, name, doc);
+  py::class_<W> w(m, name, doc, py::dynamic_attr());  // __dict__ holds the sheets' keepers
   w.def(py::init([](std::optional<WorldDef> def, const py::kwargs& kwargs) { return W(definition(def, kwargs)); }),
         py::arg("definition") = py::none(),
         "World(definition=None, **fields): a WorldDef, and/or WorldDef fields as keywords.");
   w.def("add_sheet",
         [](W& self, std::optional<SheetDef> def, const py::kwargs& kwargs) { return self.add_sheet(definition(def, kwargs)); },
         py::arg("definition") = py::none(),
-        "Adds a sheet from a SheetDef and/or SheetDef fields as keywords. ValueError for a bad definition. "
-        "Arrays from view()/state() are invalid afterwards.");
-  w.def("remove_sheet", &W::remove_sheet, py::arg("sheet"), "Arrays from view()/state() are invalid afterwards.");
+        "Adds a sheet from a SheetDef and/or SheetDef fields as keywords. ValueError for a bad definition.");
+  w.def(
+      "remove_sheet",
+      [](py::object self, SheetId id) {
+        W& world = self.cast<W&>();
+        py::object keeper = live_keeper(self, id);
+        if (keeper.is_none()) {
+          world.remove_sheet(id);
+        } else {  // its arrays live on: they keep its buffers, with its last state
+          keeper.cast<SheetKeeper&>().removed = std::make_shared<RemovedSheet<Real>>(world.take_sheet(id));
+        }
+        const py::dict keepers = sheet_keepers(self);
+        if (keepers.contains(keeper_key(id))) keepers.attr("pop")(keeper_key(id));
+      },
+      py::arg("sheet"), "Removes the sheet; arrays of it from view()/state() keep its last state.");
   w.def("add_obstacle",
         [](W& self, std::optional<ObstacleDef> def, const py::kwargs& kwargs) {
           const ObstacleDef d = definition(def, kwargs);
@@ -263,11 +306,18 @@ void bind_world(py::module_& m, const char* name, const char* doc) {
   w.def("constraint", &W::constraint, py::arg("constraint"), "A copy of the constraint's definition.");
 
   w.def("view",
-        [](py::object self, SheetId id) { return arrays<Real>(self.cast<const W&>().view(id), self, false); },
+        [](py::object self, SheetId id) {
+          const SheetView<Real> v = self.cast<const W&>().view(id);  // throws for a stale id
+          return arrays<Real>(v, keeper_for(self, id), false);
+        },
         py::arg("sheet"),
-        "Read-only arrays x, y, z, vx, vy, vz of shape (m+1, n+1) over the sheet's buffers (no copy); valid until "
-        "the next add_sheet/remove_sheet.");
-  w.def("state", [](py::object self, SheetId id) { return arrays<Real>(self.cast<W&>().state(id), self, true); },
+        "Read-only arrays x, y, z, vx, vy, vz of shape (m+1, n+1) over the sheet's buffers (no copy); they show "
+        "every later step, and the sheet's last state once it is removed.");
+  w.def("state",
+        [](py::object self, SheetId id) {
+          const SheetState<Real> v = self.cast<W&>().state(id);
+          return arrays<Real>(v, keeper_for(self, id), true);
+        },
         py::arg("sheet"),
         "Writable arrays as view(); writes take effect at the next step (pinned points return to their pins).");
   w.def("set_state",
@@ -279,13 +329,11 @@ void bind_world(py::module_& m, const char* name, const char* doc) {
         py::arg("sheet"), py::arg("x"), py::arg("y"), py::arg("z"), py::arg("vx"), py::arg("vy"), py::arg("vz"),
         "Copies positions and velocities (each holding the sheet's point count) into the sheet.");
   w.def("integrator_memory",
-        [](py::object self, SheetId id) {
-          const auto s = self.cast<const W&>().integrator_memory(id);
-          py::array_t<Real> a({s.size()}, {sizeof(Real)}, s.data(), self);
-          a.attr("setflags")(py::arg("write") = false);
-          return a;
+        [](const W& self, SheetId id) {
+          const auto s = self.integrator_memory(id);
+          return py::array_t<Real>(py::ssize_t(s.size()), s.data());  // a copy: the next step may move it
         },
-        py::arg("sheet"));
+        py::arg("sheet"), "A copy of what the integrator carries between substeps for this sheet (checkpoints).");
   w.def("set_integrator_memory",
         [](W& self, SheetId id, const Array& memory) { self.set_integrator_memory(id, flat(memory)); },
         py::arg("sheet"), py::arg("memory"));
@@ -608,6 +656,7 @@ PYBIND11_MODULE(drape, m) {
       .def("__bool__", &StabilityReport::ok)
       .def("__str__", [](const StabilityReport& r) { return describe(r); });
 
+  py::class_<SheetKeeper>(m, "_SheetKeeper", "What a sheet's arrays keep alive: the world, or the removed sheet's buffers.");
   py::class_<SheetArrays>(m, "SheetArrays",
                           "A sheet's state as (m+1, n+1) arrays over the world's buffers; valid until the next "
                           "add_sheet/remove_sheet on that world.")

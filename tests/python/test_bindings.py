@@ -1,10 +1,12 @@
 """The Python module against the C++ engine: same bits as `drape run`, arrays that view the
 engine's buffers, the GIL released while stepping, and errors as Python exceptions."""
+import gc
 import json
 import re
 import subprocess
 import threading
 import time
+import weakref
 
 import numpy as np
 import pytest
@@ -90,6 +92,48 @@ def test_arrays_are_views_of_the_engine_buffers():
     # row-major grid: point (i, j) is x[i, j]; the sheet spans 1 m along columns, centred on 0
     flat_index = drape.point_index(9, 2, 3)
     assert v.x.ravel()[flat_index] == v.x[2, 3]
+
+
+def test_arrays_of_a_removed_sheet_keep_its_last_state():
+    # Before, remove_sheet freed the buffers under live arrays: they read freed memory
+    # (denormal garbage in the first values), silently.
+    world, sheet = hanging_world()
+    world.step(20)
+    v, s = world.view(sheet), world.state(sheet)
+    last = {name: getattr(v, name).copy() for name in ("x", "y", "z", "vx", "vy", "vz")}
+    kept_at = address(v.z)
+    world.remove_sheet(sheet)
+    with pytest.raises(ValueError):
+        world.view(sheet)
+    # the world goes on with other sheets in the freed slot; the arrays keep the sheet's last state
+    other = world.add_sheet(m=6, n=9, mass=1.0, stiffness=100.0, center=(0.0, 0.0, 2.0))
+    world.step(20)
+    assert address(v.z) == kept_at and address(world.view(other).z) != kept_at
+    for name, values in last.items():
+        assert np.array_equal(getattr(v, name), values), name
+        assert np.array_equal(getattr(s, name), values), name
+    # they hold the world until they go (as any view does), then both are freed
+    gone = weakref.ref(world)
+    del world
+    gc.collect()
+    assert gone() is not None
+    del v, s
+    gc.collect()
+    assert gone() is None
+
+
+def test_integrator_memory_is_a_copy_that_outlives_the_sheet():
+    # It viewed the engine's vector, which a removal freed (and an integrator change may move).
+    world = drape.World(dt=1e-3, integrator="rk4")
+    sheet = world.add_sheet(m=4, n=4, pins=drape.corner_points(4, 4))
+    world.step(2)
+    memory = world.integrator_memory(sheet)
+    assert memory.size > 0 and memory.flags.owndata
+    kept = memory.copy()
+    world.remove_sheet(sheet)
+    for _ in range(3):
+        world.add_sheet(m=20, n=20)
+    assert np.array_equal(memory, kept)
 
 
 def test_pinned_corners_stay_and_grid_spacing_is_the_definition():
