@@ -44,6 +44,23 @@ TEST(Progress, APipeGetsAPlainLineEveryTenthAndTheLast) {
   EXPECT_NE(text.find(" left, t = 1 s\n"), std::string::npos) << text;
 }
 
+// A long run's log gets a line at least every `every` while items get done, not only at its
+// tenths (a run of 10⁶ frames went quiet for its first 10⁵).
+TEST(Progress, APipeGetsALineWhenItsIntervalPassedBetweenTenths) {
+  std::ostringstream quiet, timed;
+  Progress slow(quiet, "frame", 1000, false);  // every half minute: these updates come sooner
+  Progress fast(timed, "frame", 1000, false, 0, std::chrono::steady_clock::duration::zero());
+  for (int k = 1; k <= 5; ++k) {
+    slow.update(k);
+    fast.update(k);
+    fast.update(k);  // nothing new done: no line
+  }
+  EXPECT_EQ(quiet.str(), "");
+  const std::string text = timed.str();
+  EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 5) << text;
+  EXPECT_NE(text.find("drape: frame 5/1000 (0%), "), std::string::npos) << text;
+}
+
 TEST(Progress, ATerminalGetsOneRedrawnLineEndedByFinish) {
   std::ostringstream out;
   Progress p(out, "frame", 4, true);

@@ -56,8 +56,10 @@ std::string progress_text(std::string_view what, std::int64_t done, std::int64_t
   return line;
 }
 
-Progress::Progress(std::ostream& out, std::string what, std::int64_t total, bool terminal, std::int64_t first)
-    : out_(out), what_(std::move(what)), total_(total), first_(first), next_line_(first), terminal_(terminal) {}
+Progress::Progress(std::ostream& out, std::string what, std::int64_t total, bool terminal, std::int64_t first,
+                   std::chrono::steady_clock::duration every)
+    : out_(out), what_(std::move(what)), total_(total), first_(first), next_line_(first), terminal_(terminal),
+      every_(every) {}
 
 void Progress::update(std::int64_t done, std::string_view detail) {
   const std::lock_guard lock(mutex_);
@@ -72,10 +74,11 @@ void Progress::update(std::int64_t done, std::string_view detail) {
     out_ << "\r" << progress_text(what_, done, total_, first_, seconds, true) << "\033[K" << std::flush;
     return;
   }
-  // Plain lines: one per tenth of the work, and the last.
+  // Plain lines: one per tenth of the work, one when `every` passed since the last, and the last.
   const std::int64_t step = std::max<std::int64_t>(1, (total_ - first_) / 10);
-  if (done < next_line_ + step && done < total_) return;
+  if (done < next_line_ + step && done < total_ && !(done > next_line_ && now - last_draw_ >= every_)) return;
   next_line_ = done;
+  last_draw_ = now;
   out_ << "drape: " << progress_text(what_, done, total_, first_, seconds, false);
   if (!detail.empty()) out_ << ", " << detail;
   out_ << '\n';
