@@ -302,6 +302,35 @@ TEST_F(Cli, UnstableRunWarnsThenStopsWithoutWritingNaN) {
   EXPECT_FALSE(fs::exists(out / "frame_00200.obj"));
 }
 
+// frames.pvd is rewritten as its series grows by a tenth (not every frame, which wrote
+// O(frames²) bytes), and whole at the end and at a halt: either way it lists every .vtu.
+TEST_F(Cli, VtkSeriesListsEveryFrameWrittenAtTheEndAndAtAHalt) {
+  const auto expect_series = [&](const fs::path& out) {
+    int vtu = 0;
+    for (const auto& e : fs::directory_iterator(out)) vtu += e.path().extension() == ".vtu";
+    const std::string pvd = slurp(out / "frames.pvd");
+    int listed = 0;
+    for (std::size_t at = pvd.find("<DataSet"); at != std::string::npos; at = pvd.find("<DataSet", at + 1)) ++listed;
+    EXPECT_GT(vtu, 12);  // past the first rewrites, which come every frame
+    EXPECT_EQ(listed, vtu) << pvd;
+    char last[32];
+    std::snprintf(last, sizeof last, "frame_%05d.vtu", vtu - 1);  // frame_NNNNN (scene-format.md)
+    EXPECT_NE(pvd.find(last), std::string::npos) << pvd;
+  };
+  const std::string sheet = R"("sheets": [{"grid": [6, 6], "size": [1, 1], "stiffness": 500, "mass": 0.05,
+    "anchors": [{"at": "corners", "stiffness": 100}]}])";
+  const fs::path stable = write("stable.json", R"({"frames": 40, "dt": 0.001, "substeps": 5, )" + sheet + "}");
+  Result r = drape("run " + stable.string() + " --out " + (dir / "stable").string() + " --format vtk");
+  EXPECT_EQ(r.code, 0) << r.err;
+  expect_series(dir / "stable");
+  // forward Euler gains energy every substep: the guard halts it after some 30 frames
+  const fs::path growing = write("growing.json", R"({"frames": 400, "dt": 0.0005, "substeps": 4,
+    "integrator": "forward_euler", )" + sheet + "}");
+  r = drape("run " + growing.string() + " --out " + (dir / "growing").string() + " --format vtk");
+  EXPECT_EQ(r.code, 1) << r.err;
+  expect_series(dir / "growing");
+}
+
 // The last line's rates follow from what the scene says and the time the line prints:
 // points × substeps ÷ seconds, and frames × substeps × dt ÷ seconds (printed to 3 digits).
 TEST_F(Cli, RunReportsItsRatesFromItsPointsStepsAndTime) {

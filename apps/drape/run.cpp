@@ -193,6 +193,16 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
     return exit_write_failed;
   }
   std::vector<PvdEntry> pvd;
+  // frames.pvd is rewritten whole: when its series grew by a tenth since it was last written,
+  // and (`all`) at the end, at a checkpoint and when the run goes unstable. Rewritten every
+  // frame, a run wrote O(frames²) bytes of it (8,000 frames: over 2 GB of it).
+  std::size_t pvd_written = 0;
+  auto write_series = [&](bool all) {
+    if (pvd.size() == pvd_written || (!all && pvd.size() < pvd_written + std::max<std::size_t>(1, pvd_written / 10)))
+      return;
+    write_atomically(dir / "frames.pvd", [&](std::ostream& out) { write_pvd(out, pvd); });
+    pvd_written = pvd.size();
+  };
   // frames written before a resume stay in the .pvd series; time as world.time() computes it
   if (std::find(formats.begin(), formats.end(), MeshFormat::Vtk) != formats.end())
     for (int f = 0; f < first_frame && opt.resume_dir; ++f)
@@ -214,14 +224,16 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
         case MeshFormat::Vtk:
           write_atomically(dir / frame_name(frame, "vtu"), [&](std::ostream& out) { write_vtu<Real>(out, span); });
           pvd.push_back({world.time(), frame_name(frame, "vtu")});
-          write_atomically(dir / "frames.pvd", [&](std::ostream& out) { write_pvd(out, pvd); });
+          write_series(false);
           break;
         case MeshFormat::Glb: gltf->add_frame<Real>(span, world.time()); break;
       }
     }
   };
-  // The glb holds the frames so far; written once, when the run ends (or goes unstable).
-  auto write_glb = [&] {
+  // The glb holds the frames so far; written once, when the run ends (or goes unstable); the
+  // .pvd series then lists every frame.
+  auto finish_files = [&] {
+    write_series(true);
     if (gltf) write_atomically(dir / glb_file_name, [&](std::ostream& out) { gltf->write(out); });
   };
 
@@ -259,7 +271,7 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
       if (!report.ok() || !world.all_finite()) {
         if (report.ok()) report = world.check();  // the guard is off: its verdict on the state now
         progress.finish();
-        write_glb();
+        finish_files();
         log << "drape: " << scene.file << ": the simulation became unstable "
             << "during frame " << frame << ", substeps " << first << "–" << world.step_count() << " (t ≤ "
             << world.time() << " s): " << drape::describe(report) << ". Frames 0–" << frame - 1
@@ -269,13 +281,15 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
       write_frame(frame);
       warn_inside(frame);
       // after the frame's files: a checkpoint of frame K implies frames 0..K are on disk
-      if (opt.checkpoint_every > 0 && frame % opt.checkpoint_every == 0 && frame < frames)
+      if (opt.checkpoint_every > 0 && frame % opt.checkpoint_every == 0 && frame < frames) {
+        write_series(true);
         save_checkpoint(world, dir / checkpoint_file_name, scene.fingerprint);
+      }
       std::ostringstream time;
       time << "t = " << world.time() << " s";
       progress.update(frame, time.str());
     }
-    write_glb();
+    finish_files();
   } catch (const std::runtime_error& e) {
     progress.finish();
     log << "drape: " << e.what() << '\n';
