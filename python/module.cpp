@@ -12,6 +12,8 @@
 
 #include <algorithm>
 #include <cctype>
+#include <memory>
+#include <mutex>
 #include <sstream>
 #include <string>
 #include <string_view>
@@ -250,22 +252,78 @@ std::span<const Real> flat(const py::array_t<Real, py::array::c_style | py::arra
   return {a.data(), std::size_t(a.size())};
 }
 
+// The World Python holds: the engine's world and a lock, so that calls on one world from
+// several Python threads run one at a time instead of racing (a world stepped by two
+// threads at once, or changed while another steps it, crashed the interpreter).
+template <class Real>
+struct PyWorld : BasicWorld<Real> {
+  explicit PyWorld(BasicWorld<Real>&& world) : BasicWorld<Real>(std::move(world)) {}
+  std::unique_ptr<std::recursive_mutex> lock = std::make_unique<std::recursive_mutex>();  // (movable)
+};
+
+// Holds a world's lock for one call, taken with the GIL held; waiting for it, the GIL is
+// let go, so the thread that holds it can take the GIL back (run_frames' callbacks, a
+// Motion's). Recursive: a run_frames callback may call its own world.
+class Hold {
+ public:
+  template <class Real>
+  explicit Hold(const PyWorld<Real>& world) : lock_(*world.lock, std::defer_lock) {
+    if (lock_.try_lock()) return;
+    const py::gil_scoped_release release;
+    lock_.lock();
+  }
+
+ private:
+  std::unique_lock<std::recursive_mutex> lock_;
+};
+
+// A method of the engine's world (or a lambda taking it first) as a method of PyWorld that
+// holds the world's lock for the call; a reference it returns is copied under the lock.
+template <class PW, class R, class C, class... A>
+auto locked(R (C::*f)(A...)) {
+  return [f](PW& self, A... a) -> std::decay_t<R> {
+    const Hold hold(self);
+    return (self.*f)(std::forward<A>(a)...);
+  };
+}
+template <class PW, class R, class C, class... A>
+auto locked(R (C::*f)(A...) const) {
+  return [f](const PW& self, A... a) -> std::decay_t<R> {
+    const Hold hold(self);
+    return (self.*f)(std::forward<A>(a)...);
+  };
+}
+template <class PW, class F, class R, class Self, class... A>
+auto locked_call(F f, R (F::*)(Self, A...) const) {
+  using World = std::conditional_t<std::is_const_v<std::remove_reference_t<Self>>, const PW&, PW&>;
+  return [f](World self, A... a) -> std::decay_t<R> {
+    const Hold hold(self);
+    return f(self, std::forward<A>(a)...);
+  };
+}
+template <class PW, class F>
+auto locked(F f) {
+  return locked_call<PW>(f, &F::operator());
+}
+
 template <class Real>
 void bind_world(py::module_& m, const char* name, const char* doc) {
   using W = BasicWorld<Real>;
+  using PW = PyWorld<Real>;
   using Array = py::array_t<Real, py::array::c_style | py::array::forcecast>;
-  py::class_<W> w(m, name, doc, py::dynamic_attr());  // __dict__ holds the sheets' keepers
-  w.def(py::init([](std::optional<WorldDef> def, const py::kwargs& kwargs) { return W(definition(def, kwargs)); }),
+  py::class_<PW> w(m, name, doc, py::dynamic_attr());  // __dict__ holds the sheets' keepers
+  w.def(py::init([](std::optional<WorldDef> def, const py::kwargs& kwargs) { return PW(W(definition(def, kwargs))); }),
         py::arg("definition") = py::none(),
         "World(definition=None, **fields): a WorldDef, and/or WorldDef fields as keywords.");
   w.def("add_sheet",
-        [](W& self, std::optional<SheetDef> def, const py::kwargs& kwargs) { return self.add_sheet(definition(def, kwargs)); },
+        locked<PW>([](W& self, std::optional<SheetDef> def, const py::kwargs& kwargs) { return self.add_sheet(definition(def, kwargs)); }),
         py::arg("definition") = py::none(),
         "Adds a sheet from a SheetDef and/or SheetDef fields as keywords. ValueError for a bad definition.");
   w.def(
       "remove_sheet",
       [](py::object self, SheetId id) {
-        W& world = self.cast<W&>();
+        PW& world = self.cast<PW&>();
+        const Hold hold(world);
         py::object keeper = live_keeper(self, id);
         if (keeper.is_none()) {
           world.remove_sheet(id);
@@ -277,37 +335,39 @@ void bind_world(py::module_& m, const char* name, const char* doc) {
       },
       py::arg("sheet"), "Removes the sheet; arrays of it from view()/state() keep its last state.");
   w.def("add_obstacle",
-        [](W& self, std::optional<ObstacleDef> def, const py::kwargs& kwargs) {
+        locked<PW>([](W& self, std::optional<ObstacleDef> def, const py::kwargs& kwargs) {
           const ObstacleDef d = definition(def, kwargs);
           // A Python motion that raises does so here, before the world takes a pool slot for it.
           if (d.motion && d.motion->kind == Motion::Kind::Callback && d.motion->callback) pose_at(*d.motion, self.time());
           return self.add_obstacle(d);
-        },
+        }),
         py::arg("definition") = py::none(), "Adds an obstacle from an ObstacleDef and/or its fields as keywords.");
-  w.def("remove_obstacle", &W::remove_obstacle, py::arg("obstacle"));
+  w.def("remove_obstacle", locked<PW>(&W::remove_obstacle), py::arg("obstacle"));
   w.def("add_constraint",
-        [](W& self, std::optional<ConstraintDef> def, const py::kwargs& kwargs) {
+        locked<PW>([](W& self, std::optional<ConstraintDef> def, const py::kwargs& kwargs) {
           return self.add_constraint(definition(def, kwargs));
-        },
+        }),
         py::arg("definition") = py::none(),
         "Adds a constraint (paper 5.2) from a ConstraintDef and/or its fields as keywords. ValueError naming the "
         "field for a bad definition.");
-  w.def("remove_constraint", &W::remove_constraint, py::arg("constraint"));
-  w.def("contains", py::overload_cast<SheetId>(&W::contains, py::const_), py::arg("sheet"));
-  w.def("contains", py::overload_cast<ObstacleId>(&W::contains, py::const_), py::arg("obstacle"));
-  w.def("contains", py::overload_cast<ConstraintId>(&W::contains, py::const_), py::arg("constraint"));
-  w.def_property_readonly("sheet_count", &W::sheet_count);
-  w.def_property_readonly("obstacle_count", &W::obstacle_count);
-  w.def_property_readonly("constraint_count", &W::constraint_count);
-  w.def("sheets", &W::sheets, "Sheet ids in the order they were added.");
-  w.def("obstacles", &W::obstacles, "Obstacle ids in the order they were added.");
-  w.def("obstacle", &W::obstacle, py::arg("obstacle"), "A copy of the obstacle's definition.");
-  w.def("constraints", &W::constraints, "Constraint ids in the order they were added.");
-  w.def("constraint", &W::constraint, py::arg("constraint"), "A copy of the constraint's definition.");
+  w.def("remove_constraint", locked<PW>(&W::remove_constraint), py::arg("constraint"));
+  w.def("contains", locked<PW>(py::overload_cast<SheetId>(&W::contains, py::const_)), py::arg("sheet"));
+  w.def("contains", locked<PW>(py::overload_cast<ObstacleId>(&W::contains, py::const_)), py::arg("obstacle"));
+  w.def("contains", locked<PW>(py::overload_cast<ConstraintId>(&W::contains, py::const_)), py::arg("constraint"));
+  w.def_property_readonly("sheet_count", locked<PW>(&W::sheet_count));
+  w.def_property_readonly("obstacle_count", locked<PW>(&W::obstacle_count));
+  w.def_property_readonly("constraint_count", locked<PW>(&W::constraint_count));
+  w.def("sheets", locked<PW>(&W::sheets), "Sheet ids in the order they were added.");
+  w.def("obstacles", locked<PW>(&W::obstacles), "Obstacle ids in the order they were added.");
+  w.def("obstacle", locked<PW>(&W::obstacle), py::arg("obstacle"), "A copy of the obstacle's definition.");
+  w.def("constraints", locked<PW>(&W::constraints), "Constraint ids in the order they were added.");
+  w.def("constraint", locked<PW>(&W::constraint), py::arg("constraint"), "A copy of the constraint's definition.");
 
   w.def("view",
         [](py::object self, SheetId id) {
-          const SheetView<Real> v = self.cast<const W&>().view(id);  // throws for a stale id
+          const PW& world = self.cast<const PW&>();
+          const Hold hold(world);
+          const SheetView<Real> v = world.view(id);  // throws for a stale id
           return arrays<Real>(v, keeper_for(self, id), false);
         },
         py::arg("sheet"),
@@ -315,46 +375,61 @@ void bind_world(py::module_& m, const char* name, const char* doc) {
         "every later step, and the sheet's last state once it is removed.");
   w.def("state",
         [](py::object self, SheetId id) {
-          const SheetState<Real> v = self.cast<W&>().state(id);
+          PW& world = self.cast<PW&>();
+          const Hold hold(world);
+          const SheetState<Real> v = world.state(id);
           return arrays<Real>(v, keeper_for(self, id), true);
         },
         py::arg("sheet"),
         "Writable arrays as view(); writes take effect at the next step (pinned points return to their pins).");
   w.def("set_state",
-        [](W& self, SheetId id, const Array& x, const Array& y, const Array& z, const Array& vx, const Array& vy,
+        locked<PW>([](W& self, SheetId id, const Array& x, const Array& y, const Array& z, const Array& vx, const Array& vy,
            const Array& vz) {
           const SheetView<Real> v{0, 0, flat(x), flat(y), flat(z), flat(vx), flat(vy), flat(vz)};
           self.set_state(id, v);
-        },
+        }),
         py::arg("sheet"), py::arg("x"), py::arg("y"), py::arg("z"), py::arg("vx"), py::arg("vy"), py::arg("vz"),
         "Copies positions and velocities (each holding the sheet's point count) into the sheet.");
   w.def("integrator_memory",
-        [](const W& self, SheetId id) {
+        locked<PW>([](const W& self, SheetId id) {
           const auto s = self.integrator_memory(id);
           return py::array_t<Real>(py::ssize_t(s.size()), s.data());  // a copy: the next step may move it
-        },
+        }),
         py::arg("sheet"), "A copy of what the integrator carries between substeps for this sheet (checkpoints).");
   w.def("set_integrator_memory",
-        [](W& self, SheetId id, const Array& memory) { self.set_integrator_memory(id, flat(memory)); },
+        locked<PW>([](W& self, SheetId id, const Array& memory) { self.set_integrator_memory(id, flat(memory)); }),
         py::arg("sheet"), py::arg("memory"));
-  w.def("contact_memory", [](const W& self) {
+  w.def("contact_memory", locked<PW>([](const W& self) {
     const std::vector<std::uint64_t> words = self.contact_memory();
     return py::array_t<std::uint64_t>(py::ssize_t(words.size()), words.data());
-  });
+  }));
   w.def("set_contact_memory",
-        [](W& self, const py::array_t<std::uint64_t, py::array::c_style | py::array::forcecast>& memory) {
+        locked<PW>([](W& self, const py::array_t<std::uint64_t, py::array::c_style | py::array::forcecast>& memory) {
           self.set_contact_memory(std::span<const std::uint64_t>(memory.data(), std::size_t(memory.size())));
-        },
+        }),
         py::arg("memory"));
 
   // The GIL is released while the world steps, so Python threads can step several worlds
   // at once (one thread per world at a time, as in C++).
-  w.def("step", &W::step, py::arg("substeps") = 1, py::call_guard<py::gil_scoped_release>(),
+  w.def("step",
+        [](PW& self, int substeps) {
+          const Hold hold(self);
+          const py::gil_scoped_release release;
+          return self.step(substeps);
+        },
+        py::arg("substeps") = 1,
         "Advances by `substeps` substeps, then runs the stability guard; returns its StabilityReport.");
-  w.def("advance", &W::advance, py::arg("seconds"), py::call_guard<py::gil_scoped_release>(),
+  w.def("advance",
+        [](PW& self, double seconds) {
+          const Hold hold(self);
+          const py::gil_scoped_release release;
+          return self.advance(seconds);
+        },
+        py::arg("seconds"),
         "Advances by `seconds` in equal substeps, landing exactly on time + seconds.");
   w.def("run_frames",
-        [](W& self, int frames, int substeps_per_frame, const py::function& on_frame) {
+        [](PW& self, int frames, int substeps_per_frame, const py::function& on_frame) {
+          const Hold hold(self);
           py::gil_scoped_release release;
           return self.run_frames(frames, substeps_per_frame, [&](int frame) {
             py::gil_scoped_acquire acquire;
@@ -365,32 +440,32 @@ void bind_world(py::module_& m, const char* name, const char* doc) {
         py::arg("frames"), py::arg("substeps_per_frame"), py::arg("on_frame"),
         "`frames` times: step(substeps_per_frame), then on_frame(frame); on_frame returning False stops. Returns "
         "the frames run.");
-  w.def("check", &W::check);
-  w.def_property_readonly("halted", &W::halted);
-  w.def_property_readonly("substep_dt", &W::substep_dt);
-  w.def_property_readonly("definition", [](const W& self) { return WorldDef(self.def()); },
+  w.def("check", locked<PW>(&W::check));
+  w.def_property_readonly("halted", locked<PW>(&W::halted));
+  w.def_property_readonly("substep_dt", locked<PW>(&W::substep_dt));
+  w.def_property_readonly("definition", locked<PW>([](const W& self) { return WorldDef(self.def()); }),
                           "A copy of the world's WorldDef (change it with set_dt, set_integrator, ...).");
-  w.def("set_integrator", [](W& self, const py::object& i) { self.set_integrator(enum_value<Integrator>(i)); },
+  w.def("set_integrator", locked<PW>([](W& self, const py::object& i) { self.set_integrator(enum_value<Integrator>(i)); }),
         py::arg("integrator"));
-  w.def("set_dt", &W::set_dt, py::arg("dt"));
-  w.def("set_adaptive", &W::set_adaptive, py::arg("adaptive"), py::arg("safety") = 0.8);
-  w.def("set_cg", &W::set_cg, py::arg("tolerance"), py::arg("max_iterations"));
-  w.def("solver_stats", &W::solver_stats, py::arg("sheet"));
-  w.def_property_readonly("time", &W::time);
-  w.def("set_threads", &W::set_threads, py::arg("threads"));
-  w.def_property_readonly("contact_pair_count", &W::contact_pair_count);
-  w.def_property("step_count", &W::step_count, &W::set_step_count);
-  w.def("diagnostics", &W::diagnostics, py::arg("sheet"));
-  w.def("obstacle_penetration", &W::obstacle_penetration, py::arg("sheet"),
+  w.def("set_dt", locked<PW>(&W::set_dt), py::arg("dt"));
+  w.def("set_adaptive", locked<PW>(&W::set_adaptive), py::arg("adaptive"), py::arg("safety") = 0.8);
+  w.def("set_cg", locked<PW>(&W::set_cg), py::arg("tolerance"), py::arg("max_iterations"));
+  w.def("solver_stats", locked<PW>(&W::solver_stats), py::arg("sheet"));
+  w.def_property_readonly("time", locked<PW>(&W::time));
+  w.def("set_threads", locked<PW>(&W::set_threads), py::arg("threads"));
+  w.def_property_readonly("contact_pair_count", locked<PW>(&W::contact_pair_count));
+  w.def_property("step_count", locked<PW>(&W::step_count), locked<PW>(&W::set_step_count));
+  w.def("diagnostics", locked<PW>(&W::diagnostics), py::arg("sheet"));
+  w.def("obstacle_penetration", locked<PW>(&W::obstacle_penetration), py::arg("sheet"),
         "How deep the sheet's deepest point lies inside an obstacle (depth in m, obstacle, point).");
-  w.def("energies", &W::energies);
-  w.def("contact_energy", &W::contact_energy, "J: the sheet-sheet contact potential energies() leaves out (a search).");
-  w.def("all_finite", &W::all_finite);
-  w.def("stable_step_estimate", py::overload_cast<SheetId>(&W::stable_step_estimate, py::const_), py::arg("sheet"));
-  w.def("stable_step_estimate", py::overload_cast<>(&W::stable_step_estimate, py::const_));
-  w.def("critical_step", [](const W& self, const py::object& i) { return self.critical_step(enum_value<Integrator>(i)); },
+  w.def("energies", locked<PW>(&W::energies));
+  w.def("contact_energy", locked<PW>(&W::contact_energy), "J: the sheet-sheet contact potential energies() leaves out (a search).");
+  w.def("all_finite", locked<PW>(&W::all_finite));
+  w.def("stable_step_estimate", locked<PW>(py::overload_cast<SheetId>(&W::stable_step_estimate, py::const_)), py::arg("sheet"));
+  w.def("stable_step_estimate", locked<PW>(py::overload_cast<>(&W::stable_step_estimate, py::const_)));
+  w.def("critical_step", locked<PW>([](const W& self, const py::object& i) { return self.critical_step(enum_value<Integrator>(i)); }),
         py::arg("integrator"));
-  w.def("contact_step_estimate", &W::contact_step_estimate, py::arg("sheet"));
+  w.def("contact_step_estimate", locked<PW>(&W::contact_step_estimate), py::arg("sheet"));
   w.attr("dtype") = py::dtype::of<Real>();
 
   py::class_<typename W::SolverStats>(w, "SolverStats")
@@ -416,8 +491,8 @@ void bind_id(py::module_& m, const char* name) {
 // A scene's world with its sheets and obstacles, in the precision the scene asks for.
 py::object scene_world(const app::Scene& scene, int threads) {
   std::vector<SheetId> ids;
-  if (scene.precision == app::Precision::Float32) return py::cast(app::build_world<float>(scene, threads, ids));
-  return py::cast(app::build_world<double>(scene, threads, ids));
+  if (scene.precision == app::Precision::Float32) return py::cast(PyWorld<float>(app::build_world<float>(scene, threads, ids)));
+  return py::cast(PyWorld<double>(app::build_world<double>(scene, threads, ids)));
 }
 
 // A Python value for `--set PATH=VALUE`: a str is taken as written (JSON or a bare word, as
