@@ -170,6 +170,7 @@ TEST_F(RenderCli, EveryBadInputGivesOneMessageItsExitCodeAndNoFile) {
       {"render " + cut.string() + o, 3, "drape: " + (cut / "frame_00003.obj").string() + ":"},
       {"render " + scene.string() + " -o " + (dir / "no" / "p.png").string(), 4, "drape: cannot write "},
       {"render " + scene.string() + " -o " + out.string(), 4, "drape: cannot write "},
+      {"render " + scene.string() + " -o " + (dir / "p.jpg").string(), 2, "drape: -o " + (dir / "p.jpg").string() + ": drape render writes PNG"},
       {"render " + unstable.string() + o, 1, "drape: " + unstable.string() + ": the simulation became unstable"},
   };
   for (const auto& [args, code, message] : cases) {

@@ -6,6 +6,7 @@
 #include <render/surface.h>
 
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <filesystem>
@@ -164,6 +165,10 @@ int render_or_throw(const RenderArgs& args, std::ostream& log) {
   if (!fs::is_directory(folder, ec))
     throw Failure{exit_write_failed, "cannot write " + out.string() + ": the folder " + folder.string() + " does not exist"};
   if (fs::is_directory(out, ec)) throw Failure{exit_write_failed, "cannot write " + out.string() + ": it is a folder"};
+  std::string extension = out.extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(), [](unsigned char c) { return std::tolower(c); });
+  if (extension != ".png")  // r.jpg got PNG bytes under a JPEG name
+    throw Failure{exit_usage, "-o " + out.string() + ": drape render writes PNG images; name the file .png"};
 
   const fs::path input = args.input;
   const bool from_folder = fs::is_directory(input, ec);
