@@ -174,6 +174,10 @@ TEST_F(Cli, SweepWithABadValueRunsNothingAndWritesNoCsv) {
   EXPECT_NE(bad_path.err.find("--set sheets[2].damping: index 2 is past the end"), std::string::npos) << bad_path.err;
   const Result bad_syntax = drape("sweep " + scene.string() + " --set stiffness --out " + csv.string());
   EXPECT_EQ(bad_syntax.code, 2);
+  // a field set twice ran one of its values under two columns
+  const Result twice = drape("sweep " + scene.string() + " --set dt=0.001 --set dt=0.002 --out " + csv.string());
+  EXPECT_EQ(twice.code, 2);
+  EXPECT_NE(twice.err.find("--set dt is given twice"), std::string::npos) << twice.err;
   EXPECT_FALSE(fs::exists(csv));
 }
 

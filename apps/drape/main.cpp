@@ -164,6 +164,13 @@ int main(int argc, char** argv) {
         std::cerr << "drape sweep: --set " << text << ": expected PATH=V1,V2,... (e.g. sheets[*].stiffness=10,100)\n";
         return exit_usage;
       }
+      // twice, the runs took one value and the CSV showed both
+      for (const SweepParameter& q : sweep_options.parameters)
+        if (q.path == p->path) {
+          std::cerr << "drape sweep: --set " << p->path << " is given twice; list all of its values in one --set "
+                    << p->path << "=V1,V2,...\n";
+          return exit_usage;
+        }
       sweep_options.parameters.push_back(std::move(*p));
     }
     if (sweep_frames > 0) sweep_options.frames = sweep_frames;
