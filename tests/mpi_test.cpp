@@ -68,6 +68,9 @@ TEST_F(Mpi, TwoRanksWriteTheCsvOfOneProcess) {
     const int status = std::system(cmd.c_str());
     ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << Cli::slurp(dir / "err");
     EXPECT_NE(Cli::slurp(dir / "err").find("on 2 MPI ranks"), std::string::npos) << Cli::slurp(dir / "err");
+    // progress counts rank 0's runs, and says so (its "run 2/2" of a sweep of 3 read as all)
+    EXPECT_NE(Cli::slurp(dir / "err").find("rank 0's share of the "), std::string::npos) << Cli::slurp(dir / "err");
+    EXPECT_EQ(one.err.find("rank 0's share"), std::string::npos) << one.err;
     const auto serial = without_column(Cli::slurp(dir / "one.csv"), "wall_time_s");
     const auto ranks = without_column(Cli::slurp(dir / "two.csv"), "wall_time_s");
     EXPECT_GE(serial.size(), 6u);

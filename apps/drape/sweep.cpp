@@ -331,6 +331,10 @@ int run_sweep(const SweepOptions& options, const std::filesystem::path& csv, std
   std::optional<Progress> progress;
   if (cluster.is_root()) progress.emplace(log, "run", std::int64_t(cluster.my_cases(cases.size()).size()), options.progress_bar);
   std::atomic<std::int64_t> finished{0};
+  // with several ranks, the lines say whose runs they count ("run 2/2" of a sweep of 3 read as done)
+  const std::string share = cluster.size() > 1 ? "rank 0's share of the " + std::to_string(cases.size()) + " runs on " +
+                                                     std::to_string(cluster.size()) + " ranks"
+                                               : std::string();
   const std::vector<std::string> results = run_spread(
       cluster, cases.size(), cluster.threads(options.threads),
       [&](std::size_t k) {
@@ -341,7 +345,7 @@ int run_sweep(const SweepOptions& options, const std::filesystem::path& csv, std
         return bytes;
       },
       [&] {
-        if (progress) progress->update(++finished);
+        if (progress) progress->update(++finished, share);
       });
   if (progress) progress->finish();
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
