@@ -302,6 +302,18 @@ TEST_F(Cli, UnstableRunWarnsThenStopsWithoutWritingNaN) {
   EXPECT_FALSE(fs::exists(out / "frame_00200.obj"));
 }
 
+// Frames that cannot fit the disk are refused before anything is written: two billion
+// frames of a small sheet need some 100 TB (they filled the disk, a GB every ten seconds).
+TEST_F(Cli, RunWhoseFramesCannotFitTheDiskWritesNothing) {
+  const fs::path scene = write("s.json", R"({"frames": 10, "dt": 0.001, "substeps": 5, "sheets": [{"grid": [6, 6], "size": [1, 1], "stiffness": 100, "mass": 0.1}]})");
+  const fs::path out = dir / "huge";
+  const Result r = drape("run " + scene.string() + " --out " + out.string() + " --frames 2000000000 --format obj,vtk");
+  EXPECT_EQ(r.code, 4) << r.err;
+  EXPECT_NE(r.err.find("2000000001 frames of " + scene.string() + " would take at least "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("GB free: write fewer frames (--frames)"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(out));
+}
+
 // frames.pvd is rewritten as its series grows by a tenth (not every frame, which wrote
 // O(frames²) bytes), and whole at the end and at a halt: either way it lists every .vtu.
 TEST_F(Cli, VtkSeriesListsEveryFrameWrittenAtTheEndAndAtAHalt) {

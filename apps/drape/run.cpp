@@ -5,10 +5,13 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <iomanip>
 #include <limits>
+#include <optional>
 #include <set>
 #include <sstream>
+#include <streambuf>
 #include <utility>
 
 #include "checkpoint.h"
@@ -57,6 +60,38 @@ std::string frame_name(int frame, std::string_view ext) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "frame_%05d.", frame);
   return std::string(buf) + std::string(ext);
+}
+
+// A per-frame file's extension: the format's name, but VTK's unstructured grid is .vtu.
+std::string_view mesh_extension(MeshFormat f) { return f == MeshFormat::Vtk ? "vtu" : mesh_format_name(f); }
+
+// Counts what is written to it, keeping nothing: a frame's size before any file is made.
+class ByteCounter : public std::streambuf {
+ public:
+  std::uintmax_t bytes() const { return bytes_; }
+
+ protected:
+  int_type overflow(int_type c) override {
+    if (!traits_type::eq_int_type(c, traits_type::eof())) ++bytes_;
+    return traits_type::not_eof(c);
+  }
+  std::streamsize xsputn(const char*, std::streamsize count) override {
+    bytes_ += std::uintmax_t(count);
+    return count;
+  }
+
+ private:
+  std::uintmax_t bytes_ = 0;
+};
+
+// The free space of the file system `dir` is (or would be) on: its nearest existing folder's.
+std::optional<std::uintmax_t> free_space(std::filesystem::path dir) {
+  std::error_code ec;
+  dir = std::filesystem::absolute(dir, ec);
+  while (!std::filesystem::exists(dir, ec) && dir.has_parent_path() && dir.parent_path() != dir) dir = dir.parent_path();
+  const auto space = std::filesystem::space(dir, ec);
+  if (ec) return std::nullopt;
+  return space.available;
 }
 
 double min_gamma(const SheetDef& s) {
@@ -178,6 +213,40 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
           << "that keeps fast sheets apart)\n";
   }
 
+  auto sheet_views = [&] {
+    std::vector<SheetView<Real>> views;
+    for (SheetId id : ids) views.push_back(world.view(id));
+    return views;
+  };
+  // One frame's mesh in a per-frame format (a .glb holds the whole run).
+  auto write_mesh = [&](MeshFormat f, std::span<const SheetView<Real>> span, std::ostream& out) {
+    switch (f) {
+      case MeshFormat::Obj: write_obj<Real>(out, span, scene.sheet_names); break;
+      case MeshFormat::Ply: write_ply<Real>(out, span); break;
+      case MeshFormat::Vtk: write_vtu<Real>(out, span); break;
+      case MeshFormat::Glb: break;
+    }
+  };
+  // Frames that cannot fit the disk are refused before any file is written (--frames 2000000000
+  // filled it, a gigabyte every ten seconds): the frames to write × this frame's bytes in each
+  // format, a floor (later frames' numbers print longer than the first grid's).
+  {
+    ByteCounter counter;
+    std::ostream count(&counter);
+    const std::vector<SheetView<Real>> views = sheet_views();
+    for (MeshFormat f : formats) write_mesh(f, views, count);
+    const std::uintmax_t to_write = std::uintmax_t(frames - first_frame + 1 + (opt.resume_dir ? 0 : 1));
+    const std::uintmax_t bytes = counter.bytes() * to_write;
+    const std::optional<std::uintmax_t> available = free_space(dir);
+    if (available && bytes > *available) {
+      log << "drape: " << to_write << " frames of " << scene.file << " would take at least " << std::fixed
+          << std::setprecision(1) << double(bytes) / 1e9 << " GB in " << dir.string() << ", which has "
+          << double(*available) / 1e9 << " GB free: write fewer frames (--frames), fewer formats (--format), or to "
+          << "another folder (--out); nothing was written\n";
+      return exit_write_failed;
+    }
+  }
+
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec || !std::filesystem::is_directory(dir)) {
@@ -209,24 +278,17 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
       pvd.push_back({static_cast<double>(std::uint64_t(f) * std::uint64_t(scene.substeps)) * scene.world.dt,
                      frame_name(f, "vtu")});
   auto write_frame = [&](int frame) {
-    std::vector<SheetView<Real>> views;
-    for (SheetId id : ids) views.push_back(world.view(id));
+    const std::vector<SheetView<Real>> views = sheet_views();
     const std::span<const SheetView<Real>> span(views);
     for (MeshFormat f : formats) {
-      switch (f) {
-        case MeshFormat::Obj:
-          write_atomically(dir / frame_name(frame, "obj"),
-                           [&](std::ostream& out) { write_obj<Real>(out, span, scene.sheet_names); });
-          break;
-        case MeshFormat::Ply:
-          write_atomically(dir / frame_name(frame, "ply"), [&](std::ostream& out) { write_ply<Real>(out, span); });
-          break;
-        case MeshFormat::Vtk:
-          write_atomically(dir / frame_name(frame, "vtu"), [&](std::ostream& out) { write_vtu<Real>(out, span); });
-          pvd.push_back({world.time(), frame_name(frame, "vtu")});
-          write_series(false);
-          break;
-        case MeshFormat::Glb: gltf->add_frame<Real>(span, world.time()); break;
+      if (f == MeshFormat::Glb) {
+        gltf->add_frame<Real>(span, world.time());
+        continue;
+      }
+      write_atomically(dir / frame_name(frame, mesh_extension(f)), [&](std::ostream& out) { write_mesh(f, span, out); });
+      if (f == MeshFormat::Vtk) {
+        pvd.push_back({world.time(), frame_name(frame, "vtu")});
+        write_series(false);
       }
     }
   };
