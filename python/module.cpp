@@ -316,7 +316,9 @@ void bind_world(py::module_& m, const char* name, const char* doc) {
         py::arg("definition") = py::none(),
         "World(definition=None, **fields): a WorldDef, and/or WorldDef fields as keywords.");
   w.def("add_sheet",
-        locked<PW>([](W& self, std::optional<SheetDef> def, const py::kwargs& kwargs) { return self.add_sheet(definition(def, kwargs)); }),
+        locked<PW>([](W& self, std::optional<SheetDef> def, const py::kwargs& kwargs) {
+          return self.add_sheet(definition(def, kwargs));
+        }),
         py::arg("definition") = py::none(),
         "Adds a sheet from a SheetDef and/or SheetDef fields as keywords. ValueError for a bad definition.");
   w.def(
@@ -383,8 +385,8 @@ void bind_world(py::module_& m, const char* name, const char* doc) {
         py::arg("sheet"),
         "Writable arrays as view(); writes take effect at the next step (pinned points return to their pins).");
   w.def("set_state",
-        locked<PW>([](W& self, SheetId id, const Array& x, const Array& y, const Array& z, const Array& vx, const Array& vy,
-           const Array& vz) {
+        locked<PW>([](W& self, SheetId id, const Array& x, const Array& y, const Array& z, const Array& vx,
+                      const Array& vy, const Array& vz) {
           const SheetView<Real> v{0, 0, flat(x), flat(y), flat(z), flat(vx), flat(vy), flat(vz)};
           self.set_state(id, v);
         }),
@@ -445,7 +447,8 @@ void bind_world(py::module_& m, const char* name, const char* doc) {
   w.def_property_readonly("substep_dt", locked<PW>(&W::substep_dt));
   w.def_property_readonly("definition", locked<PW>([](const W& self) { return WorldDef(self.def()); }),
                           "A copy of the world's WorldDef (change it with set_dt, set_integrator, ...).");
-  w.def("set_integrator", locked<PW>([](W& self, const py::object& i) { self.set_integrator(enum_value<Integrator>(i)); }),
+  w.def("set_integrator",
+        locked<PW>([](W& self, const py::object& i) { self.set_integrator(enum_value<Integrator>(i)); }),
         py::arg("integrator"));
   w.def("set_dt", locked<PW>(&W::set_dt), py::arg("dt"));
   w.def("set_adaptive", locked<PW>(&W::set_adaptive), py::arg("adaptive"), py::arg("safety") = 0.8);
@@ -459,11 +462,14 @@ void bind_world(py::module_& m, const char* name, const char* doc) {
   w.def("obstacle_penetration", locked<PW>(&W::obstacle_penetration), py::arg("sheet"),
         "How deep the sheet's deepest point lies inside an obstacle (depth in m, obstacle, point).");
   w.def("energies", locked<PW>(&W::energies));
-  w.def("contact_energy", locked<PW>(&W::contact_energy), "J: the sheet-sheet contact potential energies() leaves out (a search).");
+  w.def("contact_energy", locked<PW>(&W::contact_energy),
+        "J: the sheet-sheet contact potential energies() leaves out (a search).");
   w.def("all_finite", locked<PW>(&W::all_finite));
-  w.def("stable_step_estimate", locked<PW>(py::overload_cast<SheetId>(&W::stable_step_estimate, py::const_)), py::arg("sheet"));
+  w.def("stable_step_estimate", locked<PW>(py::overload_cast<SheetId>(&W::stable_step_estimate, py::const_)),
+        py::arg("sheet"));
   w.def("stable_step_estimate", locked<PW>(py::overload_cast<>(&W::stable_step_estimate, py::const_)));
-  w.def("critical_step", locked<PW>([](const W& self, const py::object& i) { return self.critical_step(enum_value<Integrator>(i)); }),
+  w.def("critical_step",
+        locked<PW>([](const W& self, const py::object& i) { return self.critical_step(enum_value<Integrator>(i)); }),
         py::arg("integrator"));
   w.def("contact_step_estimate", locked<PW>(&W::contact_step_estimate), py::arg("sheet"));
   w.attr("dtype") = py::dtype::of<Real>();
@@ -491,7 +497,8 @@ void bind_id(py::module_& m, const char* name) {
 // A scene's world with its sheets and obstacles, in the precision the scene asks for.
 py::object scene_world(const app::Scene& scene, int threads) {
   std::vector<SheetId> ids;
-  if (scene.precision == app::Precision::Float32) return py::cast(PyWorld<float>(app::build_world<float>(scene, threads, ids)));
+  if (scene.precision == app::Precision::Float32)
+    return py::cast(PyWorld<float>(app::build_world<float>(scene, threads, ids)));
   return py::cast(PyWorld<double>(app::build_world<double>(scene, threads, ids)));
 }
 
