@@ -257,13 +257,14 @@ TEST_F(Cli, SweepKeepsFinishedRunsForTheNextAttempt) {
 TEST_F(Batch, WritesEachSceneExactlyAsDrapeRunDoes) {
   const fs::path a = write("a.json", sheet_scene());
   const fs::path b = write("b.json", sheet_scene(R"("precision": "float32", )"));
-  const Result r = drape("batch " + a.string() + " " + b.string() + " --frames 4 --format obj,vtk --threads 2 --out " +
-                         (dir / "batch").string());
+  const Result r = drape("batch " + a.string() + " " + b.string() +
+                         " --frames 4 --format obj,vtk,glb --threads 2 --out " + (dir / "batch").string());
   ASSERT_EQ(r.code, 0) << r.err;
   for (const char* name : {"a", "b"}) {
     const fs::path single = dir / (std::string("single_") + name);
-    ASSERT_EQ(drape("run " + (dir / (std::string(name) + ".json")).string() + " --frames 4 --format obj,vtk --out " +
-                    single.string()).code, 0);
+    ASSERT_EQ(drape("run " + (dir / (std::string(name) + ".json")).string() +
+                    " --frames 4 --format obj,vtk,glb --out " + single.string()).code,
+              0);
     std::size_t files = 0;
     for (const auto& e : fs::directory_iterator(single)) {
       const fs::path mine = dir / "batch" / name / e.path().filename();
@@ -271,7 +272,7 @@ TEST_F(Batch, WritesEachSceneExactlyAsDrapeRunDoes) {
       EXPECT_EQ(Cli::slurp(mine), Cli::slurp(e.path())) << mine;
       ++files;
     }
-    EXPECT_EQ(files, 5u * 2 + 2) << "frames 0-4 as obj and vtu, frames.pvd, scene.json";
+    EXPECT_EQ(files, 5u * 2 + 3) << "frames 0-4 as obj and vtu, frames.pvd, run.glb, scene.json";
   }
   const auto rows = read_csv(dir / "batch" / "batch.csv");
   ASSERT_EQ(rows.size(), 3u);

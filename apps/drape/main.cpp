@@ -115,7 +115,9 @@ int main(int argc, char** argv) {
   batch->add_option("--threads", batch_threads, "Scenes in parallel per process (default 0: all cores, shared by the "
                                                 "MPI ranks on a machine)")
       ->check(CLI::NonNegativeNumber);
-  batch->add_option("--format", batch_formats, "Comma-separated mesh formats: obj, ply, vtk (default: each scene's)")
+  batch->add_option("--format", batch_formats,
+                    "Comma-separated mesh formats: obj, ply, vtk (per frame), glb (each scene's whole run in "
+                    "OUT/<scene>/run.glb) (default: each scene's)")
       ->delimiter(',');
 
   CLI::App* info = app.add_subcommand("info", "Print points, springs, memory and the stable step per integrator");
