@@ -1,7 +1,8 @@
 // Progress of a long command (`drape run` frames, `drape sweep` runs): on a terminal one line
 // redrawn in place — a bar, the count, items per second and the time left — and otherwise
 // (a pipe, a log file) a plain line every tenth of the work, at least every half minute
-// (a long run's log shows it alive), and at the end, so logs stay readable. Safe to call from several threads (sweep runs finish on worker threads).
+// (a long run's log shows it alive), and at the end, so logs stay readable. Safe to call
+// from several threads (sweep runs finish on worker threads).
 #pragma once
 
 #include <chrono>

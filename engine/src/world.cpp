@@ -197,6 +197,15 @@ SheetId BasicWorld<Real>::add_sheet(const SheetDef& def) {
   return impl_->sheet_ids.id(index);
 }
 
+namespace {
+// The read-only spans of a sheet's buffers (view(), and a taken sheet's).
+template <class Real>
+SheetView<Real> view_of(const detail::Sheet<Real>& s) {
+  return {s.topology->m, s.topology->n, s.position.x, s.position.y, s.position.z,
+          s.velocity.x,  s.velocity.y,  s.velocity.z};
+}
+}  // namespace
+
 template <class Real>
 void BasicWorld<Real>::remove_sheet(SheetId id) {
   take_sheet(id);  // its buffers freed with the result
@@ -211,9 +220,7 @@ RemovedSheet<Real> BasicWorld<Real>::take_sheet(SheetId id) {
   auto& slot = impl_->slots[id.index];
   // Moved, not copied: the vectors' storage, which the caller's spans point into, goes along.
   auto taken = std::make_shared<const detail::Sheet<Real>>(std::move(*slot.sheet));
-  const auto& s = *taken;
-  const SheetView<Real> last{s.topology->m, s.topology->n, s.position.x, s.position.y, s.position.z,
-                             s.velocity.x,  s.velocity.y,  s.velocity.z};
+  const SheetView<Real> last = view_of(*taken);
   slot.sheet.reset();
   impl_->sheet_ids.release(id.index);
   // A sheet added into this slot later has the removed one's address, so a pair's kept lists
@@ -321,9 +328,7 @@ const ConstraintDef& BasicWorld<Real>::constraint(ConstraintId id) const { retur
 
 template <class Real>
 SheetView<Real> BasicWorld<Real>::view(SheetId id) const {
-  const auto& s = impl_->sheet(id);
-  return {s.topology->m, s.topology->n, s.position.x, s.position.y, s.position.z,
-          s.velocity.x,  s.velocity.y,  s.velocity.z};
+  return view_of(impl_->sheet(id));
 }
 
 template <class Real>
