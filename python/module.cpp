@@ -461,6 +461,8 @@ void bind_world(py::module_& m, const char* name, const char* doc) {
   w.def("diagnostics", locked<PW>(&W::diagnostics), py::arg("sheet"));
   w.def("obstacle_penetration", locked<PW>(&W::obstacle_penetration), py::arg("sheet"),
         "How deep the sheet's deepest point lies inside an obstacle (depth in m, obstacle, point).");
+  w.def("sheet_crossings", locked<PW>(&W::sheet_crossings),
+        "Pairs of sheets that pass through each other now (a == b: a self-colliding sheet through itself).");
   w.def("energies", locked<PW>(&W::energies));
   w.def("contact_energy", locked<PW>(&W::contact_energy),
         "J: the sheet-sheet contact potential energies() leaves out (a search).");
@@ -722,6 +724,12 @@ PYBIND11_MODULE(drape, m) {
       .def_readonly("depth", &ObstaclePenetration::depth)
       .def_readonly("obstacle", &ObstaclePenetration::obstacle)
       .def_readonly("point", &ObstaclePenetration::point);
+  py::class_<SheetCrossing>(m, "SheetCrossing")
+      .def_readonly("a", &SheetCrossing::a)
+      .def_readonly("b", &SheetCrossing::b)
+      .def_readonly("edges", &SheetCrossing::edges)
+      .def_readonly("point_a", &SheetCrossing::point_a)
+      .def_readonly("point_b", &SheetCrossing::point_b);
   py::class_<StabilityReport>(m, "StabilityReport", "What the stability guard found; str() describes it.")
       .def_readonly("status", &StabilityReport::status)
       .def_readonly("sheet", &StabilityReport::sheet)

@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "crossings.h"
 #include "diagnostics.h"
 #include "world_impl.h"
 
@@ -583,6 +584,40 @@ double BasicWorld<Real>::contact_energy() const {
   double energy = 0;
   for (double e : share) energy += e;
   return energy;
+}
+
+template <class Real>
+std::vector<SheetCrossing> BasicWorld<Real>::sheet_crossings() const {
+  std::vector<SheetCrossing> out;
+  if (!impl_->contacts_possible()) return out;
+  const std::size_t count = impl_->active.size();
+  auto sheet = [&](std::size_t k) -> const detail::Sheet<Real>& { return *impl_->slots[impl_->active[k]].sheet; };
+  // sheets that pass through each other have boxes that meet (touching counts)
+  std::vector<detail::Aabb> bounds;
+  impl_->active_bounds(bounds);
+  std::vector<detail::BoxPair> pairs;
+  detail::BroadPhase().find_pairs(bounds, pairs);
+  for (std::uint32_t k = 0; k < count; ++k)
+    if (sheet(k).self_collision) pairs.push_back({k, k});
+  std::sort(pairs.begin(), pairs.end(), [](const auto& p, const auto& q) {
+    return std::pair(p.first, p.second) < std::pair(q.first, q.second);
+  });
+  std::vector<char> used(count, 0);
+  for (const auto& pair : pairs) used[pair.first] = used[pair.second] = 1;
+  std::vector<detail::SheetBoxes<Real>> boxes(count);
+  impl_->parallel(count, [&](std::size_t k) {
+    if (used[k]) detail::build_boxes(sheet(k), boxes[k]);
+  });
+  std::vector<detail::Crossings> found(pairs.size());
+  impl_->parallel(pairs.size(), [&](std::size_t q) {
+    const auto [a, b] = pairs[q];
+    found[q] = detail::sheet_crossings(sheet(a), boxes[a], sheet(b), boxes[b]);
+  });
+  for (std::size_t q = 0; q < pairs.size(); ++q)
+    if (found[q].count != 0)
+      out.push_back({impl_->sheet_ids.id(impl_->active[pairs[q].first]), impl_->sheet_ids.id(impl_->active[pairs[q].second]),
+                     found[q].count, found[q].point_a, found[q].point_b});
+  return out;
 }
 
 template <class Real>

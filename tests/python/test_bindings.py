@@ -338,6 +338,17 @@ def test_obstacle_penetration_is_the_depth_inside_a_sphere():
     assert deepest.obstacle == ball and deepest.point == 4 and abs(deepest.depth - 0.2) < 1e-12
 
 
+def test_sheet_crossings_name_a_point_pushed_through_another_sheet():
+    world = drape.World(threads=1)
+    lower = world.add_sheet(m=4, n=4, width=0.2, height=0.2)
+    upper = world.add_sheet(m=4, n=4, width=0.2, height=0.2, center=(0.011, 0.013, 0.004))
+    assert world.sheet_crossings() == []
+    world.state(upper).z[2, 2] = -0.002  # the middle point, 2 mm under the lower sheet
+    (crossing,) = world.sheet_crossings()
+    assert (crossing.a, crossing.b, crossing.point_b) == (lower, upper, 12)
+    assert crossing.edges >= 6  # its edges along the row, the column and the diagonal
+
+
 def test_a_contact_too_stiff_for_the_step_is_named():
     # c/ξ² about 300 times m/dt² for the 1 g points (stability_test.cpp has the C++ case)
     world = drape.World(dt=1e-3, gravity=(0, 0, 0), contact_strength=1e-2, contact_xi=1e-4, threads=1)

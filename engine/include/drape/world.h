@@ -118,6 +118,20 @@ struct ObstaclePenetration {
   std::uint32_t point = 0;  // the sheet's point that lies deepest
 };
 
+// Two sheets passing through each other, or a sheet through itself (World::sheet_crossings):
+// an edge of one surface crosses a triangle of the other, each cell split into the two
+// triangles the contacts use. Contacts keep surfaces about contact_thickness apart, so a
+// crossing means points met faster than the contact stops them (the safe speeds in
+// docs/scene-format.md), a load pressed them through, or they started through each other;
+// the repulsion then holds them so, each point pushed away from the surface it is behind.
+struct SheetCrossing {
+  SheetId a, b;           // a before b in sheets(); a == b: a self-colliding sheet through itself
+  std::size_t edges = 0;  // edge–triangle crossings between them, either sheet's edges
+  // Of one crossing (the same one on every run): the point of a and the point of b
+  // nearest where the edge meets the triangle.
+  std::uint32_t point_a = 0, point_b = 0;
+};
+
 // Read-only, zero-copy view of one sheet's state; row-major point order of eqs (2)–(3).
 template <class Real>
 struct SheetView {
@@ -358,6 +372,12 @@ class BasicWorld {
   // near each obstacle (the broad phase's box test first), O(points) per obstacle reached.
   ObstaclePenetration obstacle_penetration(SheetId id) const;
   Energies energies() const;  // summed over sheets
+  // Every pair of sheets that contacts could hold apart (contact_strength > 0; a sheet with
+  // itself when self_collision is on) and that passes through each other now, in the order
+  // of sheets(); empty when none does. Each pair whose boxes meet is searched edge by edge
+  // against the other's triangles (exact orientation tests in double), about as costly as
+  // contact_energy(): call it per frame, not per substep.
+  std::vector<SheetCrossing> sheet_crossings() const;
   // The potential (J) of the sheet–sheet contacts, which energies() leaves out: for every
   // pair of sheets within contact range, both ways, and every self-colliding sheet against
   // itself, Σ over points of c·(e^((h − d)/ξ) − t) − c·t·(R − d)/ξ at the point's nearest
