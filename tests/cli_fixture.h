@@ -41,6 +41,12 @@ class Cli : public ::testing::Test {
     s << in.rdbuf();
     return s.str();
   }
+  // How many times `needle` occurs in `text` (overlapping occurrences too).
+  static std::size_t occurrences(const std::string& text, const std::string& needle) {
+    std::size_t count = 0;
+    for (std::size_t at = text.find(needle); at != std::string::npos; at = text.find(needle, at + 1)) ++count;
+    return count;
+  }
   Result drape(const std::string& args) {
     const std::string cmd = std::string(DRAPE_BIN) + " " + args + " > " + (dir / "stdout").string() + " 2> " +
                             (dir / "stderr").string();
