@@ -63,18 +63,94 @@ def cloth_bending(mass, side, cells, length=None):
     return rounded(areal_density * 9.81 * length ** 3 / h ** 2, 6)
 
 
+def rotated(v, axis, angle):
+    """v turned by angle (radians) about the unit axis (Rodrigues)."""
+    c, s = math.cos(angle), math.sin(angle)
+    dot = sum(a * b for a, b in zip(axis, v))
+    cross = [axis[1] * v[2] - axis[2] * v[1], axis[2] * v[0] - axis[0] * v[2], axis[0] * v[1] - axis[1] * v[0]]
+    return [v[i] * c + cross[i] * s + axis[i] * dot * (1 - c) for i in range(3)]
+
+
+def sub(a, b):
+    return [a[i] - b[i] for i in range(3)]
+
+
+def dot(a, b):
+    return sum(a[i] * b[i] for i in range(3))
+
+
+def sheet_corners(center, side, axis, tilt):
+    """The corners, in order around it, of a flat square sheet of the given side turned by tilt about axis."""
+    return [[center[i] + d for i, d in enumerate(rotated([sx * side / 2, sy * side / 2, 0], axis, tilt))]
+            for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
+
+
+def segment_distance(p, q, a, b):
+    """Distance between segments pq and ab (the closest pair of parameters, clamped)."""
+    d1, d2, r = sub(q, p), sub(b, a), sub(p, a)
+    a11, a22, a12, b1, b2 = dot(d1, d1), dot(d2, d2), dot(d1, d2), dot(d1, r), dot(d2, r)
+    det = a11 * a22 - a12 * a12
+    s = min(max((a12 * b2 - a22 * b1) / det, 0.0), 1.0) if det > 1e-18 else 0.0
+    t = min(max((a12 * s + b2) / a22, 0.0), 1.0)
+    s = min(max((a12 * t - b1) / a11, 0.0), 1.0)
+    return math.dist([p[i] + s * d1[i] for i in range(3)], [a[i] + t * d2[i] for i in range(3)])
+
+
+def segment_to_square(p, q, square):
+    """Distance from segment pq to a flat convex quad: 0 where pq passes through it."""
+    u, v = sub(square[1], square[0]), sub(square[3], square[0])
+    n = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
+    norm = math.sqrt(dot(n, n))
+    n = [x / norm for x in n]
+
+    def inside(x):  # x on the quad's plane: within all four edges
+        return all(dot(n, cross3(sub(square[(k + 1) % 4], square[k]), sub(x, square[k]))) >= 0 for k in range(4))
+
+    hp, hq = dot(n, sub(p, square[0])), dot(n, sub(q, square[0]))
+    best = min(segment_distance(p, q, square[k], square[(k + 1) % 4]) for k in range(4))
+    for x, h in ((p, hp), (q, hq)):
+        if inside([x[i] - h * n[i] for i in range(3)]):
+            best = min(best, abs(h))
+    if hp * hq < 0:
+        t = hp / (hp - hq)
+        if inside([p[i] + t * (q[i] - p[i]) for i in range(3)]):
+            return 0.0
+    return best
+
+
+def cross3(a, b):
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+
+def squares_distance(a, b):
+    """Distance between two flat convex quads: each one's edges against the other."""
+    return min(min(segment_to_square(x[k], x[(k + 1) % 4], y) for k in range(4)) for x, y in ((a, b), (b, a)))
+
+
+# Sheets start this far apart at least, beyond the contact range (h + 6 xi = 17 mm): none
+# starts through another, and all fall alike until they land.
+RAIN_CLEARANCE = 0.03
+
+
 def rain_torus():
-    sheets = []
+    sheets, placed = [], []
     for k in range(36):
         i, j = k % 6, k // 6
         tilt = 0.5 * (k % 7) / 6
         cells, side, mass = 8 + k % 6, rounded(0.3 + 0.06 * (k % 6)), rounded(0.05 + 0.03 * (k % 5))
         stiffness = [100.0, 200.0, 400.0, 800.0][k % 4]
+        axis = rounded([math.cos(k), math.sin(k), 0])
+        center = [-0.75 + 0.3 * i, -0.75 + 0.3 * j, 1.0 + 0.15 * ((7 * k) % 12)]
+        # tilted neighbours at the same or the next height would start through each other:
+        # such a sheet starts higher, in steps of a tenth of the height pitch
+        while any(squares_distance(sheet_corners(center, side, axis, tilt), b) < RAIN_CLEARANCE for b in placed):
+            center[2] += 0.015
+        placed.append(sheet_corners(center, side, axis, tilt))
         sheet = {
             "name": f"drop{k:02d}",
             "grid": [cells, cells],
             "size": [side, side],
-            "center": rounded([-0.75 + 0.3 * i, -0.75 + 0.3 * j, 1.0 + 0.15 * ((7 * k) % 12)]),
+            "center": rounded(center),
             "velocity": [0, 0, -0.5],
             "mass": mass,
             "stiffness": stiffness,
@@ -84,7 +160,7 @@ def rain_torus():
             "bending": {"stiffness": cloth_bending(mass, side, cells)},
         }
         if tilt > 0:
-            sheet["orientation"] = {"axis": rounded([math.cos(k), math.sin(k), 0]), "degrees": rounded(math.degrees(tilt), 4)}
+            sheet["orientation"] = {"axis": axis, "degrees": rounded(math.degrees(tilt), 4)}
         if k % 9 == 0:
             sheet["self_collision"] = True
         sheets.append(sheet)
