@@ -124,10 +124,13 @@ inline ObstacleDef floor_holding(const SheetDef& sheet) {
 // every substep instead of the walk (the reference, priced beside it). `friction`
 // (SheetDef::friction, on every sheet) and `damping` (WorldDef::contact_damping): the
 // dissipative contact terms, priced beside the frictionless, undamped contact of world_def().
+// `rims`: WorldDef::contact_rims (the rims' edges against the other sheets' edges, the
+// default), priced against the points' contacts alone.
 struct StackContact {
   bool exact = false;
   double friction = 0.0;
   double damping = 0.0;
+  bool rims = true;
 };
 
 // The stack in drape. `layer_gap` 2 m keeps the sheets apart (no pair within contact range,
@@ -141,6 +144,7 @@ inline World stack_world(int threads, double layer_gap, StackContact contact = {
   wd.threads = threads;
   wd.contact_exact = contact.exact;
   wd.contact_damping = contact.damping;
+  wd.contact_rims = contact.rims;
   World world(wd);
   SheetDef sd;
   sd.m = sd.n = Stack::side - 1;

@@ -705,6 +705,7 @@ PYBIND11_MODULE(drape, m) {
       .field("contact_range", &WorldDef::contact_range, "cut-off beyond h, in units of xi")
       .field("contact_damping", &WorldDef::contact_damping, "alpha, s/m: Hunt-Crossley damping of the repulsion (default 2); 0: none, the repulsion conserves energy")
       .field("contact_exact", &WorldDef::contact_exact, "exact nearest triangle every substep (the reference)")
+      .field("contact_rims", &WorldDef::contact_rims, "rim edges also repel the other sheet's edges (default True)")
       .field("block_points", &WorldDef::block_points, "points per row block of a large sheet")
       .done();
 

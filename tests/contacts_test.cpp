@@ -57,7 +57,18 @@ SheetBoxes<double> boxes(const Sheet<double>& s) {
   return out;
 }
 
-const ContactParams<double> kParams = ContactParams<double>::make(0.005, 0.002, 1e-4, 6.0);
+// The points' contacts alone: the brute forces of this file are every point against every
+// triangle; the rims (edges against edges) have tests of their own, with kRimParams.
+const ContactParams<double> kParams = [] {
+  auto p = ContactParams<double>::make(0.005, 0.002, 1e-4, 6.0);
+  p.rims = false;
+  return p;
+}();
+const ContactParams<double> kRimParams = [] {
+  auto p = kParams;
+  p.rims = true;
+  return p;
+}();
 // The same with exact candidate lists between searches (contacts.h, ContactParams::exact).
 const ContactParams<double> kExact = [] {
   auto p = kParams;
@@ -190,6 +201,79 @@ TEST(Contacts, PairForcesConserveLinearAndAngularMomentum) {
     for (int k = 0; k < 3; ++k) {
       EXPECT_NEAR(force[k], 0.0, 1e-13 * scale) << "seed " << seed;
       EXPECT_NEAR(torque[k], 0.0, 1e-13 * torque_scale) << "seed " << seed;
+    }
+  }
+}
+
+// Each point's total force from a pair's entries, per axis.
+std::vector<P3> dense(const ContactForces<double>& f, std::size_t points) {
+  std::vector<P3> out(points, P3{0, 0, 0});
+  for (std::size_t e = 0; e < f.size(); ++e) {
+    out[f.point[e]][0] += f.fx[e];
+    out[f.point[e]][1] += f.fy[e];
+    out[f.point[e]][2] += f.fz[e];
+  }
+  return out;
+}
+
+// The rims (contacts.h, edges against edges): the forces they add to the points' are minus
+// the gradient of Σ E(distance) over the edge pairs they count, summed by a brute force of
+// its own (surface_distance.h, rim_sum: every rim edge against every edge, the common
+// perpendicular from a cross product), by central differences at every third point; and,
+// each force lying along the line between the two edges' nearest points, they change
+// neither the total force nor the total torque.
+TEST(Contacts, RimForcesAreMinusTheGradientOfTheRimPotential) {
+  for (unsigned seed : {3u, 4u}) {
+    auto sheets = close_sheets(seed);
+    Sheet<double>& a = sheets.first;
+    Sheet<double>& b = sheets.second;
+    const PairContacts<double> points = pair_forces(a, b, kParams), all = pair_forces(a, b, kRimParams);
+    ASSERT_GT(all.on_a.size() + all.on_b.size(), points.on_a.size() + points.on_b.size() + 20) << "rims in range";
+    const Potential E{kParams.thickness, kParams.xi, kParams.strength, kParams.range};
+    auto energy = [&] {
+      auto at = [](const Sheet<double>& s) { return [&s](std::uint32_t k) { return point(s, k); }; };
+      return test::rim_sum(a.topology->m, a.topology->n, at(a), b.topology->m, b.topology->n, at(b), E);
+    };
+    double fmax = 0;
+    P3 force{0, 0, 0}, torque{0, 0, 0};
+    double scale = 0;
+    std::vector<P3> rim[2];
+    for (int k = 0; k < 2; ++k) {
+      const Sheet<double>& s = k == 0 ? a : b;
+      const auto with = dense(k == 0 ? all.on_a : all.on_b, s.size());
+      const auto without = dense(k == 0 ? points.on_a : points.on_b, s.size());
+      rim[k].resize(s.size());
+      for (std::uint32_t p = 0; p < s.size(); ++p) {
+        rim[k][p] = sub(with[p], without[p]);
+        const P3 t = cross(point(s, p), rim[k][p]);
+        for (int c = 0; c < 3; ++c) {
+          force[c] += rim[k][p][c];
+          torque[c] += t[c];
+          fmax = std::max(fmax, std::abs(rim[k][p][c]));
+        }
+        scale += std::sqrt(dot(rim[k][p], rim[k][p]));
+      }
+    }
+    ASSERT_GT(fmax, 0.0);
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_NEAR(force[c], 0.0, 1e-12 * scale) << "seed " << seed;
+      EXPECT_NEAR(torque[c], 0.0, 1e-12 * scale) << "seed " << seed;
+    }
+    const double delta = 1e-7;
+    for (int k = 0; k < 2; ++k) {
+      Sheet<double>& side = k == 0 ? a : b;
+      for (std::uint32_t p = 0; p < side.size(); p += 3)
+        for (int c = 0; c < 3; ++c) {
+          auto& axis = c == 0 ? side.position.x : c == 1 ? side.position.y : side.position.z;
+          const double x0 = axis[p];
+          axis[p] = x0 + delta;
+          const double up = energy();
+          axis[p] = x0 - delta;
+          const double down = energy();
+          axis[p] = x0;
+          EXPECT_NEAR(rim[k][p][c], -(up - down) / (2 * delta), 1e-5 * fmax)
+              << "seed " << seed << (k == 0 ? " a" : " b") << " point " << p << " axis " << c;
+        }
     }
   }
 }
@@ -732,15 +816,6 @@ Dense brute_contacts(const Sheet<double>& q, const Sheet<double>& s, int ring) {
   return out;
 }
 
-std::vector<P3> dense(const ContactForces<double>& f, std::size_t points) {
-  std::vector<P3> out(points, P3{0, 0, 0});
-  for (std::size_t e = 0; e < f.size(); ++e) {
-    out[f.point[e]][0] += f.fx[e];
-    out[f.point[e]][1] += f.fy[e];
-    out[f.point[e]][2] += f.fz[e];
-  }
-  return out;
-}
 
 // The brute force's forces of a pair in both directions, summed per sheet: on a (points
 // of a against b, and a's corners' share of b's points) and on b.
@@ -870,7 +945,9 @@ TEST(Contacts, SelfContactMatchesEveryPointAgainstEveryTriangleOutsideTheRing) {
 // differently, or finds a different set of cells.
 template <class Real>
 std::vector<double> contact_forces_over_steps() {
-  ContactParams<Real> walked = ContactParams<Real>::make(0.005, 0.002, 1e-4, 6.0), exact = walked;
+  ContactParams<Real> walked = ContactParams<Real>::make(0.005, 0.002, 1e-4, 6.0);
+  walked.rims = true;  // the rims' search and force too
+  ContactParams<Real> exact = walked;
   walked.dt = exact.dt = Real(1e-3);
   exact.exact = true;
   ContactParams<Real> damped = walked;  // the stack again with contact damping (α, s/m)
@@ -1340,7 +1417,7 @@ TEST(Contacts, WalkFromAnAlignedVertexFindsTheRaisedNeighboursTriangles) {
   test::for_each_target([&](std::int64_t) {
     auto [a, b] = aligned_grids<double>();
     const Vec3Array<double> a0 = a.position, b0 = b.position;
-    const auto prm = ContactParams<double>::make(0.005, 0.002, 1e-4, 6.0);
+    const auto prm = kParams;  // the points' contacts: the brute force's
     ContactScratch<double> scratch;
     std::mt19937 rng(11);
     std::size_t moved = 0;

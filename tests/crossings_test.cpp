@@ -240,5 +240,54 @@ TEST(Crossings, SheetsSettlingInContactNeverCrossAndAThrownHalfDoes) {
   }
 }
 
+// A sheet of long cells (15 cm) laid across the edge of a pinned one, 1 cm above it, two of
+// its three columns of points over the pinned sheet: they land on it (friction holds them)
+// and the cells reaching past the edge rest on that edge, whose far points cannot tip down
+// without lifting the near ones (a cell is straight). No point of the laid sheet comes
+// within contact range of the pinned one's edge (each is 5 cm or more from it), so only the
+// rims (contacts.h: the pinned sheet's edge against the laid sheet's edges passing it) hold
+// the cells on the edge: without them the cells cut through the pinned sheet's outer cells
+// (a crossing, sheet_crossings) and the sheet falls through; with them no frame has a
+// crossing and every point stays above the pinned sheet's plane.
+TEST(Crossings, ASheetDrapedOverAnotherSheetsEdgeStaysOnItWithRimContacts) {
+  for (bool rims : {false, true}) {
+    WorldDef wd;
+    wd.dt = 2e-4;
+    wd.contact_rims = rims;
+    World w(wd);
+    SheetDef table;
+    table.m = table.n = 2;
+    table.width = table.height = 0.2;
+    for (std::uint32_t p = 0; p < 9; ++p) table.pins.push_back(p);
+    const SheetId under = w.add_sheet(table);
+    SheetDef cloth;
+    cloth.m = 1;
+    cloth.n = 2;
+    cloth.width = 0.3;
+    cloth.height = 0.1;
+    cloth.mass = 0.01;
+    cloth.stiffness = 50;
+    cloth.damping = 0.01;
+    cloth.friction = 1;  // the part on the table holds the part hanging
+    cloth.center = {0.0, 0.003, 0.01};  // points at x = −0.15, 0, 0.15; the table's edge at x = 0.1
+    const SheetId over = w.add_sheet(cloth);
+    std::size_t frames_crossed = 0;
+    for (int frame = 0; frame < 50; ++frame) {
+      w.step(50);
+      frames_crossed += !w.sheet_crossings().empty();
+    }
+    const auto v = w.view(over);
+    const double lowest = *std::min_element(v.z.begin(), v.z.end());
+    if (rims) {
+      EXPECT_EQ(frames_crossed, 0u);
+      EXPECT_GT(lowest, 0.0);
+    } else {
+      EXPECT_GT(frames_crossed, 0u) << "the case needs the rims";
+      EXPECT_LT(lowest, 0.0);
+    }
+    (void)under;
+  }
+}
+
 }  // namespace
 }  // namespace drape

@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <vector>
 
 namespace drape::test {
 
@@ -45,6 +46,57 @@ double surface_distance(P3 p, std::uint32_t m, std::uint32_t n, At at) {
       best = std::min({best, triangle_distance(p, at(a), at(b), at(d)), triangle_distance(p, at(a), at(d), at(c))});
     }
   return best;
+}
+
+// The edges of a sheet of m×n cells (its surface's: along rows, along columns, and each
+// cell's diagonal (i,j)(i+1,j+1)), with whether each lies on the rim (the first or last row
+// or column).
+struct GridEdge {
+  std::uint32_t u, v;
+  bool rim;
+};
+inline std::vector<GridEdge> grid_edges(std::uint32_t m, std::uint32_t n) {
+  std::vector<GridEdge> out;
+  const std::uint32_t cols = n + 1;
+  for (std::uint32_t i = 0; i <= m; ++i)
+    for (std::uint32_t j = 0; j <= n; ++j) {
+      const std::uint32_t u = i * cols + j;
+      if (j < n) out.push_back({u, u + 1, i == 0 || i == m});
+      if (i < m) out.push_back({u, u + cols, j == 0 || j == n});
+      if (i < m && j < n) out.push_back({u, u + cols + 1, false});
+    }
+  return out;
+}
+
+// The distance between edges pq and ab where they pass each other as the rim contacts count
+// them (contacts.h): the lines' common perpendicular, found here from the normal
+// n = (q − p) × (b − a) (s = ((a − p) × (b − a))·n / |n|², t = ((a − p) × (q − p))·n / |n|²),
+// meeting both edges between 1 % and 99 % of their length, at more than about 6° (|n|² >
+// 0.01·|q − p|²·|b − a|²); −1 otherwise.
+inline double passing_distance(P3 p, P3 q, P3 a, P3 b) {
+  const P3 d1 = sub(q, p), d2 = sub(b, a), n = cross(d1, d2), w = sub(a, p);
+  const double nn = dot(n, n);
+  if (!(nn > 0.01 * dot(d1, d1) * dot(d2, d2))) return -1;
+  const double s = dot(cross(w, d2), n) / nn, t = dot(cross(w, d1), n) / nn;
+  if (!(s > 0.01 && s < 0.99 && t > 0.01 && t < 0.99)) return -1;
+  const P3 x{p[0] + s * d1[0] - a[0] - t * d2[0], p[1] + s * d1[1] - a[1] - t * d2[1], p[2] + s * d1[2] - a[2] - t * d2[2]};
+  return std::sqrt(dot(x, x));
+}
+
+// Σ f(distance) over the edge pairs of two sheets that the rim contacts count: every rim edge
+// of each against every edge of the other, each pair of rim edges once, every pair passing
+// (passing_distance ≥ 0): the brute force of the rims, no boxes.
+template <class AtA, class AtB, class F>
+double rim_sum(std::uint32_t ma, std::uint32_t na, AtA at_a, std::uint32_t mb, std::uint32_t nb, AtB at_b, F f) {
+  const auto ea = grid_edges(ma, na), eb = grid_edges(mb, nb);
+  double sum = 0;
+  for (const GridEdge& x : ea)
+    for (const GridEdge& y : eb) {
+      if (!x.rim && !y.rim) continue;
+      const double d = passing_distance(at_a(x.u), at_a(x.v), at_b(y.u), at_b(y.v));
+      if (d >= 0) sum += f(d);
+    }
+  return sum;
 }
 
 }  // namespace drape::test

@@ -251,6 +251,7 @@ TEST(Worlds, ContactEnergyOfStackedSheetsIsThePotentialAtTheGapInFloat) { expect
 TEST(Worlds, ContactEnergyIsThePotentialAtEveryPointsNearestTriangle) {
   WorldDef wd;
   wd.gravity = {0, 0, 0};
+  wd.contact_rims = true;  // and the rims' energy
   World w(wd);
   SheetDef d;
   d.m = 9;
@@ -297,6 +298,8 @@ TEST(Worlds, ContactEnergyIsThePotentialAtEveryPointsNearestTriangle) {
     for (std::uint32_t p = 0; p < v.size(); ++p)
       expected += potential(test::surface_distance(at(q)(p), o.m, o.n, at(other)));
   }
+  // and the rims of a and b (contacts.h): edges passing each other within R
+  expected += test::rim_sum(w.view(a).m, w.view(a).n, at(a), w.view(b).m, w.view(b).n, at(b), potential);
   const double pairs = expected;
   const int ring = 1 + int(std::ceil(R / 0.01));  // the strip's spacing is 1 cm both ways
   const auto v = w.view(s);

@@ -430,7 +430,7 @@ void describe_world(const Scene& scene, std::ostream& out) {
     out << "contacts between sheets: thickness " << w.contact_thickness << " m, xi " << w.contact_xi << " m, strength "
         << w.contact_strength << " J, range " << w.contact_range << " xi";
     if (w.contact_damping > 0) out << ", damping " << w.contact_damping << " s/m";
-    out << '\n';
+    out << (w.contact_rims ? ", rims" : ", points only (contact_rims off)") << '\n';
   }
   if (std::any_of(scene.sheets.begin(), scene.sheets.end(), [](const SheetDef& s) { return s.air.has_value(); }))
     out << "wind: " << w.wind.velocity.x << ", " << w.wind.velocity.y << ", " << w.wind.velocity.z << " m/s, density "

@@ -605,6 +605,7 @@ void read_world_knobs(const Node& top, WorldDef& w) {
   if (top.has("contact_range")) w.contact_range = top.child("contact_range").positive();
   if (top.has("contact_damping")) w.contact_damping = top.child("contact_damping").non_negative();
   if (top.has("contact_exact")) w.contact_exact = top.child("contact_exact").boolean();
+  if (top.has("contact_rims")) w.contact_rims = top.child("contact_rims").boolean();
   if (top.has("block_points")) w.block_points = std::uint32_t(top.child("block_points").whole(1, 4294967295u));
   if (top.has("wind")) {
     const Node wind = top.child("wind");
@@ -646,7 +647,7 @@ Scene parse_scene(std::string_view text, const std::string& file, std::span<cons
   top.expect_object({"description", "dt", "substeps", "fps", "frames", "duration", "integrator", "precision",
                      "gravity", "cg_tolerance", "cg_max_iterations", "cg_preconditioner", "local_global_iterations", "vertex_block_iterations", "adaptive", "adaptive_safety", "guard",
                      "guard_energy_growth", "contact_thickness", "contact_xi", "contact_strength", "contact_range",
-                     "contact_damping", "contact_exact", "block_points", "wind", "sheets", "obstacles", "constraints", "output", "camera"});
+                     "contact_damping", "contact_exact", "contact_rims", "block_points", "wind", "sheets", "obstacles", "constraints", "output", "camera"});
   Scene scene;
   scene.file = file;
   scene.source = std::string(text);

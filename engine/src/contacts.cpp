@@ -187,20 +187,13 @@ V3<Real> velocity(const Sheet<Real>& s, std::uint32_t p) {
   return {s.velocity.x[p], s.velocity.y[p], s.velocity.z[p]};
 }
 
-// Damping and Coulomb friction on point q of sheet qs against the triangle `best` of sheet
-// ss, whose repulsion on q is `force` along the unit normal d (contacts.h): returns the
-// force to add. Without damping the friction alone, through the same operations.
+// Damping and Coulomb friction of a contact whose two sides move apart at `rel` (the
+// velocity of one side's contact point less the other's) with inverse mass `inv_mass` along
+// the contact (Σ w²/m over the weighted points of both sides), and whose repulsion is
+// `force` along the unit normal d (contacts.h): returns the force to add on the first side.
+// Without damping the friction alone, through the same operations.
 template <class Real>
-V3<Real> dissipate(const Sheet<Real>& qs, std::uint32_t q, const Sheet<Real>& ss, const Nearest<Real>& best, V3<Real> d,
-                   Real force, const ContactParams<Real>& prm) {
-  const Real w[3] = {best.w.x, best.w.y, best.w.z};
-  V3<Real> rel = velocity(qs, q);
-  Real inv_mass = qs.inv_mass[q];
-  for (int k = 0; k < 3; ++k) {
-    const V3<Real> u = velocity(ss, best.tri[k]);
-    rel = {rel.x - w[k] * u.x, rel.y - w[k] * u.y, rel.z - w[k] * u.z};
-    inv_mass += w[k] * w[k] * ss.inv_mass[best.tri[k]];
-  }
+V3<Real> dissipate_motion(V3<Real> rel, Real inv_mass, V3<Real> d, Real force, const ContactParams<Real>& prm) {
   if (!(inv_mass > 0)) return {0, 0, 0};
   const Real normal = dot(rel, d);  // ḋ: > 0 parting, < 0 approaching
   V3<Real> damped{0, 0, 0};
@@ -222,6 +215,21 @@ V3<Real> dissipate(const Sheet<Real>& qs, std::uint32_t q, const Sheet<Real>& ss
   const Real k = slip2 < held * held ? Real(1) / (inv_mass * prm.dt) : prm.friction * force / std::sqrt(slip2);
   if (!(prm.damping > 0)) return {-k * slip.x, -k * slip.y, -k * slip.z};
   return {damped.x - k * slip.x, damped.y - k * slip.y, damped.z - k * slip.z};
+}
+
+// dissipate_motion for point q of sheet qs against the triangle `best` of sheet ss.
+template <class Real>
+V3<Real> dissipate(const Sheet<Real>& qs, std::uint32_t q, const Sheet<Real>& ss, const Nearest<Real>& best, V3<Real> d,
+                   Real force, const ContactParams<Real>& prm) {
+  const Real w[3] = {best.w.x, best.w.y, best.w.z};
+  V3<Real> rel = velocity(qs, q);
+  Real inv_mass = qs.inv_mass[q];
+  for (int k = 0; k < 3; ++k) {
+    const V3<Real> u = velocity(ss, best.tri[k]);
+    rel = {rel.x - w[k] * u.x, rel.y - w[k] * u.y, rel.z - w[k] * u.z};
+    inv_mass += w[k] * w[k] * ss.inv_mass[best.tri[k]];
+  }
+  return dissipate_motion(rel, inv_mass, d, force, prm);
 }
 
 // The exponent (h − d)/ξ of the force at distance `dist`, capped (contacts.h): min(e, +∞)
@@ -279,6 +287,220 @@ void repel(const Sheet<Real>& qs, std::uint32_t q, V3<Real> p, const Sheet<Real>
   push_repulsion(qs, q, ss, best, d, f, prm, on_q, on_s);
 }
 
+
+// --- Rims: edges against edges (contacts.h, pair_contacts with ContactParams::rims) ---
+
+// Two edges p0p1 and q0q1 that pass each other at an angle, their nearest points inside
+// both: p0 + s·(p1 − p0) and q0 + t·(q1 − q0), 0.01 < s, t < 0.99, diff the first less the
+// second (the lines' common perpendicular). False where the nearest points lie at or near an
+// end of either (a point near the other sheet, which the points' contacts hold; edges that
+// meet in line with a grid, such as stacked sheets' rims, rounded off their ends) or where the
+// edges lie within about 6° of parallel (edges lying along each other cannot hook; their
+// nearest points are ill-conditioned).
+template <class Real>
+struct EdgePair {
+  Real s, t, dist2;
+  V3<Real> diff;
+};
+
+template <class Real>
+bool edges_passing(V3<Real> p0, V3<Real> p1, V3<Real> q0, V3<Real> q1, EdgePair<Real>& out) {
+  const V3<Real> dp = sub(p1, p0), dq = sub(q1, q0), r = sub(p0, q0);
+  const Real a = dot(dp, dp), e = dot(dq, dq), b = dot(dp, dq);
+  const Real denom = a * e - b * b;  // a·e·sin² of the angle between them
+  if (!(denom > Real(0.01) * a * e)) return false;
+  const Real c = dot(dp, r), f = dot(dq, r);
+  // s and t times denom (> 0) against their bounds, before any division: most candidates
+  // fail here
+  constexpr Real end = Real(0.01);  // of an edge's length: nearer its end the end's point holds it
+  const Real sd = b * f - c * e, td = a * f - b * c, lo = end * denom, hi = (1 - end) * denom;
+  if (!(sd > lo && sd < hi && td > lo && td < hi)) return false;
+  const Real s = sd / denom, t = td / denom;
+  out.s = s;
+  out.t = t;
+  out.diff = {r.x + s * dp.x - t * dq.x, r.y + s * dp.y - t * dq.y, r.z + s * dp.z - t * dq.z};
+  out.dist2 = dot(out.diff, out.diff);
+  return true;
+}
+
+// Edge uv of q and edge pw of s at their closest points c (within R): the repulsion of the
+// points' law at that distance along their difference, with damping and friction of the
+// edges' motion there, shared by each edge's ends in the weights of the closest points.
+template <class Real>
+void repel_edges(const Sheet<Real>& qs, std::uint32_t u, std::uint32_t v, const Sheet<Real>& ss, std::uint32_t p,
+                 std::uint32_t w, const EdgePair<Real>& c, const ContactParams<Real>& prm, ContactForces<Real>& on_q,
+                 ContactForces<Real>& on_s) {
+  const Real dist = std::sqrt(c.dist2);
+  if (!(dist > 0)) return;  // the edges cross: no direction (sheet_crossings finds it)
+  const V3<Real> d{c.diff.x / dist, c.diff.y / dist, c.diff.z / dist};
+  const Real f = prm.strength / prm.xi * (force_exp(exponent_at(dist, prm)) - prm.tail);
+  V3<Real> F{f * d.x, f * d.y, f * d.z};
+  const Real wq[2] = {1 - c.s, c.s}, ws[2] = {1 - c.t, c.t};
+  const std::uint32_t iq[2] = {u, v}, is[2] = {p, w};
+  if (prm.friction > 0 || prm.damping > 0) {
+    V3<Real> rel{0, 0, 0};
+    Real inv_mass = 0;
+    for (int k = 0; k < 2; ++k) {
+      const V3<Real> a = velocity(qs, iq[k]), b = velocity(ss, is[k]);
+      rel = {rel.x + wq[k] * a.x - ws[k] * b.x, rel.y + wq[k] * a.y - ws[k] * b.y, rel.z + wq[k] * a.z - ws[k] * b.z};
+      inv_mass += wq[k] * wq[k] * qs.inv_mass[iq[k]] + ws[k] * ws[k] * ss.inv_mass[is[k]];
+    }
+    const V3<Real> t = dissipate_motion(rel, inv_mass, d, f, prm);
+    F = {F.x + t.x, F.y + t.y, F.z + t.z};
+  }
+  for (int k = 0; k < 2; ++k)
+    if (wq[k] != 0) on_q.push(iq[k], wq[k] * F.x, wq[k] * F.y, wq[k] * F.z);
+  for (int k = 0; k < 2; ++k)
+    if (ws[k] != 0) on_s.push(is[k], -ws[k] * F.x, -ws[k] * F.y, -ws[k] * F.z);
+}
+
+// The squared distance between edges p0p1 and q0q1 (their nearest points, ends included;
+// Ericson, Real-Time Collision Detection, 5.1.9): no two points of the edges are nearer, so
+// it bounds edges_passing's distance from below.
+template <class Real>
+Real edge_distance2(V3<Real> p0, V3<Real> p1, V3<Real> q0, V3<Real> q1) {
+  const V3<Real> dp = sub(p1, p0), dq = sub(q1, q0), r = sub(p0, q0);
+  const Real a = dot(dp, dp), e = dot(dq, dq), b = dot(dp, dq), c = dot(dp, r), f = dot(dq, r);
+  auto unit = [](Real x) { return std::min(std::max(x, Real(0)), Real(1)); };
+  const Real denom = a * e - b * b;
+  Real s = denom > 0 ? unit((b * f - c * e) / denom) : Real(0);
+  Real t = e > 0 ? (b * s + f) / e : Real(0);
+  if (t < 0) {
+    t = 0;
+    s = a > 0 ? unit(-c / a) : Real(0);
+  } else if (t > 1) {
+    t = 1;
+    s = a > 0 ? unit((b - c) / a) : Real(0);
+  }
+  const V3<Real> d{r.x + s * dp.x - t * dq.x, r.y + s * dp.y - t * dq.y, r.z + s * dp.z - t * dq.z};
+  return dot(d, d);
+}
+
+// Calls f(u, v, p, w) for each edge uv of q's rim (its first and last point rows and
+// columns) and each edge pw of s owned by a cell whose box is within `reach` of the edge's
+// box: q's border patches against s's patches, then each rim edge against the cells of s
+// near it, and of each such cell the edges it owns (its top, left and diagonal; the bottom
+// one in the last row, the right one in the last column), so each edge of s comes once.
+// `skip_rim_of_s`: leave out the edges of s's rim (the other direction met them). In the
+// order of q's rim edges (first row, last row, first column, last column), then of s's
+// patches, cells and edges.
+template <class Real, class F>
+void rim_edge_pairs(const Sheet<Real>& q, const SheetBoxes<Real>& bq, const Sheet<Real>& s, const SheetBoxes<Real>& bs,
+                    double reach, bool skip_rim_of_s, std::vector<std::uint32_t>& near, F&& f) {
+  const std::uint32_t qm = q.topology->m, qn = q.topology->n, qcols = q.topology->cols();
+  const std::uint32_t sm = s.topology->m, sn = s.topology->n, cols = s.topology->cols();
+  if (qm == 0 || qn == 0 || sm == 0 || sn == 0) return;  // a line of points has no rim of a surface
+  reach = reach * (1 + 1e-6) + 1e-12;                     // widened against rounding
+  const std::uint32_t patches = bs.patch_rows * bs.patch_cols;
+  auto edge_pairs = [&](std::uint32_t u, std::uint32_t v) {
+    const V3<Real> x0 = at(q, u), x1 = at(q, v);
+    Aabb edge;
+    edge.lo[0] = std::min(double(x0.x), double(x1.x));
+    edge.lo[1] = std::min(double(x0.y), double(x1.y));
+    edge.lo[2] = std::min(double(x0.z), double(x1.z));
+    edge.hi[0] = std::max(double(x0.x), double(x1.x));
+    edge.hi[1] = std::max(double(x0.y), double(x1.y));
+    edge.hi[2] = std::max(double(x0.z), double(x1.z));
+    edge = edge.inflated(reach);
+    for (std::uint32_t t : near) {
+      if (!overlaps(edge, box_at(bs.patch_lo, bs.patch_hi, t))) continue;
+      cells_meeting(bs, t, edge, [&](std::uint32_t c) {
+        const std::uint32_t i = c / cols, j = c % cols;
+        if (!skip_rim_of_s || i > 0) f(u, v, c, c + 1);
+        if (!skip_rim_of_s || j > 0) f(u, v, c, c + cols);
+        f(u, v, c, c + cols + 1);
+        if (i + 1 == sm && !skip_rim_of_s) f(u, v, c + cols, c + cols + 1);
+        if (j + 1 == sn && !skip_rim_of_s) f(u, v, c + 1, c + cols + 1);
+      });
+    }
+  };
+  // the patches of s near border patch (bi, bj) of q
+  auto near_patch = [&](std::uint32_t bi, std::uint32_t bj) {
+    const Aabb block = box_at(bq.patch_lo, bq.patch_hi, std::size_t(bi) * bq.patch_cols + bj).inflated(reach);
+    near.clear();
+    for (std::uint32_t t = 0; t < patches; ++t)
+      if (overlaps(block, box_at(bs.patch_lo, bs.patch_hi, t))) near.push_back(t);
+  };
+  constexpr std::uint32_t P = SheetBoxes<Real>::kPatch;
+  for (std::uint32_t row : {0u, qm}) {  // the first and last rows' edges, patch by patch
+    const std::uint32_t bi = row == 0 ? 0 : bq.patch_rows - 1;
+    for (std::uint32_t bj = 0; bj < bq.patch_cols; ++bj) {
+      near_patch(bi, bj);
+      if (near.empty()) continue;
+      for (std::uint32_t j = bj * P; j < std::min(bj * P + P, qn); ++j) edge_pairs(row * qcols + j, row * qcols + j + 1);
+    }
+  }
+  for (std::uint32_t col : {0u, qn}) {  // the first and last columns' edges
+    const std::uint32_t bj = col == 0 ? 0 : bq.patch_cols - 1;
+    for (std::uint32_t bi = 0; bi < bq.patch_rows; ++bi) {
+      near_patch(bi, bj);
+      if (near.empty()) continue;
+      for (std::uint32_t i = bi * P; i < std::min(bi * P + P, qm); ++i) edge_pairs(i * qcols + col, (i + 1) * qcols + col);
+    }
+  }
+}
+
+// The rim pairs of q and s (one direction) within `reach` of each other now, into `out`.
+template <class Real>
+void rim_candidates(const Sheet<Real>& q, const SheetBoxes<Real>& bq, const Sheet<Real>& s, const SheetBoxes<Real>& bs,
+                    Real reach, bool skip_rim_of_s, std::vector<std::uint32_t>& near,
+                    std::vector<std::array<std::uint32_t, 4>>& out) {
+  out.clear();
+  const Real reach2 = reach * reach;
+  rim_edge_pairs(q, bq, s, bs, double(reach), skip_rim_of_s, near,
+                 [&](std::uint32_t u, std::uint32_t v, std::uint32_t p, std::uint32_t w) {
+                   if (edge_distance2(at(q, u), at(q, v), at(s, p), at(s, w)) < reach2) out.push_back({u, v, p, w});
+                 });
+}
+
+// A pair's rims this substep (contacts.h, PairContacts::rims_ab): its candidates made again
+// when due (both sheets' boxes then current), then each candidate pair passing within R
+// repelled, a's rim edges first.
+template <class Real>
+void rims_of_pair(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sheet<Real>& b, const SheetBoxes<Real>& bb,
+                  const ContactParams<Real>& prm, PairContacts<Real>& work, ContactScratch<Real>& sc) {
+  const Real skin = prm.range / 2;
+  if (rims_due(work, a, b, prm.travel)) {
+    rim_candidates(a, ba, b, bb, prm.range + skin, false, sc.patches, work.rims_ab);
+    rim_candidates(b, bb, a, ba, prm.range + skin, true, sc.patches, work.rims_ba);
+    work.rims_until = std::isfinite(prm.travel) ? prm.travel + 0.99 * double(skin) : -std::numeric_limits<double>::infinity();
+    work.rims_topology_a = a.topology.get();
+    work.rims_topology_b = b.topology.get();
+    ++work.rim_searches;
+  }
+  const Real R2 = prm.range * prm.range;
+  for (const auto& [u, v, p, w] : work.rims_ab) {
+    EdgePair<Real> c;
+    if (edges_passing(at(a, u), at(a, v), at(b, p), at(b, w), c) && c.dist2 < R2)
+      repel_edges(a, u, v, b, p, w, c, prm, work.on_a, work.on_b);
+  }
+  for (const auto& [u, v, p, w] : work.rims_ba) {
+    EdgePair<Real> c;
+    if (edges_passing(at(b, u), at(b, v), at(a, p), at(a, w), c) && c.dist2 < R2)
+      repel_edges(b, u, v, a, p, w, c, prm, work.on_b, work.on_a);
+  }
+}
+
+// The potential of the same edge pairs (contact_potential at their distance), summed in
+// their order, from a search now.
+template <class Real>
+double rims_energy(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sheet<Real>& b, const SheetBoxes<Real>& bb,
+                   const ContactParams<Real>& prm) {
+  double energy = 0;
+  std::vector<std::uint32_t> near;
+  const Real R2 = prm.range * prm.range;
+  for (int k = 0; k < 2; ++k) {
+    const Sheet<Real>& q = k == 0 ? a : b;
+    const Sheet<Real>& s = k == 0 ? b : a;
+    rim_edge_pairs(q, k == 0 ? ba : bb, s, k == 0 ? bb : ba, double(prm.range), k == 1, near,
+                   [&](std::uint32_t u, std::uint32_t v, std::uint32_t p, std::uint32_t w) {
+                     EdgePair<Real> c;
+                     if (edges_passing(at(q, u), at(q, v), at(s, p), at(s, w), c) && c.dist2 < R2)
+                       energy += contact_potential(std::sqrt(double(c.dist2)), prm);
+                   });
+  }
+  return energy;
+}
 
 // The cell of s at first corner p00 (its two triangles) against the point x.
 template <class Real>
@@ -1162,6 +1384,15 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
                              ContactForces<Real>& on_q, ContactForces<Real>& on_s, std::uint32_t* last) {            \
     points_walking(q, s, ring, kept, e0, e1, prm, on_q, on_s, last);                                                 \
   }                                                                                                                  \
+  void RimContacts##Suffix(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sheet<Real>& b,                   \
+                          const SheetBoxes<Real>& bb, const ContactParams<Real>& prm, PairContacts<Real>& work,      \
+                          ContactScratch<Real>& sc) {                                                                \
+    rims_of_pair(a, ba, b, bb, prm, work, sc);                                                                       \
+  }                                                                                                                  \
+  double RimEnergy##Suffix(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sheet<Real>& b,                   \
+                           const SheetBoxes<Real>& bb, const ContactParams<Real>& prm) {                             \
+    return rims_energy(a, ba, b, bb, prm);                                                                           \
+  }                                                                                                                  \
   double ContactEnergy##Suffix(const Sheet<Real>& q, const SheetBoxes<Real>& bq, const Sheet<Real>& s,               \
                                const SheetBoxes<Real>& bs, int ring, const ContactParams<Real>& prm) {               \
     return contact_energy(q, bq, s, bs, ring, prm);                                                                  \
@@ -1197,6 +1428,10 @@ HWY_EXPORT(PointsWalkingF64);
 HWY_EXPORT(PointsWalkingF32);
 HWY_EXPORT(ContactEnergyF64);
 HWY_EXPORT(ContactEnergyF32);
+HWY_EXPORT(RimContactsF64);
+HWY_EXPORT(RimContactsF32);
+HWY_EXPORT(RimEnergyF64);
+HWY_EXPORT(RimEnergyF32);
 
 namespace {
 
@@ -1678,6 +1913,22 @@ void pair_contacts(const Sheet<Real>& a, const SheetBoxes<Real>& boxes_a, const 
                    const SheetBoxes<Real>& boxes_b, const ContactParams<Real>& prm, PairContacts<Real>& work,
                    ContactScratch<Real>& scratch) {
   contacts_of_pair(a, boxes_a, b, boxes_b, -1, prm, work, scratch);
+  if (!prm.rims) return;
+  ContactParams<Real> pair = prm;
+  pair.friction = static_cast<Real>(std::max(a.friction, b.friction));
+  if constexpr (std::is_same_v<Real, double>)
+    HWY_DYNAMIC_DISPATCH(RimContactsF64)(a, boxes_a, b, boxes_b, pair, work, scratch);
+  else
+    HWY_DYNAMIC_DISPATCH(RimContactsF32)(a, boxes_a, b, boxes_b, pair, work, scratch);
+}
+
+template <class Real>
+double rim_energy(const Sheet<Real>& a, const SheetBoxes<Real>& boxes_a, const Sheet<Real>& b,
+                  const SheetBoxes<Real>& boxes_b, const ContactParams<Real>& prm) {
+  if constexpr (std::is_same_v<Real, double>)
+    return HWY_DYNAMIC_DISPATCH(RimEnergyF64)(a, boxes_a, b, boxes_b, prm);
+  else
+    return HWY_DYNAMIC_DISPATCH(RimEnergyF32)(a, boxes_a, b, boxes_b, prm);
 }
 
 template <class Real>
@@ -1777,6 +2028,8 @@ void gather_contacts(std::span<const ContactForces<Real>* const> sources, Vec3Ar
   template std::uint32_t self_contact_ring<Real>(const Sheet<Real>&, const ContactParams<Real>&);            \
   template double contact_energy<Real>(const Sheet<Real>&, const SheetBoxes<Real>&, const Sheet<Real>&,       \
                                        const SheetBoxes<Real>&, const ContactParams<Real>&);                   \
+  template double rim_energy<Real>(const Sheet<Real>&, const SheetBoxes<Real>&, const Sheet<Real>&,           \
+                                   const SheetBoxes<Real>&, const ContactParams<Real>&);                       \
   template void advance_travel<Real>(Sheet<Real>&);                                                            \
   template void advance_travel<Real>(Sheet<Real>&, std::uint64_t);                                             \
   template void measure_travel<Real>(Sheet<Real>&, std::uint64_t);                                             \

@@ -43,6 +43,7 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cstdint>
 #include <limits>
 #include <span>
@@ -77,6 +78,9 @@ struct ContactParams {
   // the reference); false, every point of the kept contact set walks from its cell
   // (KeptContacts: an approximation, the default).
   bool exact = false;
+  // Rims: the edges of each sheet's outer rows and columns against the other sheet's edges
+  // as well (pair_contacts); false: points against triangles only.
+  bool rims = false;
   // The pair's travel now: Sheet::travel of both sheets summed (a sheet with itself: twice
   // its own). A kept entry beyond R skips its walk while the sheets have not travelled the
   // entry's slack since its last test (KeptContacts::until). NaN, unknown: none skips.
@@ -146,6 +150,26 @@ struct SheetBoxes {
     return p + 1 == count ? cells + 1 : (p + 1) * kPatch;
   }
 };
+
+// Box k of one level of SheetBoxes (its lo and hi arrays), in double.
+template <class Real>
+Aabb box_at(const std::vector<Real> (&lo)[3], const std::vector<Real> (&hi)[3], std::size_t k) {
+  return {{double(lo[0][k]), double(lo[1][k]), double(lo[2][k])}, {double(hi[0][k]), double(hi[1][k]), double(hi[2][k])}};
+}
+
+// Calls f(c) for each cell c (by first corner) of patch t of bs whose box meets `box`,
+// through the patch's strips, in row order.
+template <class Real, class F>
+void cells_meeting(const SheetBoxes<Real>& bs, std::uint32_t t, const Aabb& box, F&& f) {
+  constexpr std::uint32_t P = SheetBoxes<Real>::kPatch;
+  const std::uint32_t cols = bs.n + 1, tr = t / bs.patch_cols, tc = t % bs.patch_cols;
+  const std::uint32_t i1 = std::min(tr * P + P, bs.m), j1 = std::min(tc * P + P, bs.n);
+  for (std::uint32_t i = tr * P; i < i1; ++i) {
+    if (!overlaps(box, box_at(bs.strip_lo, bs.strip_hi, std::size_t(i) * bs.patch_cols + tc))) continue;
+    for (std::uint32_t j = tc * P; j < j1; ++j)
+      if (overlaps(box, box_at(bs.cell_lo, bs.cell_hi, std::size_t(i) * cols + j))) f(i * cols + j);
+  }
+}
 
 // Makes `out` the boxes of `s` now (reusing out's storage).
 template <class Real>
@@ -297,7 +321,26 @@ struct PairContacts {
   const Topology<Real>* guessed_b = nullptr;
   std::uint64_t searches = 0;            // how often the lists were made (for tests)
   signed char decided = -1;              // pair_needs_boxes's decision: 1 keep, 0 search, −1 none
+  // The rims' candidates (ContactParams::rims): edge pairs within R + R (the rims' skin) when
+  // made, a's rim edges against b's edges, then b's rim edges against a's off its rim, each
+  // as (u, v) of the rim's sheet and (p, w) of the other, in the order a search meets them.
+  // They serve while the pair's travel stays below rims_until (the travel then plus the
+  // skin): no two points of the sheets can have come nearer by more than that, nor two edges
+  // (rims_due). Forces from them are those of searching every substep, bit for bit.
+  std::vector<std::array<std::uint32_t, 4>> rims_ab, rims_ba;
+  double rims_until = -std::numeric_limits<double>::infinity();
+  const Topology<Real>* rims_topology_a = nullptr;
+  const Topology<Real>* rims_topology_b = nullptr;
+  std::uint64_t rim_searches = 0;  // how often the rims' candidates were made (for tests)
 };
+
+// Whether the pair's rim candidates must be made again this substep (both sheets' boxes then
+// needed): none made yet, made for other grids, or the pair's travel (`travel`, both
+// sheets' Sheet::travel summed; NaN, as in exact mode: always) has reached rims_until.
+template <class Real>
+bool rims_due(const PairContacts<Real>& w, const Sheet<Real>& a, const Sheet<Real>& b, double travel) {
+  return w.rims_topology_a != a.topology.get() || w.rims_topology_b != b.topology.get() || !(travel < w.rims_until);
+}
 
 // The first half of a pair's substep, before any boxes are made: whether its kept lists or
 // set serve this substep (then counted as served), else it will search. Returns whether
@@ -310,6 +353,12 @@ bool pair_needs_boxes(const Sheet<Real>& a, const Sheet<Real>& b, const ContactP
 
 // Points of `a` against the cells of `b` and points of `b` against the cells of `a`, each
 // sheet's boxes made by build_boxes from its positions now. Clears and fills work.on_a/on_b.
+// With params.rims, then the rims (rim_contacts in contacts.cpp): each edge of a's rim (its
+// first and last rows and columns) against every edge of b within R, and each edge of b's
+// rim against the edges of a off its rim, repelled by the points' law of the distance
+// between the edges' closest points (damping and friction alike), the force on each edge
+// shared by its ends as the closest point divides it. Stateless: a rim edge's search goes
+// through the boxes every substep, so both sheets' boxes must be made from positions now.
 template <class Real>
 void pair_contacts(const Sheet<Real>& a, const SheetBoxes<Real>& boxes_a, const Sheet<Real>& b,
                    const SheetBoxes<Real>& boxes_b, const ContactParams<Real>& params, PairContacts<Real>& work,
@@ -335,6 +384,13 @@ std::uint32_t self_contact_ring(const Sheet<Real>& s, const ContactParams<Real>&
 template <class Real>
 double contact_energy(const Sheet<Real>& q, const SheetBoxes<Real>& boxes_q, const Sheet<Real>& s,
                       const SheetBoxes<Real>& boxes_s, const ContactParams<Real>& params);
+
+// The potential (J) of the rim contacts of a and b (pair_contacts with ContactParams::rims):
+// each edge of either sheet's rim and each edge of the other within R, at the distance of
+// their closest points, the edges of both rims once.
+template <class Real>
+double rim_energy(const Sheet<Real>& a, const SheetBoxes<Real>& boxes_a, const Sheet<Real>& b,
+                  const SheetBoxes<Real>& boxes_b, const ContactParams<Real>& prm);
 
 // Writes the sum of `sources` into points [begin, end) of `out` (zeroing them first),
 // adding in source order and, within a source, in entry order: the same bits whatever

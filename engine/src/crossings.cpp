@@ -40,11 +40,6 @@ P3 point(const Sheet<Real>& s, std::uint32_t p) {
   return {double(s.position.x[p]), double(s.position.y[p]), double(s.position.z[p])};
 }
 
-template <class Real>
-Aabb box_at(const std::vector<Real> (&lo)[3], const std::vector<Real> (&hi)[3], std::size_t k) {
-  return {{double(lo[0][k]), double(lo[1][k]), double(lo[2][k])}, {double(hi[0][k]), double(hi[1][k]), double(hi[2][k])}};
-}
-
 Aabb segment_box(const P3& p, const P3& q) {
   Aabb box;
   for (int k = 0; k < 3; ++k) {
@@ -79,19 +74,6 @@ void edge_against_cell(const Sheet<Real>& q, std::uint32_t u, std::uint32_t v, c
       if (distance2(corner[k], hit) < distance2(corner[nearest], hit)) nearest = k;
     out.point_a = q_is_a ? mine : tri[nearest];
     out.point_b = q_is_a ? tri[nearest] : mine;
-  }
-}
-
-// Calls f(c) for each cell c of patch t of s whose box meets `box`, through its strips.
-template <class Real, class F>
-void cells_meeting(const SheetBoxes<Real>& bs, std::uint32_t t, const Aabb& box, F&& f) {
-  constexpr std::uint32_t P = SheetBoxes<Real>::kPatch;
-  const std::uint32_t cols = bs.n + 1, tr = t / bs.patch_cols, tc = t % bs.patch_cols;
-  const std::uint32_t i1 = std::min(tr * P + P, bs.m), j1 = std::min(tc * P + P, bs.n);
-  for (std::uint32_t i = tr * P; i < i1; ++i) {
-    if (!overlaps(box, box_at(bs.strip_lo, bs.strip_hi, std::size_t(i) * bs.patch_cols + tc))) continue;
-    for (std::uint32_t j = tc * P; j < j1; ++j)
-      if (overlaps(box, box_at(bs.cell_lo, bs.cell_hi, std::size_t(i) * cols + j))) f(i * cols + j);
   }
 }
 

@@ -75,6 +75,7 @@ detail::ContactParams<Real> BasicWorld<Real>::Impl::contact_params(double h) con
                                                   def.contact_range);
   params.dt = static_cast<Real>(h);
   params.exact = def.contact_exact;
+  params.rims = def.contact_rims;
   params.damping = static_cast<Real>(def.contact_damping);
   params.stamp = steps + 1;
   return params;
@@ -216,13 +217,23 @@ void BasicWorld<Real>::Impl::contact_boxes(double h) {
   // this substep, so its travel (Sheet::travel) goes on. A sheet no entry is tested
   // against skips it: its next pass measures from where it was then (a self-colliding
   // sheet far from everything pays nothing).
+  // A pair of two sheets with rims walks its rim candidates every substep, so its travel
+  // goes on too.
   in_pair.assign(count, 0);
   for (std::size_t q = 0; q < pairs.size(); ++q) {
     const auto& w = pair_work[q];
-    const bool tests = w.decided == 0 || !(w.a_on_b.point.empty() && w.b_on_a.point.empty());
+    const bool rims = params.rims && w.a != w.b;
+    const bool tests = w.decided == 0 || !(w.a_on_b.point.empty() && w.b_on_a.point.empty()) || rims;
     const std::uint8_t mark = (w.decided == 0 || params.exact ? 1 : 0) | (!params.exact && tests ? 2 : 0);
-    in_pair[pairs[q].first] |= mark;
-    in_pair[pairs[q].second] |= mark;
+    // the rims' candidates, when due, are made from both sheets' boxes: due by the travel the
+    // advance below gives (moved_hi, measured above), as narrow_phase will find it
+    const double travel = params.exact || !detail::measured_in(at(w.a), params.stamp) ||
+                                  !detail::measured_in(at(w.b), params.stamp)
+                              ? NAN
+                              : at(w.a).moved_hi() + at(w.b).moved_hi();
+    const bool rim_boxes = rims && detail::rims_due(w, at(w.a), at(w.b), travel);
+    in_pair[pairs[q].first] |= mark | (rim_boxes ? 1 : 0);
+    in_pair[pairs[q].second] |= mark | (rim_boxes ? 1 : 0);
   }
   if (sheet_boxes.size() < count) sheet_boxes.resize(count);
   parallel(count, [&](std::size_t k) {

@@ -580,6 +580,7 @@ double BasicWorld<Real>::contact_energy() const {
     pair.exponent_cap = impl_->pair_exponent_cap(a, b, impl_->def.dt);
     share[q] = detail::contact_energy(sheet(a), boxes[a], sheet(b), boxes[b], pair);
     if (a != b) share[q] += detail::contact_energy(sheet(b), boxes[b], sheet(a), boxes[a], pair);
+    if (a != b && pair.rims) share[q] += detail::rim_energy(sheet(a), boxes[a], sheet(b), boxes[b], pair);
   });
   double energy = 0;
   for (double e : share) energy += e;

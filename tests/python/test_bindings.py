@@ -349,6 +349,19 @@ def test_sheet_crossings_name_a_point_pushed_through_another_sheet():
     assert crossing.edges >= 6  # its edges along the row, the column and the diagonal
 
 
+def test_contact_rims_add_the_potential_of_edges_passing_a_rim():
+    # a sheet over another's edge, turned 0.5 rad about z: its edges pass the lower sheet's
+    # rim 4 mm above it, so the rims add their potential to the points' (contact_energy)
+    energies = []
+    for rims in (False, True):
+        world = drape.World(threads=1, gravity=(0, 0, 0), contact_rims=rims)
+        world.add_sheet(m=2, n=2, width=0.2, height=0.2)
+        world.add_sheet(m=2, n=2, width=0.2, height=0.2, center=(0.1, 0.0, 0.004),
+                        orientation=drape.quat_from_axis_angle((0, 0, 1), 0.5))
+        energies.append(world.contact_energy())
+    assert energies[1] > energies[0]
+
+
 def test_a_contact_too_stiff_for_the_step_is_named():
     # c/ξ² about 300 times m/dt² for the 1 g points (stability_test.cpp has the C++ case)
     world = drape.World(dt=1e-3, gravity=(0, 0, 0), contact_strength=1e-2, contact_xi=1e-4, threads=1)
