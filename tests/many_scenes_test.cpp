@@ -171,7 +171,10 @@ double closest_to_other_sheets(const drape::World& world, const std::vector<drap
 // Issue 13, no tunnelling in the shipped many-sheet scenes (shortened as above): at every
 // frame, the smallest distance from any point to another sheet's surface stays above half
 // the contact thickness h (the resting gap is h + ξ·ln((c/ξ)/load) > h; landing and sliding
-// brought it to 0.8 h and 0.93 h when this test was written).
+// brought it to 0.8 h and 0.93 h when this test was written), and no edge of a sheet passes
+// through another (World::sheet_crossings; a point's distance cannot see an edge cut across a
+// rim: with the points' contacts alone both scenes' rims hooked into each other, and the
+// scenes turn contact_rims on).
 TEST(ManySheetScenes, NoPointComesWithinHalfTheThicknessOfAnotherSheet) {
   for (const char* name : {"stack_sphere.json", "rain_torus.json"}) {
     Scene scene = load(name);
@@ -188,6 +191,9 @@ TEST(ManySheetScenes, NoPointComesWithinHalfTheThicknessOfAnotherSheet) {
     for (int f = 0; f < frames; ++f) {
       ASSERT_TRUE(world.step(scene.substeps).ok()) << name << " frame " << f + 1;
       closest = std::min(closest, closest_to_other_sheets(world, ids, range));
+      for (const drape::SheetCrossing& c : world.sheet_crossings())
+        ADD_FAILURE() << name << " frame " << f + 1 << ": sheets " << c.a.index << " and " << c.b.index << " cross ("
+                      << c.edges << " edges)";
     }
     EXPECT_GT(closest, 0.5 * h) << name;
     EXPECT_LT(closest, range) << name << ": no two sheets came near each other";
