@@ -271,7 +271,8 @@ TEST_F(Cli, SheetsPassingThroughEachOtherAreWarnedAboutOnce) {
     const std::size_t warnings = occurrences(r.err, "pass through");
     EXPECT_EQ(warnings, std::string(speed) == "-30" ? 1u : 0u) << "speed " << speed << ": " << r.err;
     if (warnings) {
-      EXPECT_NE(r.err.find("sheets[0] (below) and sheets[1] (above) pass through each other"), std::string::npos) << r.err;
+      EXPECT_NE(r.err.find("sheets[0] (below) and sheets[1] (above) pass through each other"), std::string::npos)
+          << r.err;
     }
   }
 }

@@ -192,7 +192,7 @@ DT_RAIN, DURATION_RAIN = 3e-4, 2.5
 SHEAR_RATIO, BENDING_LENGTH = 0.3, 0.06
 # Rims on: the sheets' cells (4-18 cm) are long against the contact range (17 mm), and
 # without the rims' edge contacts their rims hooked through each other while landing and
-# settling (World::sheet_crossings found it in both scenes), at about two fifths more time.
+# settling (World::sheet_crossings found it in both scenes), for about half as much time again.
 CONTACTS = {"contact_thickness": 0.005, "contact_xi": 0.002, "contact_strength": 2e-3, "contact_rims": True}
 
 if __name__ == "__main__":

@@ -356,13 +356,13 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
                                              std::min(lightest(a), lightest(b))),
                                    wd.contact_thickness / (2 * world.substep_dt()));
       progress.finish();
-      log << "drape: warning: " << scene.file << ": frame " << frame << ": sheets[" << a << "] (" << scene.sheet_names[a]
-          << ") ";
+      log << "drape: warning: " << scene.file << ": frame " << frame << ": sheets[" << a << "] ("
+          << scene.sheet_names[a] << ") ";
       if (a == b)
         log << "passes through itself near its points " << c.point_a << " and " << c.point_b;
       else
-        log << "and sheets[" << b << "] (" << scene.sheet_names[b] << ") pass through each other near point " << c.point_a
-            << " of the first and point " << c.point_b << " of the second";
+        log << "and sheets[" << b << "] (" << scene.sheet_names[b] << ") pass through each other near point "
+            << c.point_a << " of the first and point " << c.point_b << " of the second";
       log << " (" << c.edges << " edges across): points met faster than the contact stops them (safe below about "
           << std::setprecision(3) << safe << " m/s closing), were pressed through by more than the contact holds, or "
           << "started so; raise contact_strength or contact_thickness, or lower dt\n"

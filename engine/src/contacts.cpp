@@ -427,7 +427,8 @@ void rim_edge_pairs(const Sheet<Real>& q, const SheetBoxes<Real>& bq, const Shee
     for (std::uint32_t bj = 0; bj < bq.patch_cols; ++bj) {
       near_patch(bi, bj);
       if (near.empty()) continue;
-      for (std::uint32_t j = bj * P; j < std::min(bj * P + P, qn); ++j) edge_pairs(row * qcols + j, row * qcols + j + 1);
+      for (std::uint32_t j = bj * P; j < std::min(bj * P + P, qn); ++j)
+        edge_pairs(row * qcols + j, row * qcols + j + 1);
     }
   }
   for (std::uint32_t col : {0u, qn}) {  // the first and last columns' edges
@@ -435,7 +436,8 @@ void rim_edge_pairs(const Sheet<Real>& q, const SheetBoxes<Real>& bq, const Shee
     for (std::uint32_t bi = 0; bi < bq.patch_rows; ++bi) {
       near_patch(bi, bj);
       if (near.empty()) continue;
-      for (std::uint32_t i = bi * P; i < std::min(bi * P + P, qm); ++i) edge_pairs(i * qcols + col, (i + 1) * qcols + col);
+      for (std::uint32_t i = bi * P; i < std::min(bi * P + P, qm); ++i)
+        edge_pairs(i * qcols + col, (i + 1) * qcols + col);
     }
   }
 }
@@ -453,9 +455,9 @@ void rim_candidates(const Sheet<Real>& q, const SheetBoxes<Real>& bq, const Shee
                  });
 }
 
-// A pair's rims this substep (contacts.h, PairContacts::rims_ab): its candidates made again
-// when due (both sheets' boxes then current), then each candidate pair passing within R
-// repelled, a's rim edges first.
+// A pair's rims this substep (contacts.h, PairContacts::rims_ab): its candidates (edge pairs
+// within R + R/2) made again when due (both sheets' boxes then current), then each candidate
+// pair passing within R repelled, a's rim edges first.
 template <class Real>
 void rims_of_pair(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sheet<Real>& b, const SheetBoxes<Real>& bb,
                   const ContactParams<Real>& prm, PairContacts<Real>& work, ContactScratch<Real>& sc) {
@@ -463,7 +465,8 @@ void rims_of_pair(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sheet<
   if (rims_due(work, a, b, prm.travel)) {
     rim_candidates(a, ba, b, bb, prm.range + skin, false, sc.patches, work.rims_ab);
     rim_candidates(b, bb, a, ba, prm.range + skin, true, sc.patches, work.rims_ba);
-    work.rims_until = std::isfinite(prm.travel) ? prm.travel + 0.99 * double(skin) : -std::numeric_limits<double>::infinity();
+    work.rims_until =
+        std::isfinite(prm.travel) ? prm.travel + 0.99 * double(skin) : -std::numeric_limits<double>::infinity();
     work.rims_topology_a = a.topology.get();
     work.rims_topology_b = b.topology.get();
     ++work.rim_searches;

@@ -154,7 +154,8 @@ struct SheetBoxes {
 // Box k of one level of SheetBoxes (its lo and hi arrays), in double.
 template <class Real>
 Aabb box_at(const std::vector<Real> (&lo)[3], const std::vector<Real> (&hi)[3], std::size_t k) {
-  return {{double(lo[0][k]), double(lo[1][k]), double(lo[2][k])}, {double(hi[0][k]), double(hi[1][k]), double(hi[2][k])}};
+  return {{double(lo[0][k]), double(lo[1][k]), double(lo[2][k])},
+          {double(hi[0][k]), double(hi[1][k]), double(hi[2][k])}};
 }
 
 // Calls f(c) for each cell c (by first corner) of patch t of bs whose box meets `box`,
@@ -321,8 +322,8 @@ struct PairContacts {
   const Topology<Real>* guessed_b = nullptr;
   std::uint64_t searches = 0;            // how often the lists were made (for tests)
   signed char decided = -1;              // pair_needs_boxes's decision: 1 keep, 0 search, −1 none
-  // The rims' candidates (ContactParams::rims): edge pairs within R + R (the rims' skin) when
-  // made, a's rim edges against b's edges, then b's rim edges against a's off its rim, each
+  // The rims' candidates (ContactParams::rims): edge pairs within R + R/2 (R/2 their skin)
+  // when made, a's rim edges against b's edges, then b's rim edges against a's off its rim, each
   // as (u, v) of the rim's sheet and (p, w) of the other, in the order a search meets them.
   // They serve while the pair's travel stays below rims_until (the travel then plus the
   // skin): no two points of the sheets can have come nearer by more than that, nor two edges
@@ -353,12 +354,12 @@ bool pair_needs_boxes(const Sheet<Real>& a, const Sheet<Real>& b, const ContactP
 
 // Points of `a` against the cells of `b` and points of `b` against the cells of `a`, each
 // sheet's boxes made by build_boxes from its positions now. Clears and fills work.on_a/on_b.
-// With params.rims, then the rims (rim_contacts in contacts.cpp): each edge of a's rim (its
-// first and last rows and columns) against every edge of b within R, and each edge of b's
-// rim against the edges of a off its rim, repelled by the points' law of the distance
-// between the edges' closest points (damping and friction alike), the force on each edge
-// shared by its ends as the closest point divides it. Stateless: a rim edge's search goes
-// through the boxes every substep, so both sheets' boxes must be made from positions now.
+// With params.rims, then the rims (contacts.cpp, rims_of_pair): each edge of a's rim (its
+// first and last rows and columns) against every edge of b passing it within R, and each
+// edge of b's rim against the edges of a off its rim, repelled by the points' law at the
+// distance between the edges' nearest points (damping and friction alike), the force shared by each edge's ends as the nearest
+// point divides it. The pair's rim candidates are made again from both sheets' boxes when
+// rims_due says so; the world makes the boxes then.
 template <class Real>
 void pair_contacts(const Sheet<Real>& a, const SheetBoxes<Real>& boxes_a, const Sheet<Real>& b,
                    const SheetBoxes<Real>& boxes_b, const ContactParams<Real>& params, PairContacts<Real>& work,
@@ -386,8 +387,8 @@ double contact_energy(const Sheet<Real>& q, const SheetBoxes<Real>& boxes_q, con
                       const SheetBoxes<Real>& boxes_s, const ContactParams<Real>& params);
 
 // The potential (J) of the rim contacts of a and b (pair_contacts with ContactParams::rims):
-// each edge of either sheet's rim and each edge of the other within R, at the distance of
-// their closest points, the edges of both rims once.
+// each edge of either sheet's rim and each edge of the other passing it within R, at the
+// distance of their nearest points, the edges of both rims once.
 template <class Real>
 double rim_energy(const Sheet<Real>& a, const SheetBoxes<Real>& boxes_a, const Sheet<Real>& b,
                   const SheetBoxes<Real>& boxes_b, const ContactParams<Real>& prm);

@@ -614,10 +614,10 @@ std::vector<SheetCrossing> BasicWorld<Real>::sheet_crossings() const {
     const auto [a, b] = pairs[q];
     found[q] = detail::sheet_crossings(sheet(a), boxes[a], sheet(b), boxes[b]);
   });
+  auto id = [&](std::uint32_t k) { return impl_->sheet_ids.id(impl_->active[k]); };
   for (std::size_t q = 0; q < pairs.size(); ++q)
     if (found[q].count != 0)
-      out.push_back({impl_->sheet_ids.id(impl_->active[pairs[q].first]), impl_->sheet_ids.id(impl_->active[pairs[q].second]),
-                     found[q].count, found[q].point_a, found[q].point_b});
+      out.push_back({id(pairs[q].first), id(pairs[q].second), found[q].count, found[q].point_a, found[q].point_b});
   return out;
 }
 

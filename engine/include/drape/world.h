@@ -82,12 +82,13 @@ struct WorldDef {
   // triangle at several times the cost (the reference the walk is tested against).
   bool contact_exact = false;
   // Contacts are between points and triangles; with contact_rims the edges of each sheet's
-  // rim (its outer rows and columns) also repel the other sheet's edges passing them, by the
-  // same law of the distance between the two edges, so an edge cannot cut across another
-  // sheet's rim where no point comes near it (coarse grids, rims hooking into each other;
-  // docs/architecture.md, sheets through each other). Off by default: it costs a search of
-  // the rims' edges, and in a dense stack at a step where the contact's exponent cap binds
-  // it made the layers pass through each other more, not less.
+  // rim (its outer rows and columns) also repel the other sheet's edges passing them within
+  // the contact range, by the same law of the distance between the two edges, so an edge
+  // cannot cut across another sheet's rim where no point comes near it (coarse grids, rims
+  // hooking into each other; docs/architecture.md, sheets through each other). Off by
+  // default: it costs a search of the rims' edges, and it doubles the contact at the rims
+  // of stacked layers, which made a dense stack at a step where the contact's exponent cap
+  // binds pass through itself more, not less.
   bool contact_rims = false;
 
   // A sheet of at least 2·block_points points is stepped as row blocks of about this many
