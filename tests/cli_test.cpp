@@ -273,6 +273,7 @@ TEST_F(Cli, SheetsPassingThroughEachOtherAreWarnedAboutOnce) {
     if (warnings) {
       EXPECT_NE(r.err.find("sheets[0] (below) and sheets[1] (above) pass through each other"), std::string::npos)
           << r.err;
+      EXPECT_NE(r.err.find("turn contact_rims on"), std::string::npos) << r.err;
     }
   }
 }

@@ -364,8 +364,10 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
         log << "and sheets[" << b << "] (" << scene.sheet_names[b] << ") pass through each other near point "
             << c.point_a << " of the first and point " << c.point_b << " of the second";
       log << " (" << c.edges << " edges across): points met faster than the contact stops them (safe below about "
-          << std::setprecision(3) << safe << " m/s closing), were pressed through by more than the contact holds, or "
-          << "started so; raise contact_strength or contact_thickness, or lower dt\n"
+          << std::setprecision(3) << safe << " m/s closing), were pressed through by more than the contact holds, "
+          << (scene.world.contact_rims || a == b ? "or started so" : "an edge cut across a rim, or they started so")
+          << "; raise contact_strength or contact_thickness, or lower dt"
+          << (scene.world.contact_rims || a == b ? "" : ", or turn contact_rims on (edges against rims)") << "\n"
           << std::setprecision(6);
     }
   };
