@@ -88,6 +88,28 @@ void BM_ContactEnergy(benchmark::State& state) {
 }
 BENCHMARK(BM_ContactEnergy)->Unit(benchmark::kMillisecond)->UseRealTime();
 
+// World::sheet_crossings on the same stack once it has sagged (400 substeps, 0.4 s; one
+// thread): every pair's edges against the other's triangles, what drape run pays for a look
+// (it looks within 5 % of a run). Flat layers cost next to nothing (their boxes are apart).
+void BM_SheetCrossings(benchmark::State& state) {
+  drape::World world = stack_world(1, touching);
+  world.step(400);
+  std::size_t crossing = 0;
+  for (auto _ : state) benchmark::DoNotOptimize(crossing = world.sheet_crossings().size());
+  state.counters["crossing_pairs"] = double(crossing);
+  state.counters["pairs"] = double(world.contact_pair_count());
+}
+BENCHMARK(BM_SheetCrossings)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// BM_World48SheetsInContact/1 with WorldDef::contact_rims: the rims' edges against the other
+// layers' edges too (docs/architecture.md, sheets through each other). One thread.
+void BM_World48SheetsInContactRims(benchmark::State& state) {
+  drape::bench::StackContact rims;
+  rims.rims = true;
+  stack_span(state, 1, touching, rims);
+}
+BENCHMARK(BM_World48SheetsInContactRims)->UseRealTime();
+
 // Arg: 0 Coulomb friction between the sheets (μ = 0.5), 1 contact damping (α = 2 s/m, the
 // default, which stops the layers rattling beside their pins: docs/scene-format.md), 2 both.
 // One thread, priced against BM_World48SheetsInContact/1, the frictionless, undamped contact
