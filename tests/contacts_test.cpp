@@ -139,6 +139,21 @@ P3 total(const ContactForces<double>& f) {
   return s;
 }
 
+// −∂E/∂(coordinate `axis` of point p of s) by central differences (step 1e-7 m), the point
+// put back after.
+template <class Energy>
+double minus_gradient(Sheet<double>& s, std::uint32_t p, int axis, Energy&& energy) {
+  constexpr double delta = 1e-7;
+  auto& coordinate = axis == 0 ? s.position.x : axis == 1 ? s.position.y : s.position.z;
+  const double x0 = coordinate[p];
+  coordinate[p] = x0 + delta;
+  const double up = energy();
+  coordinate[p] = x0 - delta;
+  const double down = energy();
+  coordinate[p] = x0;
+  return -(up - down) / (2 * delta);
+}
+
 TEST(Contacts, ForceIsMinusGradientOfBruteForcePotentialOverAllCells) {
   auto sheets = close_sheets(3);  // named, not bound: the energy lambda captures them
   Sheet<double>& a = sheets.first;
@@ -152,19 +167,11 @@ TEST(Contacts, ForceIsMinusGradientOfBruteForcePotentialOverAllCells) {
   auto energy = [&] { return brute_energy(a, b, E) + brute_energy(b, a, E); };
   double fmax = 0;
   for (std::size_t e = 0; e < work.on_a.size(); ++e) fmax = std::max(fmax, std::abs(work.on_a.fz[e]));
-  const double delta = 1e-7;
   for (auto* side : {&a, &b}) {
     const ContactForces<double>& got = side == &a ? work.on_a : work.on_b;
     for (std::uint32_t p = 0; p < side->size(); p += 3) {
       for (int k = 0; k < 3; ++k) {
-        auto& axis = k == 0 ? side->position.x : k == 1 ? side->position.y : side->position.z;
-        const double x0 = axis[p];
-        axis[p] = x0 + delta;
-        const double up = energy();
-        axis[p] = x0 - delta;
-        const double down = energy();
-        axis[p] = x0;
-        const double expected = -(up - down) / (2 * delta);
+        const double expected = minus_gradient(*side, p, k, energy);
         double sum = 0;
         const auto& f = k == 0 ? got.fx : k == 1 ? got.fy : got.fz;
         for (std::size_t e = 0; e < got.size(); ++e)
@@ -259,19 +266,11 @@ TEST(Contacts, RimForcesAreMinusTheGradientOfTheRimPotential) {
       EXPECT_NEAR(force[c], 0.0, 1e-12 * scale) << "seed " << seed;
       EXPECT_NEAR(torque[c], 0.0, 1e-12 * scale) << "seed " << seed;
     }
-    const double delta = 1e-7;
     for (int k = 0; k < 2; ++k) {
       Sheet<double>& side = k == 0 ? a : b;
       for (std::uint32_t p = 0; p < side.size(); p += 3)
         for (int c = 0; c < 3; ++c) {
-          auto& axis = c == 0 ? side.position.x : c == 1 ? side.position.y : side.position.z;
-          const double x0 = axis[p];
-          axis[p] = x0 + delta;
-          const double up = energy();
-          axis[p] = x0 - delta;
-          const double down = energy();
-          axis[p] = x0;
-          EXPECT_NEAR(rim[k][p][c], -(up - down) / (2 * delta), 1e-5 * fmax)
+          EXPECT_NEAR(rim[k][p][c], minus_gradient(side, p, c, energy), 1e-5 * fmax)
               << "seed " << seed << (k == 0 ? " a" : " b") << " point " << p << " axis " << c;
         }
     }

@@ -227,11 +227,11 @@ void BasicWorld<Real>::Impl::contact_boxes(double h) {
     const std::uint8_t mark = (w.decided == 0 || params.exact ? 1 : 0) | (!params.exact && tests ? 2 : 0);
     // the rims' candidates, when due, are made from both sheets' boxes: due by the travel the
     // advance below gives (moved_hi, measured above), as narrow_phase will find it
-    const double travel = params.exact || !detail::measured_in(at(w.a), params.stamp) ||
-                                  !detail::measured_in(at(w.b), params.stamp)
-                              ? NAN
-                              : at(w.a).moved_hi() + at(w.b).moved_hi();
-    const bool rim_boxes = rims && detail::rims_due(w, at(w.a), at(w.b), travel);
+    auto travel = [&] {
+      const bool measured = detail::measured_in(at(w.a), params.stamp) && detail::measured_in(at(w.b), params.stamp);
+      return params.exact || !measured ? NAN : at(w.a).moved_hi() + at(w.b).moved_hi();
+    };
+    const bool rim_boxes = rims && detail::rims_due(w, at(w.a), at(w.b), travel());
     in_pair[pairs[q].first] |= mark | (rim_boxes ? 1 : 0);
     in_pair[pairs[q].second] |= mark | (rim_boxes ? 1 : 0);
   }

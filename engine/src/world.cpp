@@ -554,24 +554,32 @@ Energies BasicWorld<Real>::energies() const {
 }
 
 template <class Real>
-double BasicWorld<Real>::contact_energy() const {
-  if (!impl_->contacts_possible()) return 0;
-  const auto params = impl_->contact_params(impl_->def.dt);
-  const std::size_t count = impl_->active.size();
-  auto sheet = [&](std::size_t k) -> const detail::Sheet<Real>& { return *impl_->slots[impl_->active[k]].sheet; };
-  // the pairs the narrow phase would take now: grown boxes that meet, and self-colliding sheets
+void BasicWorld<Real>::Impl::pairs_with_boxes(double margin, std::vector<detail::BoxPair>& pairs,
+                                              std::vector<detail::SheetBoxes<Real>>& boxes) const {
+  const std::size_t count = active.size();
+  auto sheet = [&](std::size_t k) -> const detail::Sheet<Real>& { return *slots[active[k]].sheet; };
   std::vector<detail::Aabb> grown(count);
-  for (std::size_t k = 0; k < count; ++k) grown[k] = detail::sheet_bounds(sheet(k)).inflated(0.5 * double(params.range));
-  std::vector<detail::BoxPair> pairs;
+  for (std::size_t k = 0; k < count; ++k) grown[k] = detail::sheet_bounds(sheet(k)).inflated(margin);
   detail::BroadPhase().find_pairs(grown, pairs);
   for (std::uint32_t k = 0; k < count; ++k)
     if (sheet(k).self_collision) pairs.push_back({k, k});
   std::vector<char> used(count, 0);
   for (const auto& pair : pairs) used[pair.first] = used[pair.second] = 1;
-  std::vector<detail::SheetBoxes<Real>> boxes(count);
-  impl_->parallel(count, [&](std::size_t k) {
+  boxes.assign(count, {});
+  parallel(count, [&](std::size_t k) {
     if (used[k]) detail::build_boxes(sheet(k), boxes[k]);
   });
+}
+
+template <class Real>
+double BasicWorld<Real>::contact_energy() const {
+  if (!impl_->contacts_possible()) return 0;
+  const auto params = impl_->contact_params(impl_->def.dt);
+  auto sheet = [&](std::size_t k) -> const detail::Sheet<Real>& { return *impl_->slots[impl_->active[k]].sheet; };
+  // the pairs the narrow phase would take now: grown boxes that meet, and self-colliding sheets
+  std::vector<detail::BoxPair> pairs;
+  std::vector<detail::SheetBoxes<Real>> boxes;
+  impl_->pairs_with_boxes(0.5 * double(params.range), pairs, boxes);
   // each pair's share computed apart and summed in pair order: the same on any thread count
   std::vector<double> share(pairs.size());
   impl_->parallel(pairs.size(), [&](std::size_t q) {
@@ -591,23 +599,13 @@ template <class Real>
 std::vector<SheetCrossing> BasicWorld<Real>::sheet_crossings() const {
   std::vector<SheetCrossing> out;
   if (!impl_->contacts_possible()) return out;
-  const std::size_t count = impl_->active.size();
   auto sheet = [&](std::size_t k) -> const detail::Sheet<Real>& { return *impl_->slots[impl_->active[k]].sheet; };
   // sheets that pass through each other have boxes that meet (touching counts)
-  std::vector<detail::Aabb> bounds;
-  impl_->active_bounds(bounds);
   std::vector<detail::BoxPair> pairs;
-  detail::BroadPhase().find_pairs(bounds, pairs);
-  for (std::uint32_t k = 0; k < count; ++k)
-    if (sheet(k).self_collision) pairs.push_back({k, k});
+  std::vector<detail::SheetBoxes<Real>> boxes;
+  impl_->pairs_with_boxes(0, pairs, boxes);
   std::sort(pairs.begin(), pairs.end(), [](const auto& p, const auto& q) {
     return std::pair(p.first, p.second) < std::pair(q.first, q.second);
-  });
-  std::vector<char> used(count, 0);
-  for (const auto& pair : pairs) used[pair.first] = used[pair.second] = 1;
-  std::vector<detail::SheetBoxes<Real>> boxes(count);
-  impl_->parallel(count, [&](std::size_t k) {
-    if (used[k]) detail::build_boxes(sheet(k), boxes[k]);
   });
   std::vector<detail::Crossings> found(pairs.size());
   impl_->parallel(pairs.size(), [&](std::size_t q) {

@@ -177,6 +177,11 @@ struct BasicWorld<Real>::Impl {
   // points to pay for waking them: a small world's host stage then forks no work for
   // nothing. The boxes are the same either way.
   void active_bounds(std::vector<detail::Aabb>& out) const;
+  // For a search of the sheets now (contact_energy, sheet_crossings): the pairs of active
+  // sheets (positions in `active`) whose boxes, grown by `margin`, meet, sorted, then every
+  // self-colliding sheet with itself; and the boxes (build_boxes) of each sheet in a pair.
+  void pairs_with_boxes(double margin, std::vector<detail::BoxPair>& pairs,
+                        std::vector<detail::SheetBoxes<Real>>& boxes) const;
   void assign_obstacles(double h);
   void run_stage(Stage stage, double h);
   detail::ContactParams<Real> contact_params(double h) const;
