@@ -1467,58 +1467,6 @@ TEST(Contacts, WalkFromAnAlignedVertexFindsTheRaisedNeighboursTriangles) {
   });
 }
 
-// The same grids, searched while flat, then a lattice of the lower sheet's vertices V (five
-// apart, so that no other vertex lies between two raised ones at once) each with its two neighbours along a row (or a column) raised, one by 0.3 mm and
-// the other by 0.4 mm: an upper point over V then has two local minima of its distance,
-// one on each side of V, in cells next to each other, and the search's cell lies on one
-// side or the other. A walk stops at the minimum on its side; the walk's ring
-// (points_walking: the cells around the one it ended in, those with a corner bulging
-// towards the point) finds the nearer one on the other side. So every force is the brute
-// force's, and the same bit for bit on every target (the lanes end most walks and the
-// ring is tested after them; the scalar targets walk each entry). Without the ring, the
-// entries whose walk started on the 0.3 mm side keep the farther minimum and this fails.
-TEST(Contacts, WalkBetweenTwoRaisedNeighboursEndsAtTheNearerOfTheirValleys) {
-  std::vector<double> first;
-  test::for_each_target([&](std::int64_t) {
-    auto [a, b] = aligned_grids<double>();
-    const Vec3Array<double> a0 = a.position;
-    ContactScratch<double> scratch;
-    const std::uint32_t cols = a.topology->cols();
-    std::vector<double> got;
-    for (int trial = 0; trial < 4; ++trial) {
-      PairContacts<double> walked;
-      a.position = a0;
-      pair_contacts(a, boxes(a), b, boxes(b), kParams, walked, scratch);
-      ASSERT_EQ(walked.b_on_a.cell.size(), b.size());  // every point in the set
-      const std::uint32_t step = trial < 2 ? 1 : cols;  // along a row, or a column
-      for (std::uint32_t i = 2; i + 2 < cols; i += 5)
-        for (std::uint32_t j = 2; j + 2 < cols; j += 5) {
-          const std::uint32_t v = i * cols + j;
-          const bool higher_after = (trial + i / 5 + j / 5) % 2 == 0;
-          a.position.z[v - step] += higher_after ? 3e-4 : 4e-4;
-          a.position.z[v + step] += higher_after ? 4e-4 : 3e-4;
-        }
-      pair_contacts(a, boxes(a), b, boxes(b), kParams, walked, scratch);
-      ASSERT_EQ(walked.searches, 1u);  // the walk served the second step
-      const auto on_a = dense(walked.on_a, a.size()), on_b = dense(walked.on_b, b.size());
-      const Dense ab = brute_contacts(a, b, -1), ba = brute_contacts(b, a, -1);
-      const auto [brute_a, brute_b] = brute_pair(ab, ba);
-      const std::string tag = "trial " + std::to_string(trial);
-      expect_same_forces(on_a, brute_a, tag + " on a");
-      expect_same_forces(on_b, brute_b, tag + " on b");
-      for (const auto* forces : {&on_a, &on_b})
-        for (const P3& f : *forces) got.insert(got.end(), f.begin(), f.end());
-    }
-    if (first.empty()) {
-      first = got;
-      return;
-    }
-    ASSERT_EQ(got.size(), first.size());
-    for (std::size_t k = 0; k < got.size(); ++k)
-      ASSERT_EQ(std::memcmp(&got[k], &first[k], sizeof(double)), 0) << "value " << k << ": " << got[k] << " vs " << first[k];
-  });
-}
-
 // The same over whole runs of a World, where a different force changes the trajectory:
 // a stack of three pinned sheets dropped 8 mm onto each other, and a sheet folded onto
 // itself with self-collision, each stepped for 0.3 s (60 ms for the fold) with walked

@@ -1154,52 +1154,6 @@ HWY_INLINE void first_tests(const Sheet<Real>& q, const Sheet<Real>& s, const st
   }
 }
 
-// The cells around cell (ci, cj) of s with a corner v that bulges towards the point whose
-// closest point is q, at x = q + g: (v − q)·g > bulge (points_walking's ring). Bit 3a + b
-// for the cell at row ci − 1 + a, column cj − 1 + b; corners outside the grid never bulge.
-// A row of four corners at a time in lanes where the corners around the cell are all
-// inside the grid (the same operations, in dot's order, as one at a time at the border).
-template <class Real>
-HWY_INLINE unsigned bulging_cells(const Sheet<Real>& s, std::int64_t ci, std::int64_t cj, V3<Real> q, V3<Real> g,
-                                  Real bulge) {
-  const std::int64_t cols = s.topology->cols(), m = s.topology->m, n = s.topology->n;
-  const Real* px = s.position.x.data();
-  const Real* py = s.position.y.data();
-  const Real* pz = s.position.z.data();
-  unsigned rows[4] = {0, 0, 0, 0};  // bit b: the corner at row ci − 1 + a, column cj − 1 + b
-  if (ci >= 1 && cj >= 1 && ci + 2 <= m && cj + 2 <= n) {
-    const hn::CappedTag<Real, 4> d;
-    const std::size_t N = hn::Lanes(d);
-    const auto qx = hn::Set(d, q.x), qy = hn::Set(d, q.y), qz = hn::Set(d, q.z);
-    const auto gx = hn::Set(d, g.x), gy = hn::Set(d, g.y), gz = hn::Set(d, g.z), limit = hn::Set(d, bulge);
-    for (int a = 0; a < 4; ++a) {
-      const std::size_t base = std::size_t((ci - 1 + a) * cols + cj - 1);
-      for (std::size_t b = 0; b < 4; b += N) {
-        const auto h = hn::Add(hn::Add(hn::Mul(hn::Sub(hn::LoadU(d, px + base + b), qx), gx),
-                                       hn::Mul(hn::Sub(hn::LoadU(d, py + base + b), qy), gy)),
-                               hn::Mul(hn::Sub(hn::LoadU(d, pz + base + b), qz), gz));
-        std::uint8_t bits[8] = {};
-        hn::StoreMaskBits(d, hn::Gt(h, limit), bits);
-        rows[a] |= unsigned(bits[0] & 15) << b;
-      }
-    }
-  } else {
-    for (int a = 0; a < 4; ++a)
-      for (int b = 0; b < 4; ++b) {
-        const std::int64_t i = ci - 1 + a, j = cj - 1 + b;
-        if (i < 0 || j < 0 || i > m || j > n) continue;
-        const std::size_t k = std::size_t(i * cols + j);
-        if (dot(sub(V3<Real>{px[k], py[k], pz[k]}, q), g) > bulge) rows[a] |= 1u << b;
-      }
-  }
-  unsigned cells = 0;
-  for (int a = 0; a < 3; ++a) {
-    const unsigned r = rows[a] | rows[a + 1];
-    cells |= ((r | (r >> 1)) & 7u) << (3 * a);
-  }
-  return cells;
-}
-
 // The repulsion of entries [0, count) of `t` (first_tests'), count a multiple of the lanes,
 // as repel computes it for a point at a positive distance, each lane doing its operations
 // in their order: the distance, the unit direction (p − q)/d, the capped exponent, e^x
@@ -1312,40 +1266,26 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
       const std::size_t e = due[k];
       const std::uint32_t p = due_point[k];
       std::uint32_t cell = due_cell[k];
+      if (k < tested_end && first.ends[k] != 0) {  // the walk ends at its first cell: lanes did it all
+        kept.until[e] = kAlways;
+        if (first.dist2[k] < R2) {
+          last[p] = cell;
+          Nearest<Real> best;
+          tested_triangle(k, cell, best);
+          const V3<Real> unit{first.unit[0][k], first.unit[1][k], first.unit[2][k]};
+          push_repulsion(q, p, s, best, unit, first.force[k], prm, on_q, on_s);
+        } else {
+          last[p] = kNoCell;
+          beyond(e, first.dist2[k]);
+        }
+        continue;
+      }
       kept.until[e] = kAlways;
+      const V3<Real> x = at(q, p);
       const std::int64_t pi = p / qcols, pj = p % qcols;
       auto allowed = [&](std::int64_t ci, std::int64_t cj) {
         if (ci < 0 || cj < 0 || ci >= std::int64_t(m) || cj >= std::int64_t(n)) return false;
         return ring < 0 || !(ci >= pi - ring && ci < pi + ring && cj >= pj - ring && cj < pj + ring);
-      };
-      // The ring (docs/architecture.md, kept contact sets): a walk that ends within R at a
-      // local minimum tests the cells around its cell that have a corner bulging towards
-      // the point (no other can hold a nearer point: |x − y|·|x − q| ≥ (x − y)·(x − q) ≥
-      // |x − q|² for y in them) and goes on from the nearest of their triangles if that is
-      // nearer beyond kWalkTie (a bulge within kWalkTie/4 of |x − q|² cannot pass that).
-      auto ring_nearer = [&](V3<Real> x, std::uint32_t& cell, Nearest<Real>& best) {
-        V3<Real> q{0, 0, 0};
-        for (int c = 0; c < 3; ++c) {
-          const V3<Real> v = at(s, best.tri[c]);
-          const Real w = c == 0 ? best.w.x : c == 1 ? best.w.y : best.w.z;
-          q = {q.x + w * v.x, q.y + w * v.y, q.z + w * v.z};
-        }
-        const V3<Real> g = sub(x, q);
-        const std::int64_t ci = cell / cols, cj = cell % cols;
-        const unsigned bulging = bulging_cells(s, ci, cj, q, g, kWalkTie<Real> / 4 * best.dist2) & ~(1u << 4);
-        if (bulging == 0) return false;
-        Nearest<Real> around{};
-        around.dist2 = std::numeric_limits<Real>::infinity();
-        around.key = ~std::uint32_t(0);
-        for (int a = 0; a < 3; ++a)
-          for (int b = 0; b < 3; ++b) {
-            const std::int64_t i = ci - 1 + a, j = cj - 1 + b;
-            if ((bulging >> (3 * a + b) & 1u) != 0 && allowed(i, j)) test_cell(s, cols, x, std::uint32_t(i * cols + j), around);
-          }
-        if (!(around.dist2 < best.dist2 * (1 - kWalkTie<Real>))) return false;
-        best = around;
-        cell = best.key / 2;
-        return true;
       };
       Nearest<Real> best{};
       best.dist2 = std::numeric_limits<Real>::infinity();
@@ -1353,24 +1293,7 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
       // The key of the triangle tested in lanes, whose force the lanes hold; best's corners
       // are not read for it.
       std::uint32_t lanes_key = ~std::uint32_t(0);
-      const V3<Real> x = at(q, p);
-      bool ringed = false;  // the ring was tested (once a substep)
-      if (k < tested_end && first.ends[k] != 0) {  // the walk ends at its first cell: lanes did it all
-        if (!(first.dist2[k] < R2)) {
-          last[p] = kNoCell;
-          beyond(e, first.dist2[k]);
-          continue;
-        }
-        tested_triangle(k, cell, best);
-        ringed = true;
-        if (!ring_nearer(x, cell, best)) {  // the lanes' force
-          kept.cell[e] = cell;
-          last[p] = cell;
-          const V3<Real> unit{first.unit[0][k], first.unit[1][k], first.unit[2][k]};
-          push_repulsion(q, p, s, best, unit, first.force[k], prm, on_q, on_s);
-          continue;
-        }
-      } else if (k < tested_end) {
+      if (k < tested_end) {
         if (first.dist2[k] == first.dist2[k]) {  // else not a number: no triangle (best stays empty)
           tested_triangle(k, cell, best);
           lanes_key = best.key;
@@ -1384,11 +1307,6 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
       }
       bool settled = false;  // the walk reached its local minimum within its moves
       for (int move = 0; move < kMaxMoves; ++move) {
-        if (settled) {  // at a local minimum within R: once more from a nearer cell of the ring
-          if (ringed || !(best.dist2 < R2) || !ring_nearer(x, cell, best)) break;
-          ringed = true;
-          settled = false;
-        }
         // The closest point's weights on the cell's corners 00, 01, 10, 11: triangle 0 is
         // (00, 01, 11), triangle 1 (00, 11, 10). Zero weight on a row's (column's) two
         // corners (within kWalkTie: a closest point within rounding of a corner is taken
@@ -1408,14 +1326,14 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
         const int dj = w01 + w11 <= tie ? -1 : (w00 + w10 <= tie ? 1 : 0);
         if (di == 0 && dj == 0) {
           settled = true;
-          continue;
+          break;
         }
         const std::int64_t ci = cell / cols, cj = cell % cols;
         // At a corner: no cell around it holds a nearer point (of the cells outside the grid
         // there are none to test; of those in the ring, the test asks more than it needs).
         if (di != 0 && dj != 0 && vertex_is_nearest(s, x, ci + (di > 0), cj + (dj > 0))) {
           settled = true;
-          continue;
+          break;
         }
         const std::uint32_t key = best.key;
         auto corner = [&](std::int64_t i, std::int64_t j) { return std::uint32_t(i * cols + j); };
@@ -1424,7 +1342,7 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
         if (di != 0 && dj != 0 && allowed(ci + di, cj + dj)) test_cell(s, cols, x, corner(ci + di, cj + dj), best);
         if (best.key == key) {  // no neighbour holds a nearer triangle
           settled = true;
-          continue;
+          break;
         }
         cell = best.key / 2;
       }
