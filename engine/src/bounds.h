@@ -19,6 +19,11 @@ struct Aabb {
   Aabb inflated(double margin) const {
     return {{lo[0] - margin, lo[1] - margin, lo[2] - margin}, {hi[0] + margin, hi[1] + margin, hi[2] + margin}};
   }
+  // The box of the segment between points p and q.
+  static Aabb segment(const double (&p)[3], const double (&q)[3]) {
+    return {{std::min(p[0], q[0]), std::min(p[1], q[1]), std::min(p[2], q[2])},
+            {std::max(p[0], q[0]), std::max(p[1], q[1]), std::max(p[2], q[2])}};
+  }
   // Closed intervals: touching boxes overlap.
   friend bool overlaps(const Aabb& a, const Aabb& b) {
     return a.lo[0] <= b.hi[0] && b.lo[0] <= a.hi[0] && a.lo[1] <= b.hi[1] && b.lo[1] <= a.hi[1] &&

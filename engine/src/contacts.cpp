@@ -394,14 +394,8 @@ void rim_edge_pairs(const Sheet<Real>& q, const SheetBoxes<Real>& bq, const Shee
   const std::uint32_t patches = bs.patch_rows * bs.patch_cols;
   auto edge_pairs = [&](std::uint32_t u, std::uint32_t v) {
     const V3<Real> x0 = at(q, u), x1 = at(q, v);
-    Aabb edge;
-    edge.lo[0] = std::min(double(x0.x), double(x1.x));
-    edge.lo[1] = std::min(double(x0.y), double(x1.y));
-    edge.lo[2] = std::min(double(x0.z), double(x1.z));
-    edge.hi[0] = std::max(double(x0.x), double(x1.x));
-    edge.hi[1] = std::max(double(x0.y), double(x1.y));
-    edge.hi[2] = std::max(double(x0.z), double(x1.z));
-    edge = edge.inflated(reach);
+    const Aabb edge = Aabb::segment({double(x0.x), double(x0.y), double(x0.z)}, {double(x1.x), double(x1.y), double(x1.z)})
+                          .inflated(reach);
     for (std::uint32_t t : near) {
       if (!overlaps(edge, box_at(bs.patch_lo, bs.patch_hi, t))) continue;
       cells_meeting(bs, t, edge, [&](std::uint32_t c) {

@@ -40,14 +40,7 @@ P3 point(const Sheet<Real>& s, std::uint32_t p) {
   return {double(s.position.x[p]), double(s.position.y[p]), double(s.position.z[p])};
 }
 
-Aabb segment_box(const P3& p, const P3& q) {
-  Aabb box;
-  for (int k = 0; k < 3; ++k) {
-    box.lo[k] = std::min(p[k], q[k]);
-    box.hi[k] = std::max(p[k], q[k]);
-  }
-  return box;
-}
+Aabb segment_box(const P3& p, const P3& q) { return Aabb::segment({p[0], p[1], p[2]}, {q[0], q[1], q[2]}); }
 
 double distance2(const P3& a, const P3& b) {
   const P3 d = minus(a, b);

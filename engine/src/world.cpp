@@ -10,6 +10,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "crossings.h"
 #include "diagnostics.h"
@@ -557,7 +558,7 @@ template <class Real>
 void BasicWorld<Real>::Impl::pairs_with_boxes(double margin, std::vector<detail::BoxPair>& pairs,
                                               std::vector<detail::SheetBoxes<Real>>& boxes) const {
   const std::size_t count = active.size();
-  auto sheet = [&](std::size_t k) -> const detail::Sheet<Real>& { return *slots[active[k]].sheet; };
+  auto sheet = [&](std::size_t k) -> const detail::Sheet<Real>& { return at(k); };
   std::vector<detail::Aabb> grown(count);
   for (std::size_t k = 0; k < count; ++k) grown[k] = detail::sheet_bounds(sheet(k)).inflated(margin);
   detail::BroadPhase().find_pairs(grown, pairs);
@@ -575,7 +576,7 @@ template <class Real>
 double BasicWorld<Real>::contact_energy() const {
   if (!impl_->contacts_possible()) return 0;
   const auto params = impl_->contact_params(impl_->def.dt);
-  auto sheet = [&](std::size_t k) -> const detail::Sheet<Real>& { return *impl_->slots[impl_->active[k]].sheet; };
+  auto sheet = [&](std::size_t k) -> const detail::Sheet<Real>& { return std::as_const(*impl_).at(k); };
   // the pairs the narrow phase would take now: grown boxes that meet, and self-colliding sheets
   std::vector<detail::BoxPair> pairs;
   std::vector<detail::SheetBoxes<Real>> boxes;
@@ -599,7 +600,7 @@ template <class Real>
 std::vector<SheetCrossing> BasicWorld<Real>::sheet_crossings() const {
   std::vector<SheetCrossing> out;
   if (!impl_->contacts_possible()) return out;
-  auto sheet = [&](std::size_t k) -> const detail::Sheet<Real>& { return *impl_->slots[impl_->active[k]].sheet; };
+  auto sheet = [&](std::size_t k) -> const detail::Sheet<Real>& { return std::as_const(*impl_).at(k); };
   // sheets that pass through each other have boxes that meet (touching counts)
   std::vector<detail::BoxPair> pairs;
   std::vector<detail::SheetBoxes<Real>> boxes;

@@ -129,6 +129,7 @@ struct BasicWorld<Real>::Impl {
   const Sheet<Real>& sheet(SheetId id) const { return const_cast<Impl*>(this)->sheet(id); }
   bool contains(SheetId id) const { return sheet_ids.contains(id); }
   Sheet<Real>& at(std::size_t k) { return *slots[active[k]].sheet; }
+  const Sheet<Real>& at(std::size_t k) const { return *slots[active[k]].sheet; }
   detail::Obstacle& obstacle(ObstacleId id);
   bool contains(ObstacleId id) const { return obstacle_ids.contains(id); }
   void forget_near_obstacles();
