@@ -558,17 +558,16 @@ template <class Real>
 void BasicWorld<Real>::Impl::pairs_with_boxes(double margin, std::vector<detail::BoxPair>& pairs,
                                               std::vector<detail::SheetBoxes<Real>>& boxes) const {
   const std::size_t count = active.size();
-  auto sheet = [&](std::size_t k) -> const detail::Sheet<Real>& { return at(k); };
   std::vector<detail::Aabb> grown(count);
-  for (std::size_t k = 0; k < count; ++k) grown[k] = detail::sheet_bounds(sheet(k)).inflated(margin);
+  for (std::size_t k = 0; k < count; ++k) grown[k] = detail::sheet_bounds(at(k)).inflated(margin);
   detail::BroadPhase().find_pairs(grown, pairs);
   for (std::uint32_t k = 0; k < count; ++k)
-    if (sheet(k).self_collision) pairs.push_back({k, k});
+    if (at(k).self_collision) pairs.push_back({k, k});
   std::vector<char> used(count, 0);
   for (const auto& pair : pairs) used[pair.first] = used[pair.second] = 1;
   boxes.assign(count, {});
   parallel(count, [&](std::size_t k) {
-    if (used[k]) detail::build_boxes(sheet(k), boxes[k]);
+    if (used[k]) detail::build_boxes(at(k), boxes[k]);
   });
 }
 
@@ -576,7 +575,7 @@ template <class Real>
 double BasicWorld<Real>::contact_energy() const {
   if (!impl_->contacts_possible()) return 0;
   const auto params = impl_->contact_params(impl_->def.dt);
-  auto sheet = [&](std::size_t k) -> const detail::Sheet<Real>& { return std::as_const(*impl_).at(k); };
+  const Impl& impl = *impl_;  // its sheets, read only
   // the pairs the narrow phase would take now: grown boxes that meet, and self-colliding sheets
   std::vector<detail::BoxPair> pairs;
   std::vector<detail::SheetBoxes<Real>> boxes;
@@ -587,9 +586,9 @@ double BasicWorld<Real>::contact_energy() const {
     const auto [a, b] = pairs[q];
     auto pair = params;
     pair.exponent_cap = impl_->pair_exponent_cap(a, b, impl_->def.dt);
-    share[q] = detail::contact_energy(sheet(a), boxes[a], sheet(b), boxes[b], pair);
-    if (a != b) share[q] += detail::contact_energy(sheet(b), boxes[b], sheet(a), boxes[a], pair);
-    if (a != b && pair.rims) share[q] += detail::rim_energy(sheet(a), boxes[a], sheet(b), boxes[b], pair);
+    share[q] = detail::contact_energy(impl.at(a), boxes[a], impl.at(b), boxes[b], pair);
+    if (a != b) share[q] += detail::contact_energy(impl.at(b), boxes[b], impl.at(a), boxes[a], pair);
+    if (a != b && pair.rims) share[q] += detail::rim_energy(impl.at(a), boxes[a], impl.at(b), boxes[b], pair);
   });
   double energy = 0;
   for (double e : share) energy += e;
@@ -600,7 +599,7 @@ template <class Real>
 std::vector<SheetCrossing> BasicWorld<Real>::sheet_crossings() const {
   std::vector<SheetCrossing> out;
   if (!impl_->contacts_possible()) return out;
-  auto sheet = [&](std::size_t k) -> const detail::Sheet<Real>& { return std::as_const(*impl_).at(k); };
+  const Impl& impl = *impl_;  // its sheets, read only
   // sheets that pass through each other have boxes that meet (touching counts)
   std::vector<detail::BoxPair> pairs;
   std::vector<detail::SheetBoxes<Real>> boxes;
@@ -611,7 +610,7 @@ std::vector<SheetCrossing> BasicWorld<Real>::sheet_crossings() const {
   std::vector<detail::Crossings> found(pairs.size());
   impl_->parallel(pairs.size(), [&](std::size_t q) {
     const auto [a, b] = pairs[q];
-    found[q] = detail::sheet_crossings(sheet(a), boxes[a], sheet(b), boxes[b]);
+    found[q] = detail::sheet_crossings(impl.at(a), boxes[a], impl.at(b), boxes[b]);
   });
   auto id = [&](std::uint32_t k) { return impl_->sheet_ids.id(impl_->active[k]); };
   for (std::size_t q = 0; q < pairs.size(); ++q)
