@@ -15,6 +15,7 @@
 #include <utility>
 #include <vector>
 
+#include "flush_subnormals.h"
 #include "supernodal.h"
 
 namespace {
@@ -319,6 +320,24 @@ void expect_factor_solves_like_dense(double tolerance) {
 TEST(Supernodal, FactorSolvesLikeADenseCholeskyOnAGrid) {
   expect_factor_solves_like_dense<double>(1e-12);
   expect_factor_solves_like_dense<float>(1e-5);
+}
+
+// The factor runs with subnormals flushed (flush_subnormals.h): while the guard lives, a
+// product below float's smallest normal (1.2e-38) is zero and a subnormal operand reads as
+// zero; once it goes, the thread's previous mode is back. (Run after the factor's tests in
+// this program, the first check also catches a factor that left the mode behind.)
+TEST(Supernodal, SubnormalsAreZeroOnlyWhileFlushed) {
+  volatile float tiny = 1e-20f;
+  const float subnormal = tiny * tiny;  // 1e-40
+  ASSERT_GT(subnormal, 0.0f) << "this thread flushes subnormals outside the factor";
+  {
+    const drape::detail::FlushSubnormals flush;
+    if (!drape::detail::FlushSubnormals::kFlushes) GTEST_SKIP() << "no flush mode on this architecture";
+    EXPECT_EQ(tiny * tiny, 0.0f);
+    volatile float operand = subnormal;
+    EXPECT_EQ(operand * 1.0f, 0.0f);
+  }
+  EXPECT_EQ(tiny * tiny, subnormal);
 }
 
 // Implicit Euler at dt = 1/60 s with the Cholesky preconditioner.

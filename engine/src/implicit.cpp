@@ -427,10 +427,10 @@ SolveResult cholesky_cg(ImplicitScratch<Real>& sc, Sheet<Real>& s, const LocalGl
 }
 
 // Auto: block Jacobi's iterations grow with dt·ω_max (and with the sheet), the factor's
-// cost does not: a factor in float and its one or two solves cost about as much as 45
-// block-Jacobi iterations on a 64×64 sheet, which block Jacobi needs at dt·ω_max ≈ 10; on
-// 128×128 the factor costs more but so do block Jacobi's iterations (90 at dt·ω_max ≈ 19,
-// already dearer than the factor). Block Jacobi up to dt·ω_max = 10
+// cost does not: a factor in float and its one or two solves cost about as much as 40
+// block-Jacobi iterations on a 64×64 sheet, which block Jacobi needs at dt·ω_max ≈ 8; on
+// 128×128 the factor costs more but so do block Jacobi's iterations (about 70, reached
+// near dt·ω_max ≈ 12). Block Jacobi up to dt·ω_max = 10, between the two
 // (BM_ImplicitEulerStep's dt_omega_max counter, docs/integrators.md).
 bool use_cholesky(Preconditioner preconditioner, double dt, double omega_max) {
   switch (preconditioner) {

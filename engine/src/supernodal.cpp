@@ -1,6 +1,8 @@
 // Supernodal block Cholesky: see supernodal.h.
 #include "supernodal.h"
 
+#include "flush_subnormals.h"
+
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <algorithm>
@@ -55,10 +57,33 @@ void SupernodalFactor<Scalar>::analyse(const int* column_start, const int* row_i
           value_start_[s] + 3 * local * leading_[s] + 3 * (local + std::size_t(k - column_start[j]));
   }
   value_.assign(value_start_.back(), Scalar(0));
-  map_.assign(columns, 0);
-  head_.resize(supernodes);
-  next_.resize(supernodes);
-  position_.resize(supernodes);
+  group_start_.assign(1, 0);
+  group_target_.clear();
+  group_begin_.clear();
+  relative_start_.clear();
+  relative_.clear();
+  std::size_t largest = 0;
+  for (std::size_t s = 0; s < supernodes; ++s) {
+    const int* rows = rows_.data() + row_start_[s];
+    const int count = row_start_[s + 1] - row_start_[s];
+    const int width = first_[s + 1] - first_[s];
+    largest = std::max(largest, std::size_t(count - width));
+    for (int b = width; b < count;) {
+      const int t = supernode_of_[std::size_t(rows[b])];
+      group_target_.push_back(t);
+      group_begin_.push_back(b);
+      relative_start_.push_back(relative_.size());
+      const int* target = rows_.data() + row_start_[std::size_t(t)];
+      int at = 0;
+      for (int a = b; a < count; ++a) {
+        while (target[at] != rows[a]) ++at;
+        relative_.push_back(at);
+      }
+      while (b < count && rows[b] < first_[std::size_t(t) + 1]) ++b;
+    }
+    group_start_.push_back(int(group_target_.size()));
+  }
+  update_.resize(9 * largest * largest);  // the largest product
   gathered_.resize(3 * columns);
 }
 
@@ -103,57 +128,20 @@ void invert_lower(Scalar* l, Eigen::Index ld) {
 }
 }  // namespace
 
+// Up to this many rows below a supernode its update is the whole product, both triangles:
+// Eigen's triangular product costs more than the other half below about that size.
+constexpr Eigen::Index kWholeProduct = 96;
+
 template <class Scalar>
 bool SupernodalFactor<Scalar>::factor() {
+  const FlushSubnormals flush;
   const std::size_t supernodes = first_.size() - 1;
-  std::fill(head_.begin(), head_.end(), -1);
-  // d waits in the list of the supernode holding its next row below the ones it updated
-  auto wait = [&](std::size_t d, int at) {
-    position_[d] = at;
-    const int s = supernode_of_[std::size_t(rows_[std::size_t(row_start_[d] + at)])];
-    next_[d] = head_[std::size_t(s)];
-    head_[std::size_t(s)] = int(d);
-  };
   for (std::size_t s = 0; s < supernodes; ++s) {
-    const int c0 = first_[s], c1 = first_[s + 1], width = c1 - c0;
+    const int c0 = first_[s], width = first_[s + 1] - c0;
     const int* rows = rows_.data() + row_start_[s];
     const int count = row_start_[s + 1] - row_start_[s];
     const Eigen::Index ld = Eigen::Index(leading_[s]);
     Panel<Scalar> panel(value_.data() + value_start_[s], ld, 3 * width, Eigen::OuterStride<>(ld));
-    for (int i = 0; i < count; ++i) map_[std::size_t(rows[i])] = i;
-    for (int d = head_[s]; d != -1;) {
-      const int after = next_[std::size_t(d)];
-      const int* drows = rows_.data() + row_start_[std::size_t(d)];
-      const int dcount = row_start_[std::size_t(d) + 1] - row_start_[std::size_t(d)];
-      const int p = position_[std::size_t(d)];
-      int q = p;
-      while (q < dcount && drows[q] < c1) ++q;
-      const Eigen::Index dld = Eigen::Index(leading_[std::size_t(d)]);
-      const ConstPanel<Scalar> dpanel(value_.data() + value_start_[std::size_t(d)], dld,
-                              Eigen::Index(3 * (first_[std::size_t(d) + 1] - first_[std::size_t(d)])),
-                              Eigen::OuterStride<>(dld));
-      // the product of d's rows from p down with its rows in s's columns
-      const Eigen::Index m = 3 * (dcount - p), n = 3 * (q - p);
-      update_.resize(std::size_t(m * n));
-      Eigen::Map<Dense<Scalar>> product(update_.data(), m, n);
-      product.noalias() = dpanel.middleRows(3 * p, m) * dpanel.middleRows(3 * p, n).transpose();
-      for (int b = p; b < q; ++b) {
-        const Eigen::Index col = 3 * (drows[b] - c0);
-        for (int c = 0; c < 3; ++c) {
-          Scalar* target = panel.col(col + c).data();
-          const Scalar* source = product.col(3 * (b - p) + c).data();
-          for (int a = p; a < dcount; ++a) {
-            Scalar* t = target + 3 * map_[std::size_t(drows[a])];
-            const Scalar* u = source + 3 * (a - p);
-            t[0] -= u[0];
-            t[1] -= u[1];
-            t[2] -= u[2];
-          }
-        }
-      }
-      if (q < dcount) wait(std::size_t(d), q);
-      d = after;
-    }
     const Eigen::Index w3 = 3 * width;
     auto diagonal = panel.topLeftCorner(w3, w3);
     Eigen::LLT<Eigen::Ref<Dense<Scalar>>, Eigen::Lower> llt(diagonal);
@@ -162,7 +150,38 @@ bool SupernodalFactor<Scalar>::factor() {
     if (count > width) {
       auto below = panel.bottomRows(ld - w3);
       diagonal.template triangularView<Eigen::Lower>().transpose().template solveInPlace<Eigen::OnTheRight>(below);
-      wait(s, width);
+      // Right-looking: the rows below times themselves, subtracted at once from the later
+      // supernodes' panels (the lower triangle, one group of rows at a time). Each
+      // supernode's update is one product, not one per later supernode it reaches.
+      const Eigen::Index m = ld - w3;
+      Eigen::Map<Dense<Scalar>> product(update_.data(), m, m);
+      if (m <= kWholeProduct)
+        product.noalias() = below * below.transpose();
+      else
+        product.template triangularView<Eigen::Lower>() = below * below.transpose();
+      for (int g = group_start_[s]; g < group_start_[s + 1]; ++g) {
+        const std::size_t t = std::size_t(group_target_[std::size_t(g)]);
+        const int begin = group_begin_[std::size_t(g)];
+        const int end = g + 1 < group_start_[s + 1] ? group_begin_[std::size_t(g) + 1] : count;
+        const int* relative = relative_.data() + relative_start_[std::size_t(g)];  // rows begin, begin + 1, …
+        const std::size_t tld = leading_[t];
+        Scalar* target = value_.data() + value_start_[t];
+        for (int b = begin; b < end; ++b) {
+          const std::size_t column = 3 * std::size_t(rows[b] - first_[t]);
+          for (int c = 0; c < 3; ++c) {
+            Scalar* into = target + (column + std::size_t(c)) * tld;
+            const Scalar* from = product.col(3 * (b - width) + c).data();
+            for (int r = c; r < 3; ++r) into[3 * relative[b - begin] + r] -= from[3 * (b - width) + r];  // (lower)
+            for (int a = b + 1; a < count; ++a) {
+              Scalar* t3 = into + 3 * relative[a - begin];
+              const Scalar* u = from + 3 * (a - width);
+              t3[0] -= u[0];
+              t3[1] -= u[1];
+              t3[2] -= u[2];
+            }
+          }
+        }
+      }
     }
     fixed_width(w3, [&](auto w) { invert_lower<3 * decltype(w)::value>(panel.data(), ld); });  // for solve()
   }

@@ -3,9 +3,13 @@
 // fundamental supernodes; on a grid, the separators of the fill-reducing ordering) are held
 // as one dense column-major panel, so the factor's work is dense products, Cholesky and
 // triangular solves (Eigen's blocked, vectorised kernels) instead of one 3×3 block at a time.
-// Left-looking, as in CHOLMOD's supernodal factor (Davis and Hager): a supernode gathers its
-// columns of A, subtracts the products of every earlier supernode with rows in its columns,
-// then factors its diagonal block and scales the panel below it.
+// Right-looking: each supernode in turn factors its diagonal block (its panel holding its
+// columns of A less every earlier supernode's update by then), scales the panel below it,
+// and subtracts that panel times itself from the later supernodes its rows reach, one
+// product per supernode (a left-looking factor, as CHOLMOD's, makes one per pair of
+// supernodes, and on a grid's many narrow supernodes those small products cost more than
+// their arithmetic). The factor runs with subnormal numbers flushed to zero
+// (flush_subnormals.h): a stiff sheet's fill decays below float's smallest normal number.
 //
 // The symbolic part (analyse) takes the point pattern of L, e.g. local/global's factor
 // (local_global.h): column-compressed, rows ascending, the diagonal first in each column.
@@ -59,10 +63,15 @@ class SupernodalFactor {
   std::vector<int> supernode_of_;           // per column
   std::vector<std::size_t> entry_offset_;   // per entry of the point pattern
   Aligned value_;
-  // the factor's work: a supernode's rows → rows of its panel, the lists of earlier
-  // supernodes waiting for a later one (by their next row), the products they subtract
-  std::vector<int> map_, head_, next_, position_;
-  Aligned update_;
+  // Where a supernode's update goes: its rows below its columns, in runs that fall in one
+  // later supernode's columns (a group), each with its target, its first row, and the
+  // positions in the target's rows of its rows from there down (rows_ ascending, so they
+  // are a subset of the target's rows).
+  std::vector<int> group_start_;                 // per supernode, into the groups
+  std::vector<int> group_target_, group_begin_;  // per group; its rows end at the next group's
+  std::vector<std::size_t> relative_start_;      // per group, into relative_
+  std::vector<int> relative_;
+  Aligned update_;  // the supernode's product, its rows below × themselves
   mutable Aligned gathered_;
 };
 
