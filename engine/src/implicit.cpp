@@ -196,16 +196,15 @@ void map_blocks(ImplicitScratch<Real>& sc, const LocalGlobalScratch& ms) {
   const std::size_t count = ms.permutation.size();
   sc.point_of.resize(count);
   for (std::size_t p = 0; p < count; ++p) sc.point_of[std::size_t(ms.permutation[p])] = int(p);
-  const std::size_t blocks = ms.row_index.size();
-  sc.source.resize(blocks);
+  sc.source.clear();
   for (std::size_t j = 0; j < count; ++j)
     for (int k = ms.column_start[j]; k < ms.column_start[j + 1]; ++k) {
       const int pi = sc.point_of[std::size_t(ms.row_index[std::size_t(k)])], pj = sc.point_of[j];
-      auto& src = sc.source[std::size_t(k)];
       const int* begin = sc.system.innerIndexPtr() + sc.system.outerIndexPtr()[3 * pi];
       const int* end = sc.system.innerIndexPtr() + sc.system.outerIndexPtr()[3 * pi + 1];
-      const bool present = std::binary_search(begin, end, 3 * pj);
-      for (int r = 0; r < 3; ++r) src[std::size_t(r)] = present ? offset_of(sc.system, 3 * pi + r, 3 * pj) : -1;
+      if (!std::binary_search(begin, end, 3 * pj)) continue;  // fill
+      sc.source.push_back({k, int(j), {}});
+      for (int r = 0; r < 3; ++r) sc.source.back().row[std::size_t(r)] = offset_of(sc.system, 3 * pi + r, 3 * pj);
     }
   sc.single.analyse(ms.column_start.data(), ms.row_index.data(), count);
   sc.single_work.resize(3 * count);
@@ -218,20 +217,15 @@ void map_blocks(ImplicitScratch<Real>& sc, const LocalGlobalScratch& ms) {
 // The step's matrix (its lower blocks) into the supernodes' panels of `factor`, then L.
 // False when it is not positive definite in that precision.
 template <class Scalar, class Real>
-bool block_factor(SupernodalFactor<Scalar>& factor, const ImplicitScratch<Real>& sc, const LocalGlobalScratch& ms) {
-  const std::size_t count = ms.permutation.size();
+bool block_factor(SupernodalFactor<Scalar>& factor, const ImplicitScratch<Real>& sc) {
   const Real* a = sc.system.valuePtr();
   factor.clear();
   Scalar* value = factor.values();
-  for (std::size_t j = 0; j < count; ++j) {
-    const std::size_t ld = factor.leading(j);
-    for (int k = ms.column_start[j]; k < ms.column_start[j + 1]; ++k) {
-      const auto& src = sc.source[std::size_t(k)];
-      if (src[0] < 0) continue;  // fill: not in the matrix
-      Scalar* block = value + factor.entry_offset(std::size_t(k));
-      for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) block[std::size_t(r) + std::size_t(c) * ld] = Scalar(a[src[std::size_t(r)] + c]);
-    }
+  for (const auto& src : sc.source) {
+    const std::size_t ld = factor.leading(std::size_t(src.column));
+    Scalar* block = value + factor.entry_offset(std::size_t(src.entry));
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) block[std::size_t(r) + std::size_t(c) * ld] = Scalar(a[src.row[std::size_t(r)] + c]);
   }
   return factor.factor();
 }
@@ -304,14 +298,14 @@ template <class Real>
 bool make_factor(ImplicitScratch<Real>& sc, const LocalGlobalScratch& ms, FactorKind kind) {
   bool made;
   if (kind == FactorKind::Single) {
-    made = block_factor(sc.single, sc, ms);
+    made = block_factor(sc.single, sc);
   } else {
     if (!sc.full_analysed) {
       sc.full.analyse(ms.column_start.data(), ms.row_index.data(), ms.permutation.size());
       sc.full_work.resize(sc.single_work.size());
       sc.full_analysed = true;
     }
-    made = block_factor(sc.full, sc, ms);
+    made = block_factor(sc.full, sc);
   }
   sc.held = made ? kind : FactorKind::None;
   return made;

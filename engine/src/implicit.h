@@ -57,12 +57,17 @@ struct ImplicitScratch {
   // Auto's rule reads the sheet's stiffest mode, ω_max = 2/sheet_stable_step (Gershgorin).
   double omega_max = 0;
   // The Cholesky preconditioner: L on the pattern of local/global's point factor, by
-  // supernodes (`factor`); `source`: per 3×3 block of that pattern, the offsets in
-  // `system` of its three rows (−1: fill, not in the matrix). Built for one factor of
-  // local/global (`structure`, `structure_factorisations`) and one pattern of `system`.
+  // supernodes (`factor`); `source`: per 3×3 block of that pattern that is in `system`
+  // (not fill), its entry in the pattern, its column and the offsets in `system` of its
+  // three rows. Built for one factor of local/global (`structure`,
+  // `structure_factorisations`) and one pattern of `system`.
   const void* structure = nullptr;
   std::uint64_t structure_factorisations = 0;
-  std::vector<std::array<int, 3>> source;
+  struct Source {
+    int entry, column;
+    std::array<int, 3> row;
+  };
+  std::vector<Source> source;
   std::vector<int> point_of;                 // factor row → point
   // The factor in float first (half the memory traffic, twice the vector width; a few CG
   // iterations instead of one), in double when float's does not serve (implicit.cpp).
