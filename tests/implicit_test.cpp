@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "flush_subnormals.h"
+#include "local_global.h"
 #include "supernodal.h"
 
 namespace {
@@ -320,6 +321,53 @@ void expect_factor_solves_like_dense(double tolerance) {
 TEST(Supernodal, FactorSolvesLikeADenseCholeskyOnAGrid) {
   expect_factor_solves_like_dense<double>(1e-12);
   expect_factor_solves_like_dense<float>(1e-5);
+}
+
+// Implicit Euler takes its factor's pattern from the symbolic analysis alone
+// (cholesky_pattern, local_global.h): on grids with the couplings the engine makes (4
+// neighbours; diagonals; reach two; points cut loose, as pins leave them), it must be the
+// pattern of Eigen's numeric simplicial factor in the same ordering, entry for entry.
+TEST(Supernodal, SymbolicPatternIsTheNumericFactorsPattern) {
+  struct Grid {
+    int rows, cols;
+    bool diagonals, reach_two;
+    int cut_every;  // every this many points has no couplings (0: none)
+  };
+  for (const Grid g : {Grid{7, 9, false, false, 0}, Grid{16, 16, true, false, 0}, Grid{12, 10, true, true, 0},
+                       Grid{20, 13, false, true, 5}, Grid{1, 30, false, false, 0}}) {
+    const int points = g.rows * g.cols;
+    std::vector<Eigen::Triplet<double, int>> entries;
+    std::vector<double> diagonal(std::size_t(points), 1.0);
+    auto couple = [&](int p, int q) {
+      if (g.cut_every > 0 && (p % g.cut_every == 0 || q % g.cut_every == 0)) return;
+      entries.emplace_back(std::max(p, q), std::min(p, q), -0.1);
+      diagonal[std::size_t(p)] += 0.1;
+      diagonal[std::size_t(q)] += 0.1;
+    };
+    for (int i = 0; i < g.rows; ++i)
+      for (int j = 0; j < g.cols; ++j) {
+        const int p = i * g.cols + j;
+        if (j + 1 < g.cols) couple(p, p + 1);
+        if (i + 1 < g.rows) couple(p, p + g.cols);
+        if (g.diagonals && i + 1 < g.rows && j + 1 < g.cols) couple(p, p + g.cols + 1);
+        if (g.diagonals && i + 1 < g.rows && j > 0) couple(p, p + g.cols - 1);
+        if (g.reach_two && j + 2 < g.cols) couple(p, p + 2);
+        if (g.reach_two && i + 2 < g.rows) couple(p, p + 2 * g.cols);
+      }
+    for (int p = 0; p < points; ++p) entries.emplace_back(p, p, diagonal[std::size_t(p)]);
+    drape::detail::LocalGlobalScratch::Matrix lower(points, points);
+    lower.setFromTriplets(entries.begin(), entries.end());
+    const Eigen::SimplicialLLT<drape::detail::LocalGlobalScratch::Matrix, Eigen::Lower, Eigen::AMDOrdering<int>> numeric(lower);
+    ASSERT_EQ(numeric.info(), Eigen::Success);
+    const auto& l = numeric.matrixL().nestedExpression();
+    std::vector<int> column_start, row_index, permutation;
+    drape::detail::cholesky_pattern(lower, column_start, row_index, permutation);
+    SCOPED_TRACE(std::to_string(g.rows) + "x" + std::to_string(g.cols));
+    EXPECT_EQ(column_start, std::vector<int>(l.outerIndexPtr(), l.outerIndexPtr() + points + 1));
+    EXPECT_EQ(row_index, std::vector<int>(l.innerIndexPtr(), l.innerIndexPtr() + l.nonZeros()));
+    const auto& order = numeric.permutationP().indices();
+    EXPECT_EQ(permutation, std::vector<int>(order.data(), order.data() + points));
+  }
 }
 
 // The factor runs with subnormals flushed (flush_subnormals.h): while the guard lives, a

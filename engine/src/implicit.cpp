@@ -561,7 +561,7 @@ void implicit_euler_step(Sheet<Real>& s, const StepParams<Real>& p) {
     if (!s.local_global_scratch || s.local_global_scratch.use_count() > 1)
       s.local_global_scratch = std::make_shared<LocalGlobalScratch>();
     ms = s.local_global_scratch.get();
-    prepare_factor(*ms, s, double(dt));
+    prepare_pattern(*ms, s, double(dt));
     if (sc.structure != ms || sc.structure_factorisations != ms->factorisations) map_blocks(sc, *ms);
     restore_factor(sc, s, *ms, memory, double(dt));
   }

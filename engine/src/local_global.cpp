@@ -32,11 +32,64 @@ bool factor_current(const LocalGlobalScratch& sc, const Sheet<Real>& s, double d
          sc.pin_point == s.pins.point;
 }
 
+}  // namespace
+
+void cholesky_pattern(const LocalGlobalScratch::Matrix& lower, std::vector<int>& column_start, std::vector<int>& row_index,
+                      std::vector<int>& permutation) {
+  using Matrix = LocalGlobalScratch::Matrix;
+  const Eigen::Index n = lower.rows();
+  Eigen::SimplicialLLT<Matrix, Eigen::Lower, Eigen::AMDOrdering<int>> ordering;
+  ordering.analyzePattern(lower);
+  const auto& order = ordering.permutationP();
+  permutation.assign(order.indices().data(), order.indices().data() + n);
+  Matrix upper(n, n);  // the permuted matrix's upper triangle: column k holds row k of L's pattern source
+  upper.template selfadjointView<Eigen::Upper>() = lower.template selfadjointView<Eigen::Lower>().twistedBy(order);
+  // the elimination tree (path compression through `ancestor`)
+  std::vector<int> parent(std::size_t(n), -1), ancestor(std::size_t(n), -1);
+  for (int k = 0; k < int(n); ++k)
+    for (Matrix::InnerIterator it(upper, k); it; ++it)
+      for (int i = int(it.row()), next; i != -1 && i < k; i = next) {
+        next = ancestor[std::size_t(i)];
+        ancestor[std::size_t(i)] = k;
+        if (next == -1) parent[std::size_t(i)] = k;
+      }
+  // row k of L: the columns on the tree's paths up from row k's entries of A to k; two
+  // passes, counting and then filling, k ascending so each column's rows come in order
+  std::vector<int> mark(std::size_t(n), -1), fill(std::size_t(n) + 1, 0);
+  column_start.assign(std::size_t(n) + 1, 0);
+  for (int pass = 0; pass < 2; ++pass) {
+    std::fill(mark.begin(), mark.end(), -1);
+    for (int k = 0; k < int(n); ++k) {
+      mark[std::size_t(k)] = k;
+      auto add = [&](int column) {
+        if (pass == 0)
+          ++column_start[std::size_t(column) + 1];
+        else
+          row_index[std::size_t(fill[std::size_t(column)]++)] = k;
+      };
+      add(k);  // the diagonal, first in its column
+      for (Matrix::InnerIterator it(upper, k); it; ++it)
+        for (int j = int(it.row()); mark[std::size_t(j)] != k; j = parent[std::size_t(j)]) {
+          mark[std::size_t(j)] = k;
+          add(j);
+        }
+    }
+    if (pass == 0) {
+      for (Eigen::Index j = 0; j < n; ++j) column_start[std::size_t(j) + 1] += column_start[std::size_t(j)];
+      std::copy(column_start.begin(), column_start.end(), fill.begin());
+      row_index.resize(std::size_t(column_start.back()));
+    }
+  }
+}
+
+namespace {
+
 // The key and the buffers of a step, and with factor_too the factored M̃ + dt²·L +
-// dt²·K_anchor over the free points; a pinned point's row and column are the identity (its
-// springs to free points move to the right-hand side, local_global_step).
+// dt²·K_anchor over the free points (with pattern_only, only its pattern and permutation);
+// a pinned point's row and column are the identity (its springs to free points move to the
+// right-hand side, local_global_step).
 template <class Real>
-void build_factor(LocalGlobalScratch& sc, const Sheet<Real>& s, double dt, bool factor_too) {
+void build_factor(LocalGlobalScratch& sc, const Sheet<Real>& s, double dt, bool factor_too, bool pattern_only = false) {
   const auto& t = *s.topology;
   const std::size_t count = s.size();
   sc.topology = s.topology;
@@ -99,6 +152,12 @@ void build_factor(LocalGlobalScratch& sc, const Sheet<Real>& s, double dt, bool 
   for (std::size_t p = 0; p < count; ++p) entries.emplace_back(int(p), int(p), sc.pinned[p] ? 1.0 : diagonal[p]);
   LocalGlobalScratch::Matrix system(static_cast<Eigen::Index>(count), static_cast<Eigen::Index>(count));
   system.setFromTriplets(entries.begin(), entries.end());
+  ++sc.factorisations;
+  if (pattern_only) {
+    sc.value.clear();
+    cholesky_pattern(system, sc.column_start, sc.row_index, sc.permutation);
+    return;
+  }
   // SPD: positive masses on the diagonal, a weighted Laplacian added
   Eigen::SimplicialLLT<LocalGlobalScratch::Matrix, Eigen::Lower, Eigen::AMDOrdering<int>> factor(system);
   const auto& l = factor.matrixL().nestedExpression();
@@ -110,7 +169,6 @@ void build_factor(LocalGlobalScratch& sc, const Sheet<Real>& s, double dt, bool 
   const auto& indices = factor.permutationP().indices();
   sc.permutation.assign(indices.data(), indices.data() + count);
   sc.work.resize(3 * count);
-  ++sc.factorisations;
 }
 
 // The local step at positions `x` (sc.solution): every spring's d_e; with `force`, also
@@ -210,6 +268,11 @@ void global_solve(LocalGlobalScratch& sc) {
 template <class Real>
 void prepare_factor(LocalGlobalScratch& sc, const Sheet<Real>& s, double dt) {
   if (!factor_current(sc, s, dt) || sc.inverse_diagonal.size() != s.size()) build_factor(sc, s, dt, true);
+}
+
+template <class Real>
+void prepare_pattern(LocalGlobalScratch& sc, const Sheet<Real>& s, double dt) {
+  if (!factor_current(sc, s, dt) || sc.column_start.size() != s.size() + 1) build_factor(sc, s, dt, true, true);
 }
 
 template <class Real>
@@ -372,6 +435,8 @@ template void backward_euler_finish<double>(LocalGlobalScratch&, Sheet<double>&,
 template void backward_euler_finish<float>(LocalGlobalScratch&, Sheet<float>&, const StepParams<float>&, int);
 template void prepare_factor<double>(LocalGlobalScratch&, const Sheet<double>&, double);
 template void prepare_factor<float>(LocalGlobalScratch&, const Sheet<float>&, double);
+template void prepare_pattern<double>(LocalGlobalScratch&, const Sheet<double>&, double);
+template void prepare_pattern<float>(LocalGlobalScratch&, const Sheet<float>&, double);
 template void local_global_step<double>(Sheet<double>&, const StepParams<double>&);
 template void local_global_step<float>(Sheet<float>&, const StepParams<float>&);
 

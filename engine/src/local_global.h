@@ -64,6 +64,18 @@ void local_global_step(Sheet<Real>& sheet, const StepParams<Real>& params);
 // diagonals, bending's reach of two), so it factors its 3×3 blocks on them.
 template <class Real>
 void prepare_factor(LocalGlobalScratch& scratch, const Sheet<Real>& sheet, double dt);
+// Only the symbolic part of it: the pattern of L and the permutation, without the numeric
+// factor (value and inverse_diagonal stay empty, so a later prepare_factor makes it).
+template <class Real>
+void prepare_pattern(LocalGlobalScratch& scratch, const Sheet<Real>& sheet, double dt);
+
+// The pattern of the Cholesky factor of the symmetric matrix whose lower triangle is
+// `lower`, in the ordering Eigen's SimplicialLLT with AMD gives it, found from the pattern
+// alone (its elimination tree and each row's reach in it, Davis, "Direct Methods for Sparse
+// Linear Systems", §4): the same column_start, row_index (the diagonal first, rows
+// ascending) and permutation as that factor's, without its arithmetic.
+void cholesky_pattern(const LocalGlobalScratch::Matrix& lower, std::vector<int>& column_start, std::vector<int>& row_index,
+                      std::vector<int>& permutation);
 
 // What local/global and vertex block descent share: begin sets up a backward-Euler step
 // (start state, the forces held explicit, M̃ x̂ into `inertia`, the first iterate x + dt·v
