@@ -246,8 +246,9 @@ TEST(ImplicitEuler, KeptFactorStepSolvesTheLinearisedSystemLikeADenseSolve) {
 // definite is refused. In float (implicit Euler's first factor) the solve is as close as
 // float's rounding allows: this matrix's condition number is small.
 template <class Scalar>
-void expect_factor_solves_like_dense(double tolerance) {
-  const int rows = 12, cols = 10, points = rows * cols;
+void expect_factor_solves_like_dense(double tolerance, double split_from = drape::detail::SupernodalFactor<Scalar>::kSplitFrom,
+                                     int rows = 12, int cols = 10) {
+  const int points = rows * cols;
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> u(-1, 1);
   Eigen::MatrixXd a = Eigen::MatrixXd::Zero(3 * points, 3 * points);
@@ -281,8 +282,9 @@ void expect_factor_solves_like_dense(double tolerance) {
   for (int p = 0; p < points; ++p) point_of[std::size_t(order[p])] = p;
 
   drape::detail::SupernodalFactor<Scalar> factor;
-  factor.analyse(l.outerIndexPtr(), l.innerIndexPtr(), std::size_t(points));
+  factor.analyse(l.outerIndexPtr(), l.innerIndexPtr(), std::size_t(points), split_from);
   EXPECT_LT(factor.supernodes(), std::size_t(points) * 3 / 4);
+  EXPECT_EQ(factor.split(), split_from == 0);  // this grid is below the default size
   auto write = [&](const Eigen::MatrixXd& m) {
     factor.clear();
     for (int j = 0; j < points; ++j)
@@ -321,6 +323,13 @@ void expect_factor_solves_like_dense(double tolerance) {
 TEST(Supernodal, FactorSolvesLikeADenseCholeskyOnAGrid) {
   expect_factor_solves_like_dense<double>(1e-12);
   expect_factor_solves_like_dense<float>(1e-5);
+}
+
+// The same factor split for two threads (supernodal.h): two groups of subtrees, the second's
+// updates to the top summed apart, then the top.
+TEST(Supernodal, SplitFactorSolvesLikeADenseCholeskyOnAGrid) {
+  expect_factor_solves_like_dense<double>(1e-12, 0.0, 24, 20);
+  expect_factor_solves_like_dense<float>(1e-5, 0.0, 24, 20);
 }
 
 // Implicit Euler takes its factor's pattern from the symbolic analysis alone
@@ -507,6 +516,29 @@ TEST(ImplicitEuler, CholeskyRunsChangeNoBitWithThreadsOrFrames) {
   EXPECT_EQ(run(1, 2, 3), one_by_one);
   EXPECT_EQ(run(2, 6, 1), one_by_one);
   EXPECT_EQ(run(2, 1, 6), one_by_one);
+}
+
+// One sheet large enough that its factor is split for two threads (SupernodalFactor's
+// kSplitFrom): its two groups run on both threads or one after the other on one, with the
+// same bits.
+TEST(ImplicitEuler, SplitFactorChangesNoBitWithThreads) {
+  auto run = [](int threads) {
+    drape::WorldDef wd = cholesky_world();
+    wd.threads = threads;
+    drape::World world(wd);
+    drape::SheetDef d = small_sheet(1e5);
+    d.m = d.n = 31;
+    d.stiffness_regions = {{0, 10, 0, 12, 3e5}};
+    d.rest_length_h = d.rest_length_v = 0.9 / 31;
+    const drape::SheetId id = world.add_sheet(d);
+    ruffle(world, id);
+    world.step(8);
+    const State s = read(world, id);
+    std::vector<double> out(s.x.begin(), s.x.end());
+    out.insert(out.end(), s.v.begin(), s.v.end());
+    return out;
+  };
+  EXPECT_EQ(run(2), run(1));
 }
 
 // A kept factor lives in the integrator memory (the positions and dt it was made at), so a

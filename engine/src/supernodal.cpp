@@ -6,6 +6,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <algorithm>
+#include <tbb/parallel_invoke.h>
 #include <type_traits>
 
 namespace drape::detail {
@@ -22,7 +23,8 @@ using Column = Eigen::Map<Eigen::Matrix<Scalar, Eigen::Dynamic, 1>>;
 }  // namespace
 
 template <class Scalar>
-void SupernodalFactor<Scalar>::analyse(const int* column_start, const int* row_index, std::size_t columns) {
+void SupernodalFactor<Scalar>::analyse(const int* column_start, const int* row_index, std::size_t columns,
+                                       double split_from) {
   // Column j + 1 joins j's supernode when it is j's first row below the diagonal and has one
   // row fewer: then its rows are j's without j (a column's rows below it are a subset of
   // those of its first row's column).
@@ -85,6 +87,83 @@ void SupernodalFactor<Scalar>::analyse(const int* column_start, const int* row_i
   }
   update_.resize(9 * largest * largest);  // the largest product
   gathered_.resize(3 * columns);
+  split_groups(split_from);
+}
+
+// The two groups and the top (supernodal.h): from the roots down, the subtree of most work
+// joins the top and its children take its place, until the subtrees left can be dealt to
+// two groups (the heaviest first, each to the lighter group) within an eighth of each
+// other. None when the whole factor is below split_from or no such split leaves the top
+// under half the work.
+template <class Scalar>
+void SupernodalFactor<Scalar>::split_groups(double split_from) {
+  const std::size_t supernodes = first_.size() - 1;
+  for (auto& g : group_) g.clear();
+  top_.clear();
+  private_start_.clear();
+  in_top_.clear();
+  private_.clear();
+  second_update_.clear();
+  std::vector<int> parent(supernodes, -1);
+  std::vector<double> work(supernodes), subtree(supernodes);
+  for (std::size_t s = 0; s < supernodes; ++s) {
+    const int width = first_[s + 1] - first_[s], count = row_start_[s + 1] - row_start_[s];
+    if (count > width) parent[s] = supernode_of_[std::size_t(rows_[std::size_t(row_start_[s] + width)])];
+    const double c = 3.0 * width, m = 3.0 * (count - width);
+    work[s] = c * c * c / 3 + m * c * c + m * m * c;
+  }
+  subtree = work;
+  double total = 0;
+  for (std::size_t s = 0; s < supernodes; ++s) {
+    if (parent[s] >= 0) subtree[std::size_t(parent[s])] += subtree[s];
+    total += work[s];
+  }
+  if (total < split_from) return;
+  std::vector<std::vector<int>> children(supernodes);
+  std::vector<int> frontier;
+  for (std::size_t s = 0; s < supernodes; ++s) (parent[s] >= 0 ? children[std::size_t(parent[s])] : frontier).push_back(int(s));
+  std::vector<char> in_top(supernodes, 0);
+  double top_work = 0;
+  std::vector<int> bin(supernodes, -1);
+  for (;;) {
+    std::sort(frontier.begin(), frontier.end(), [&](int a, int b) {
+      return subtree[std::size_t(a)] != subtree[std::size_t(b)] ? subtree[std::size_t(a)] > subtree[std::size_t(b)] : a < b;
+    });
+    double load[2] = {0, 0};
+    for (int r : frontier) {
+      const int g = load[1] < load[0] ? 1 : 0;
+      bin[std::size_t(r)] = g;
+      load[g] += subtree[std::size_t(r)];
+    }
+    if (frontier.size() >= 2 && std::max(load[0], load[1]) <= 1.125 * std::min(load[0], load[1])) break;
+    const int heaviest = frontier.front();
+    if (children[std::size_t(heaviest)].empty() || top_work + work[std::size_t(heaviest)] > 0.5 * total) return;
+    in_top[std::size_t(heaviest)] = 1;
+    top_work += work[std::size_t(heaviest)];
+    frontier.erase(frontier.begin());
+    frontier.insert(frontier.end(), children[std::size_t(heaviest)].begin(), children[std::size_t(heaviest)].end());
+  }
+  // every supernode below a frontier root takes its root's group (parents come after children)
+  std::vector<int> group(supernodes, -1);
+  for (int r : frontier) group[std::size_t(r)] = bin[std::size_t(r)];
+  for (std::size_t s = supernodes; s-- > 0;) {
+    if (in_top[s] || group[s] >= 0) continue;
+    group[s] = group[std::size_t(parent[s])];
+  }
+  private_start_.assign(supernodes, 0);
+  std::size_t size = 0;
+  for (std::size_t s = 0; s < supernodes; ++s) {
+    if (in_top[s]) {
+      top_.push_back(int(s));
+      private_start_[s] = size;
+      size += value_start_[s + 1] - value_start_[s];
+    } else {
+      group_[group[s]].push_back(int(s));
+    }
+  }
+  private_.assign(size, Scalar(0));
+  second_update_.resize(update_.size());
+  in_top_.assign(in_top.begin(), in_top.end());
 }
 
 template <class Scalar>
@@ -135,8 +214,36 @@ constexpr Eigen::Index kWholeProduct = 96;
 template <class Scalar>
 bool SupernodalFactor<Scalar>::factor() {
   const FlushSubnormals flush;
-  const std::size_t supernodes = first_.size() - 1;
-  for (std::size_t s = 0; s < supernodes; ++s) {
+  if (top_.empty()) {
+    for (std::size_t s = 0; s + 1 < first_.size(); ++s)
+      if (!factor_supernode(s, update_.data(), false)) return false;
+    return true;
+  }
+  bool made[2] = {true, true};
+  auto run = [&](int g) {
+    const FlushSubnormals flush_here;  // the mode is the thread's own
+    if (g == 1) std::fill(private_.begin(), private_.end(), Scalar(0));
+    for (int s : group_[g])
+      if (!(made[g] = factor_supernode(std::size_t(s), g == 0 ? update_.data() : second_update_.data(), g == 1))) return;
+  };
+  tbb::parallel_invoke([&] { run(0); }, [&] { run(1); });
+  if (!made[0] || !made[1]) return false;
+  for (int t : top_) {
+    Scalar* into = value_.data() + value_start_[std::size_t(t)];
+    const Scalar* from = private_.data() + private_start_[std::size_t(t)];
+    const std::size_t size = value_start_[std::size_t(t) + 1] - value_start_[std::size_t(t)];
+    for (std::size_t i = 0; i < size; ++i) into[i] += from[i];
+  }
+  for (int t : top_)
+    if (!factor_supernode(std::size_t(t), update_.data(), false)) return false;
+  return true;
+}
+
+// Supernode s: its diagonal block factored, the rows below solved, and their product with
+// themselves subtracted from the later panels (with `second`, those of the top in private_).
+template <class Scalar>
+bool SupernodalFactor<Scalar>::factor_supernode(std::size_t s, Scalar* update, bool second) {
+  {
     const int c0 = first_[s], width = first_[s + 1] - c0;
     const int* rows = rows_.data() + row_start_[s];
     const int count = row_start_[s + 1] - row_start_[s];
@@ -154,7 +261,7 @@ bool SupernodalFactor<Scalar>::factor() {
       // supernodes' panels (the lower triangle, one group of rows at a time). Each
       // supernode's update is one product, not one per later supernode it reaches.
       const Eigen::Index m = ld - w3;
-      Eigen::Map<Dense<Scalar>> product(update_.data(), m, m);
+      Eigen::Map<Dense<Scalar>> product(update, m, m);
       if (m <= kWholeProduct)
         product.noalias() = below * below.transpose();
       else
@@ -165,7 +272,7 @@ bool SupernodalFactor<Scalar>::factor() {
         const int end = g + 1 < group_start_[s + 1] ? group_begin_[std::size_t(g) + 1] : count;
         const int* relative = relative_.data() + relative_start_[std::size_t(g)];  // rows begin, begin + 1, …
         const std::size_t tld = leading_[t];
-        Scalar* target = value_.data() + value_start_[t];
+        Scalar* target = second && in_top_[t] ? private_.data() + private_start_[t] : value_.data() + value_start_[t];
         for (int b = begin; b < end; ++b) {
           const std::size_t column = 3 * std::size_t(rows[b] - first_[t]);
           for (int c = 0; c < 3; ++c) {

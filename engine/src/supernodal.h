@@ -13,7 +13,9 @@
 //
 // The symbolic part (analyse) takes the point pattern of L, e.g. local/global's factor
 // (local_global.h): column-compressed, rows ascending, the diagonal first in each column.
-// It is built once per pattern; the numeric part (factor) runs every step. The arithmetic
+// It is built once per pattern; the numeric part (factor) runs every step. A large factor
+// is split for two threads: two groups of whole subtrees of the supernodes' elimination tree
+// factored as two tasks, then the supernodes above them (below, `group_`). The arithmetic
 // depends only on the pattern and the values, so a factor is the same bit for bit whichever
 // thread computes it, provided the buffers' alignment is the same every time: Eigen's
 // vector kernels peel a different number of leading elements (another order of sums) at
@@ -36,8 +38,13 @@ class SupernodalFactor {
   using Aligned = std::vector<Scalar, CacheAligned<Scalar>>;
 
   // The point pattern of L: `columns` columns, column j's rows at row_index[column_start[j] ..
-  // column_start[j + 1]).
-  void analyse(const int* column_start, const int* row_index, std::size_t columns);
+  // column_start[j + 1]). A factor of at least `split_from` multiply-adds is split for two
+  // threads (below).
+  void analyse(const int* column_start, const int* row_index, std::size_t columns,
+               double split_from = kSplitFrom);
+  // Whether analyse split the factor in two groups of subtrees and a top.
+  bool split() const { return !top_.empty(); }
+  static constexpr double kSplitFrom = 4e6;
 
   // Where A's block of the pattern's entry k (row row_index[k], column j) goes, before
   // factor(): value(r, c) of the block at values()[entry_offset(k) + r + c·leading(j)].
@@ -71,8 +78,19 @@ class SupernodalFactor {
   std::vector<int> group_target_, group_begin_;  // per group; its rows end at the next group's
   std::vector<std::size_t> relative_start_;      // per group, into relative_
   std::vector<int> relative_;
-  Aligned update_;  // the supernode's product, its rows below × themselves
+  Aligned update_, second_update_;  // the supernode's product, its rows below × themselves (per group)
   mutable Aligned gathered_;
+  // Two threads: two groups of whole subtrees of the supernodes' elimination tree, of about
+  // equal work, and the top (every supernode above them). A group's updates reach only its
+  // own supernodes and the top's; the second group's to the top go to `private_` (the top's
+  // panels again, from zero), added to the top's panels once both groups are done, so the
+  // sums are the same whichever thread runs which group, or one thread both.
+  std::vector<int> group_[2], top_;
+  std::vector<char> in_top_;                // per supernode
+  std::vector<std::size_t> private_start_;  // per supernode: its panel in private_ (top ones only)
+  Aligned private_;
+  void split_groups(double split_from);
+  bool factor_supernode(std::size_t s, Scalar* update, bool second);
 };
 
 }  // namespace drape::detail
