@@ -6,6 +6,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <algorithm>
+#include <limits>
 #include <tbb/parallel_invoke.h>
 #include <type_traits>
 
@@ -102,7 +103,10 @@ void SupernodalFactor<Scalar>::split_groups(double split_from) {
   top_.clear();
   private_start_.clear();
   in_top_.clear();
+  top_from_.clear();
   private_.clear();
+  private_x_.clear();
+  second_gathered_.clear();
   second_update_.clear();
   std::vector<int> parent(supernodes, -1);
   std::vector<double> work(supernodes), subtree(supernodes);
@@ -164,6 +168,16 @@ void SupernodalFactor<Scalar>::split_groups(double split_from) {
   private_.assign(size, Scalar(0));
   second_update_.resize(update_.size());
   in_top_.assign(in_top.begin(), in_top.end());
+  top_from_.assign(supernodes, 0);
+  for (std::size_t s = 0; s < supernodes; ++s) {
+    const int width = first_[s + 1] - first_[s], count = row_start_[s + 1] - row_start_[s] - width;
+    const int* below = rows_.data() + row_start_[s] + width;
+    int i = 0;  // rows ascending: a supernode's ancestors in its group come before the top's
+    while (i < count && !in_top[std::size_t(supernode_of_[std::size_t(below[i])])]) ++i;
+    top_from_[s] = i;
+  }
+  private_x_.assign(3 * (first_.back()), Scalar(0));
+  second_gathered_.resize(gathered_.size());
 }
 
 template <class Scalar>
@@ -303,8 +317,7 @@ namespace {
 // rows (forward) or its columns (backward), with nothing dispatched at run time. The
 // diagonal block holds its inverse (factor()), so the triangular solve is a product.
 template <int W, class Scalar>
-void forward_fixed(const Scalar* panel, Eigen::Index ld, Scalar* x, Scalar* own_x, const int* rows, int count,
-                   Scalar* gathered) {
+void forward_fixed(const Scalar* panel, Eigen::Index ld, Scalar* own_x, int count, Scalar* gathered) {
   using Own = Eigen::Map<Eigen::Matrix<Scalar, 3 * W, 1>>;
   using Diagonal = Eigen::Map<const Eigen::Matrix<Scalar, 3 * W, 3 * W>, 0, Eigen::OuterStride<>>;
   using Below = Eigen::Map<const Eigen::Matrix<Scalar, Eigen::Dynamic, 3 * W>, 0, Eigen::OuterStride<>>;
@@ -313,21 +326,16 @@ void forward_fixed(const Scalar* panel, Eigen::Index ld, Scalar* x, Scalar* own_
   if (count == 0) return;
   Column<Scalar> product(gathered, 3 * count);
   product.noalias() = Below(panel + 3 * W, 3 * count, 3 * W, Eigen::OuterStride<>(ld)).lazyProduct(own);
-  for (int i = 0; i < count; ++i)
-    for (int r = 0; r < 3; ++r) x[3 * rows[i] + r] -= gathered[3 * i + r];
 }
 
 template <int W, class Scalar>
-void backward_fixed(const Scalar* panel, Eigen::Index ld, const Scalar* x, Scalar* own_x, const int* rows, int count,
-                    Scalar* gathered) {
+void backward_fixed(const Scalar* panel, Eigen::Index ld, Scalar* own_x, int count, const Scalar* gathered) {
   using Own = Eigen::Map<Eigen::Matrix<Scalar, 3 * W, 1>>;
   using Diagonal = Eigen::Map<const Eigen::Matrix<Scalar, 3 * W, 3 * W>, 0, Eigen::OuterStride<>>;
   using Below = Eigen::Map<const Eigen::Matrix<Scalar, Eigen::Dynamic, 3 * W>, 0, Eigen::OuterStride<>>;
   Own own(own_x);
   if (count > 0) {
-    for (int i = 0; i < count; ++i)
-      for (int r = 0; r < 3; ++r) gathered[3 * i + r] = x[3 * rows[i] + r];
-    const Column<Scalar> values(gathered, 3 * count);
+    const Eigen::Map<const Eigen::Matrix<Scalar, Eigen::Dynamic, 1>> values(gathered, 3 * count);
     own.noalias() -= Below(panel + 3 * W, 3 * count, 3 * W, Eigen::OuterStride<>(ld)).transpose().lazyProduct(values);
   }
   own = Diagonal(panel, Eigen::OuterStride<>(ld)).transpose().lazyProduct(own).eval();
@@ -335,53 +343,73 @@ void backward_fixed(const Scalar* panel, Eigen::Index ld, const Scalar* x, Scala
 
 }  // namespace
 
+// Supernode s's part of L y = b (forward): its x solved, the rows below it updated, those
+// from `top_from` on (the top's rows, for the second group) in x_top instead of x; or of
+// Lᵀ x = y (backward): its x less the rows below's share, solved.
+template <class Scalar>
+void SupernodalFactor<Scalar>::solve_part(std::size_t s, bool backward, Scalar* x, Scalar* x_top, int top_from,
+                                          Scalar* gathered) const {
+  const int width = first_[s + 1] - first_[s];
+  const Eigen::Index ld = Eigen::Index(leading_[s]), w3 = 3 * width;
+  const Scalar* panel = value_.data() + value_start_[s];
+  Scalar* own = x + 3 * first_[s];
+  const int* rows = rows_.data() + row_start_[s] + width;
+  const int count = row_start_[s + 1] - row_start_[s] - width;
+  const ConstPanel<Scalar> whole(panel, ld, w3, Eigen::OuterStride<>(ld));
+  Column<Scalar> own_x(own, w3);
+  if (backward) {
+    for (int i = 0; i < count; ++i)
+      for (int r = 0; r < 3; ++r) gathered[3 * i + r] = x[3 * rows[i] + r];
+    if (fixed_width(w3, [&](auto w) { backward_fixed<decltype(w)::value>(panel, ld, own, count, gathered); })) return;
+    if (count > 0) own_x.noalias() -= whole.bottomRows(3 * count).transpose() * Column<Scalar>(gathered, 3 * count);
+    whole.topLeftCorner(w3, w3).template triangularView<Eigen::Lower>().transpose().solveInPlace(own_x);
+    return;
+  }
+  if (!fixed_width(w3, [&](auto w) { forward_fixed<decltype(w)::value>(panel, ld, own, count, gathered); })) {
+    whole.topLeftCorner(w3, w3).template triangularView<Eigen::Lower>().solveInPlace(own_x);
+    if (count > 0) Column<Scalar>(gathered, 3 * count).noalias() = whole.bottomRows(3 * count) * own_x;
+  }
+  for (int i = 0; i < count; ++i) {
+    Scalar* into = (i < top_from ? x : x_top) + 3 * rows[i];
+    for (int r = 0; r < 3; ++r) into[r] -= gathered[3 * i + r];
+  }
+}
+
 template <class Scalar>
 void SupernodalFactor<Scalar>::solve(Scalar* x) const {
   const std::size_t supernodes = first_.size() - 1;
-  // supernode s: its panel, x at its columns, its rows below them
-  struct Part {
-    const ConstPanel<Scalar> panel;
-    Column<Scalar> own;
-    const int* rows;
-    int count;
-  };
-  auto part = [&](std::size_t s) {
-    const int width = first_[s + 1] - first_[s];
-    const Eigen::Index ld = Eigen::Index(leading_[s]);
-    return Part{ConstPanel<Scalar>(value_.data() + value_start_[s], ld, 3 * width, Eigen::OuterStride<>(ld)),
-                Column<Scalar>(x + 3 * first_[s], 3 * width), rows_.data() + row_start_[s] + width,
-                row_start_[s + 1] - row_start_[s] - width};
-  };
-  Column<Scalar> gathered(gathered_.data(), Eigen::Index(gathered_.size()));
-  for (std::size_t s = 0; s < supernodes; ++s) {  // L y = b
-    Part p = part(s);
-    const Eigen::Index w3 = p.own.size();
-    if (fixed_width(w3, [&](auto w) {
-          forward_fixed<decltype(w)::value>(p.panel.data(), p.panel.outerStride(), x, p.own.data(), p.rows, p.count,
-                                        gathered.data());
-        }))
-      continue;
-    p.panel.topLeftCorner(w3, w3).template triangularView<Eigen::Lower>().solveInPlace(p.own);
-    if (p.count == 0) continue;
-    gathered.head(3 * p.count).noalias() = p.panel.bottomRows(3 * p.count) * p.own;
-    for (int i = 0; i < p.count; ++i)
-      for (int r = 0; r < 3; ++r) x[3 * p.rows[i] + r] -= gathered[3 * i + r];
+  constexpr int all = std::numeric_limits<int>::max();  // every row below in x
+  if (top_.empty()) {
+    for (std::size_t s = 0; s < supernodes; ++s) solve_part(s, false, x, x, all, gathered_.data());
+    for (std::size_t s = supernodes; s-- > 0;) solve_part(s, true, x, x, 0, gathered_.data());
+    return;
   }
-  for (std::size_t s = supernodes; s-- > 0;) {  // Lᵀ x = y
-    Part p = part(s);
-    const Eigen::Index w3 = p.own.size();
-    if (fixed_width(w3, [&](auto w) {
-          backward_fixed<decltype(w)::value>(p.panel.data(), p.panel.outerStride(), x, p.own.data(), p.rows, p.count,
-                                        gathered.data());
-        }))
-      continue;
-    if (p.count > 0) {
-      for (int i = 0; i < p.count; ++i)
-        for (int r = 0; r < 3; ++r) gathered[3 * i + r] = x[3 * p.rows[i] + r];
-      p.own.noalias() -= p.panel.bottomRows(3 * p.count).transpose() * gathered.head(3 * p.count);
-    }
-    p.panel.topLeftCorner(w3, w3).template triangularView<Eigen::Lower>().transpose().solveInPlace(p.own);
-  }
+  // The two groups apart (supernodal.h): forward, the second group's updates to the top's
+  // rows summed in private_x_ and added in, then the top; backward, the top first, then
+  // the groups, which read the top's x and write only their own.
+  Scalar* x_top = private_x_.data();
+  for (int t : top_) std::fill(x_top + 3 * first_[std::size_t(t)], x_top + 3 * first_[std::size_t(t) + 1], Scalar(0));
+  tbb::parallel_invoke(
+      [&] {
+        for (int s : group_[0]) solve_part(std::size_t(s), false, x, x, all, gathered_.data());
+      },
+      [&] {
+        for (int s : group_[1])
+          solve_part(std::size_t(s), false, x, x_top, top_from_[std::size_t(s)], second_gathered_.data());
+      });
+  for (int t : top_)
+    for (int c = 3 * first_[std::size_t(t)]; c < 3 * first_[std::size_t(t) + 1]; ++c) x[c] += x_top[c];
+  for (int t : top_) solve_part(std::size_t(t), false, x, x, all, gathered_.data());
+  for (auto t = top_.rbegin(); t != top_.rend(); ++t) solve_part(std::size_t(*t), true, x, x, 0, gathered_.data());
+  tbb::parallel_invoke(
+      [&] {
+        for (auto s = group_[0].rbegin(); s != group_[0].rend(); ++s)
+          solve_part(std::size_t(*s), true, x, x, 0, gathered_.data());
+      },
+      [&] {
+        for (auto s = group_[1].rbegin(); s != group_[1].rend(); ++s)
+          solve_part(std::size_t(*s), true, x, x, 0, second_gathered_.data());
+      });
 }
 
 template class SupernodalFactor<double>;

@@ -15,7 +15,8 @@
 // (local_global.h): column-compressed, rows ascending, the diagonal first in each column.
 // It is built once per pattern; the numeric part (factor) runs every step. A large factor
 // is split for two threads: two groups of whole subtrees of the supernodes' elimination tree
-// factored as two tasks, then the supernodes above them (below, `group_`). The arithmetic
+// factored as two tasks, then the supernodes above them (below, `group_`); the solve runs
+// the groups as two tasks too. The arithmetic
 // depends only on the pattern and the values, so a factor is the same bit for bit whichever
 // thread computes it, provided the buffers' alignment is the same every time: Eigen's
 // vector kernels peel a different number of leading elements (another order of sums) at
@@ -87,9 +88,12 @@ class SupernodalFactor {
   // sums are the same whichever thread runs which group, or one thread both.
   std::vector<int> group_[2], top_;
   std::vector<char> in_top_;                // per supernode
+  std::vector<int> top_from_;               // per supernode: where the top's rows start among its rows below
   std::vector<std::size_t> private_start_;  // per supernode: its panel in private_ (top ones only)
   Aligned private_;
+  mutable Aligned private_x_, second_gathered_;  // the solve's, for the second group
   void split_groups(double split_from);
+  void solve_part(std::size_t s, bool backward, Scalar* x, Scalar* x_top, int top_from, Scalar* gathered) const;
   bool factor_supernode(std::size_t s, Scalar* update, bool second);
 };
 
