@@ -102,7 +102,6 @@ void SupernodalFactor<Scalar>::split_groups(double split_from) {
   for (auto& g : group_) g.clear();
   top_.clear();
   private_start_.clear();
-  in_top_.clear();
   top_from_.clear();
   private_.clear();
   private_x_.clear();
@@ -167,7 +166,6 @@ void SupernodalFactor<Scalar>::split_groups(double split_from) {
   }
   private_.assign(size, Scalar(0));
   second_update_.resize(update_.size());
-  in_top_.assign(in_top.begin(), in_top.end());
   top_from_.assign(supernodes, 0);
   for (std::size_t s = 0; s < supernodes; ++s) {
     const int width = first_[s + 1] - first_[s], count = row_start_[s + 1] - row_start_[s] - width;
@@ -286,7 +284,8 @@ bool SupernodalFactor<Scalar>::factor_supernode(std::size_t s, Scalar* update, b
         const int end = g + 1 < group_start_[s + 1] ? group_begin_[std::size_t(g) + 1] : count;
         const int* relative = relative_.data() + relative_start_[std::size_t(g)];  // rows begin, begin + 1, …
         const std::size_t tld = leading_[t];
-        Scalar* target = second && in_top_[t] ? private_.data() + private_start_[t] : value_.data() + value_start_[t];
+        const bool to_top = second && begin - width >= top_from_[s];  // a group is in one supernode
+        Scalar* target = to_top ? private_.data() + private_start_[t] : value_.data() + value_start_[t];
         for (int b = begin; b < end; ++b) {
           const std::size_t column = 3 * std::size_t(rows[b] - first_[t]);
           for (int c = 0; c < 3; ++c) {

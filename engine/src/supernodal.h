@@ -87,7 +87,6 @@ class SupernodalFactor {
   // panels again, from zero), added to the top's panels once both groups are done, so the
   // sums are the same whichever thread runs which group, or one thread both.
   std::vector<int> group_[2], top_;
-  std::vector<char> in_top_;                // per supernode
   std::vector<int> top_from_;               // per supernode: where the top's rows start among its rows below
   std::vector<std::size_t> private_start_;  // per supernode: its panel in private_ (top ones only)
   Aligned private_;
