@@ -1219,6 +1219,106 @@ TEST(Contacts, SkippedWalksGiveTheForcesOfWalkingEveryEntry) {
   });
 }
 
+// A pair's kept sets walked in parts (ContactParams::parts, as tasks when the world has
+// threads to spare) give the forces of one walk, entry for entry and bit for bit: two
+// sheets of 45×45 points (both directions walked in halves) and a sheet folded onto itself
+// (one set in halves, its forces and reactions in one buffer), jostled for 30 steps between
+// searches, each step against a twin that walks in one piece. It fails if the parts'
+// forces are appended out of the order one walk pushes them, or if a part is left out.
+TEST(Contacts, WalkInPartsGivesTheForcesOfOneWalk) {
+  test::for_each_target([&](std::int64_t) {
+    SheetDef da;
+    da.m = da.n = 44;
+    da.width = da.height = 0.44;
+    SheetDef db = da;
+    db.center = {0.002, 0.003, 0.009};
+    db.orientation = quat_from_axis_angle(Vec3{0.3, 1, 0}, 0.01);
+    auto a = build_sheet<double>(da), b = build_sheet<double>(db);
+    SheetDef df = fold_def();
+    df.m = 60;
+    df.n = 40;
+    df.width = 0.4;
+    df.height = 0.6;
+    auto f = folded_sheet(df, 0.008);
+    std::mt19937 rng(17);
+    PairContacts<double> parts, whole, parts_self, whole_self;
+    ContactScratch<double> scratch;
+    ContactParams<double> two = kParams;
+    two.parts = 2;
+    std::size_t walked = 0;
+    for (int step = 0; step < 30; ++step) {
+      for (auto* s : {&a, &b, &f}) {
+        jostle(*s, rng, 0.00005);
+        advance_travel(*s);
+      }
+      two.travel = a.travel + b.travel;
+      ContactParams<double> one = two;
+      one.parts = 1;
+      const std::uint64_t searches = parts.searches;
+      pair_contacts(a, boxes(a), b, boxes(b), two, parts, scratch);
+      pair_contacts(a, boxes(a), b, boxes(b), one, whole, scratch);
+      expect_same_forces(parts.on_a, whole.on_a, step);
+      expect_same_forces(parts.on_b, whole.on_b, step);
+      two.travel = one.travel = 2 * f.travel;
+      self_contacts(f, boxes(f), two, parts_self, scratch);
+      self_contacts(f, boxes(f), one, whole_self, scratch);
+      expect_same_forces(parts_self.on_a, whole_self.on_a, step);
+      // the steps that walked (no search) with enough entries to be split
+      walked += parts.searches == searches && parts.a_on_b.point.size() + parts.b_on_a.point.size() >= 2048 &&
+                parts_self.a_on_b.point.size() >= 2048;
+    }
+    EXPECT_GT(walked, 10u);
+  });
+}
+
+// The same in a world: on two threads a world with fewer pairs than four walks them in
+// parts (one sheet folded onto itself, then two sheets draped over each other), and each
+// step's positions equal those of one thread, bit for bit.
+TEST(Contacts, FewPairsWalkedInPartsOnTwoThreadsGiveTheBitsOfOne) {
+  auto run = [](int threads, bool two_sheets) {
+    WorldDef wd;
+    wd.dt = 2e-4;
+    wd.threads = threads;
+    World world(wd);
+    SheetDef d;
+    d.m = d.n = 79;
+    d.width = d.height = 0.8;
+    d.self_collision = !two_sheets;
+    const SheetId id = world.add_sheet(d);
+    if (two_sheets) {
+      d.center.z = 0.009;
+      d.orientation = quat_from_axis_angle(Vec3{0, 0, 1}, 0.02);
+      world.add_sheet(d);
+    } else {  // columns from 40 on folded over the others, 10 mm up
+      auto s = world.state(id);
+      const double mid = 0.5 * (s.x[40] + s.x[39]);
+      for (std::uint32_t i = 0; i <= d.m; ++i)
+        for (std::uint32_t j = 40; j <= d.n; ++j) {
+          const std::uint32_t p = point_index(d.n, i, j);
+          s.x[p] = 2 * mid - s.x[p];
+          s.z[p] += 0.010;
+        }
+    }
+    std::vector<double> out;
+    for (int step = 0; step < 25; ++step) {
+      world.step(1);
+      for (SheetId sheet : world.sheets()) {
+        const auto v = world.view(sheet);
+        out.insert(out.end(), v.z.begin(), v.z.end());
+        out.insert(out.end(), v.x.begin(), v.x.end());
+      }
+    }
+    return out;
+  };
+  for (bool two_sheets : {false, true}) {
+    const auto one = run(1, two_sheets), two = run(2, two_sheets);
+    ASSERT_EQ(one.size(), two.size());
+    std::size_t differ = 0;
+    for (std::size_t k = 0; k < one.size(); ++k) differ += one[k] != two[k];
+    EXPECT_EQ(differ, 0u) << (two_sheets ? "two sheets" : "fold");
+  }
+}
+
 // The bound a pair's kept lists take from the sheets' travel (measure_travel): between two
 // substeps in which the sheet was measured, no point moved farther than the later moved_hi
 // less the earlier moved_lo, whichever substeps advanced the travel between them (some

@@ -25,6 +25,8 @@
 #include <limits>
 #include <type_traits>
 
+#include <tbb/parallel_for.h>
+
 #include "simd/exp-inl.h"
 #include "simd/kernels.h"
 
@@ -1835,6 +1837,40 @@ constexpr std::uint32_t kListRest = 16;
 // Both directions of a pair (one for a sheet with itself, `ring` ≥ 0): through the kept
 // lists while they hold, else a search that makes new ones, or, while the pair rests from
 // lists that did not outlive a substep at the narrowest skin, a search that makes none.
+// Kept sets smaller than this (both directions) walk in one piece: splitting and appending
+// would cost more than the second thread saves.
+constexpr std::size_t kPartsFrom = 2048;
+
+// A pair's kept sets walked (points_walking) in prm.parts parts per direction, as tasks, each
+// into its own forces, which are then appended in the order one walk of both directions
+// pushes them: every entry belongs to one part and its point to one entry, so the parts
+// share nothing they write, and the forces are the same, bit for bit.
+template <class Real>
+void walk_in_parts(const Sheet<Real>& a, const Sheet<Real>& b, int ring, const ContactParams<Real>& prm,
+                   PairContacts<Real>& w) {
+  const bool self = &a == &b;
+  const std::size_t per = std::size_t(prm.parts), count = (self ? 1 : 2) * per;
+  w.part_on_q.resize(count);
+  w.part_on_s.resize(count);
+  tbb::parallel_for(std::size_t(0), count, [&](std::size_t k) {
+    const bool back = k >= per;  // b's points against a's cells
+    KeptContacts& kept = back ? w.b_on_a : w.a_on_b;
+    const std::size_t part = k % per, size = kept.point.size();
+    ContactForces<Real>& on_q = w.part_on_q[k];
+    ContactForces<Real>& on_s = self ? on_q : w.part_on_s[k];
+    on_q.clear();
+    on_s.clear();
+    points_walking(back ? b : a, back ? a : b, ring, kept, size * part / per, size * (part + 1) / per, prm, on_q, on_s,
+                   back ? w.last_b.data() : w.last_a.data());
+  });
+  ContactForces<Real>& on_b = self ? w.on_a : w.on_b;
+  for (std::size_t k = 0; k < count; ++k) {
+    const bool back = k >= per;
+    (back ? on_b : w.on_a).append(w.part_on_q[k]);
+    if (!self) (back ? w.on_a : on_b).append(w.part_on_s[k]);
+  }
+}
+
 template <class Real>
 void contacts_of_pair(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sheet<Real>& b,
                       const SheetBoxes<Real>& bb, int ring, const ContactParams<Real>& prm, PairContacts<Real>& w,
@@ -1859,6 +1895,8 @@ void contacts_of_pair(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sh
     if (prm.exact) {
       points_against_lists(a, ba, b, bb, w.a_near_b, pair, w.on_a, on_b, sc, w.last_a.data());
       if (!self) points_against_lists(b, bb, a, ba, w.b_near_a, pair, on_b, w.on_a, sc, w.last_b.data());
+    } else if (pair.parts > 1 && w.a_on_b.point.size() + w.b_on_a.point.size() >= kPartsFrom) {
+      walk_in_parts(a, b, ring, pair, w);
     } else {
       points_walking(a, b, ring, w.a_on_b, 0, w.a_on_b.point.size(), pair, w.on_a, on_b, w.last_a.data());
       if (!self) points_walking(b, a, ring, w.b_on_a, 0, w.b_on_a.point.size(), pair, on_b, w.on_a, w.last_b.data());

@@ -85,6 +85,10 @@ struct ContactParams {
   // its own). A kept entry beyond R skips its walk while the sheets have not travelled the
   // entry's slack since its last test (KeptContacts::until). NaN, unknown: none skips.
   double travel = std::numeric_limits<double>::quiet_NaN();
+  // Walk a kept set (between searches) in this many parts at once, as tasks, each part's
+  // forces appended after the one before: the forces of one walk in order, bit for bit.
+  // The world asks for 2 when it has more threads than pairs to give them; 1: one walk.
+  int parts = 1;
   // The substep this pair runs in, as the world counts them from 1 (0: none): a sheet's
   // moved_lo / moved_hi serve only when measured in it (measure_travel).
   std::uint64_t stamp = 0;
@@ -112,6 +116,22 @@ struct ContactForces {
     ++count;
   }
   std::size_t size() const { return count; }
+  // other's entries after these, in their order
+  void append(const ContactForces& other) {
+    const std::size_t total = count + other.count;
+    if (total > point.size()) {
+      const std::size_t room = std::max<std::size_t>(64, std::max(total, 2 * point.size()));
+      point.resize(room);
+      fx.resize(room);
+      fy.resize(room);
+      fz.resize(room);
+    }
+    std::copy_n(other.point.begin(), other.count, point.begin() + std::ptrdiff_t(count));
+    std::copy_n(other.fx.begin(), other.count, fx.begin() + std::ptrdiff_t(count));
+    std::copy_n(other.fy.begin(), other.count, fy.begin() + std::ptrdiff_t(count));
+    std::copy_n(other.fz.begin(), other.count, fz.begin() + std::ptrdiff_t(count));
+    count = total;
+  }
 
  private:
   [[gnu::noinline]] void grow() {
@@ -329,6 +349,9 @@ struct PairContacts {
   // skin): no two points of the sheets can have come nearer by more than that, nor two edges
   // (rims_due). Forces from them are those of searching every substep, bit for bit.
   std::vector<std::array<std::uint32_t, 4>> rims_ab, rims_ba;
+  // The forces of each part of a walk in parts (ContactParams::parts), on the points' sheet
+  // and on the cells' (the same buffer for a sheet with itself); scratch within a substep.
+  std::vector<ContactForces<Real>> part_on_q, part_on_s;
   double rims_until = -std::numeric_limits<double>::infinity();
   const Topology<Real>* rims_topology_a = nullptr;
   const Topology<Real>* rims_topology_b = nullptr;
