@@ -183,10 +183,10 @@ BENCHMARK(BM_World48SheetsSettling)
 // below at the end (counter in_range: the smallest share over the iterations).
 constexpr int kFoldWarmUp = 2, kFoldSpan = 14;
 
-drape::World folded_sheet(int variant) {
+drape::World folded_sheet(int variant, int threads = 1) {
   drape::WorldDef wd = drape::bench::world_def();
   wd.dt = 2e-4;
-  wd.threads = 1;
+  wd.threads = threads;
   wd.contact_exact = variant == 2;
   drape::World world(wd);
   drape::SheetDef sd;
@@ -245,6 +245,20 @@ void BM_SelfCollisionFold(benchmark::State& state) {
   drape::bench::set_point_rate(state, 128.0 * 128, kFoldSpan);
 }
 BENCHMARK(BM_SelfCollisionFold)->Arg(0)->Arg(1)->Arg(2)->UseRealTime();
+
+// The same fold with self-collision on 1 and 2 threads (wall time): one sheet is one
+// pair, whose kept set a second thread walks in parts (ContactParams::parts).
+void BM_SelfCollisionFoldThreads(benchmark::State& state) {
+  for (auto _ : state) {
+    state.PauseTiming();
+    drape::World world = folded_sheet(1, int(state.range(0)));
+    world.step(kFoldWarmUp);
+    state.ResumeTiming();
+    for (int k = 0; k < kFoldSpan; ++k) world.step(1);
+  }
+  drape::bench::set_point_rate(state, 128.0 * 128, kFoldSpan);
+}
+BENCHMARK(BM_SelfCollisionFoldThreads)->ArgName("threads")->Arg(1)->Arg(2)->UseRealTime();
 
 // Args: threads, block_points. One 256×256 sheet among eight 32×32 ones: without
 // splitting (block_points huge) one core does the large sheet alone.
