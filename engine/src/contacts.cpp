@@ -638,18 +638,9 @@ void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
                           const SheetBoxes<Real>& bs, int ring, const ContactParams<Real>& prm,
                           ContactForces<Real>& on_q, ContactForces<Real>& on_s, ContactScratch<Real>& sc,
                           std::uint32_t* last, Candidates* lists, Real skin, KeptContacts* kept,
-                          KeptContacts* before) {
-  if (lists) {
-    lists->begin.assign(q.size(), 0);
-    lists->count.assign(q.size(), 0);
-    lists->cell.clear();
-  }
+                          KeptContacts* before, std::uint32_t block_from, std::uint32_t block_to) {
+  // lists and kept come cleared, kept's open and block_begin sized (start_search)
   const std::size_t blocks = std::size_t(bq.patch_rows) * bq.patch_cols;
-  if (kept) {
-    kept->clear();
-    kept->open.assign(blocks, 1);
-    kept->block_begin.assign(blocks + 1, 0);
-  }
   if (before && (before->open.size() != blocks || before->block_begin.size() != blocks + 1)) before = nullptr;
   if (bs.m == 0 || bs.n == 0) return;  // a line of points has no cells
   constexpr std::uint32_t P = SheetBoxes<Real>::kPatch;
@@ -688,9 +679,10 @@ void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
   const auto& Q = q.position;
   Real cell_gap2[P];
 
-  for (std::uint32_t bi = 0; bi < bq.patch_rows; ++bi)
-    for (std::uint32_t bj = 0; bj < bq.patch_cols; ++bj) {
-      const std::uint32_t block = bi * bq.patch_cols + bj;
+  block_to = std::min(block_to, std::uint32_t(blocks));
+  for (std::uint32_t block = block_from; block < block_to; ++block) {
+    {
+      const std::uint32_t bi = block / bq.patch_cols, bj = block % bq.patch_cols;
       if (kept) kept->block_begin[block] = std::uint32_t(kept->point.size());
       const std::size_t entries_before = kept ? kept->point.size() : 0;
       // The block's points in the set walk and stay in it; only a block with points
@@ -830,7 +822,8 @@ void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
       // The block visited rows [i0, i1) × columns [j0, j1): open unless all are in the set.
       if (kept) kept->open[block] = kept->point.size() - entries_before < std::size_t(i1 - i0) * (j1 - j0);
     }
-  if (kept) kept->block_begin[blocks] = std::uint32_t(kept->point.size());
+  }
+  if (kept && block_to == blocks) kept->block_begin[blocks] = std::uint32_t(kept->point.size());
 }
 
 // Points of q against their candidate lists of cells of s (PairContacts), in the order
@@ -1369,8 +1362,9 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
                                   const SheetBoxes<Real>& bs, int ring, const ContactParams<Real>& prm,              \
                                   ContactForces<Real>& on_q, ContactForces<Real>& on_s, ContactScratch<Real>& sc,    \
                                   std::uint32_t* last, Candidates* lists, Real skin, KeptContacts* kept,             \
-                                  KeptContacts* before) {                                                            \
-    points_against_cells(q, bq, s, bs, ring, prm, on_q, on_s, sc, last, lists, skin, kept, before);                  \
+                                  KeptContacts* before, std::uint32_t block_from, std::uint32_t block_to) {          \
+    points_against_cells(q, bq, s, bs, ring, prm, on_q, on_s, sc, last, lists, skin, kept, before, block_from,       \
+                         block_to);                                                                                  \
   }                                                                                                                  \
   void PointsAgainstLists##Suffix(const Sheet<Real>& q, const SheetBoxes<Real>& bq, const Sheet<Real>& s,            \
                                   const SheetBoxes<Real>& bs, const Candidates& lists,                               \
@@ -1434,17 +1428,46 @@ HWY_EXPORT(RimEnergyF32);
 
 namespace {
 
-// The per-target search (above) on the widest target the CPU has: see its definitions.
+// The outputs of a search of q's `blocks` blocks, emptied: lists, and the kept set with
+// every block open and none holding entries yet.
+inline void start_search(std::size_t points, std::size_t blocks, Candidates* lists, KeptContacts* kept) {
+  if (lists) {
+    lists->begin.assign(points, 0);
+    lists->count.assign(points, 0);
+    lists->cell.clear();
+  }
+  if (kept) {
+    kept->clear();
+    kept->open.assign(blocks, 1);
+    kept->block_begin.assign(blocks + 1, 0);
+  }
+}
+
+// The per-target search (above) on the widest target the CPU has, of q's blocks
+// [block_from, block_to) into outputs start_search emptied: see its definitions.
+template <class Real>
+void search_blocks(const Sheet<Real>& q, const SheetBoxes<Real>& bq, const Sheet<Real>& s, const SheetBoxes<Real>& bs,
+                   int ring, const ContactParams<Real>& prm, ContactForces<Real>& on_q, ContactForces<Real>& on_s,
+                   ContactScratch<Real>& sc, std::uint32_t* last, Candidates* lists, Real skin, KeptContacts* kept,
+                   KeptContacts* before, std::uint32_t block_from, std::uint32_t block_to) {
+  if constexpr (std::is_same_v<Real, double>)
+    HWY_DYNAMIC_DISPATCH(PointsAgainstCellsF64)(q, bq, s, bs, ring, prm, on_q, on_s, sc, last, lists, skin, kept, before,
+                                                block_from, block_to);
+  else
+    HWY_DYNAMIC_DISPATCH(PointsAgainstCellsF32)(q, bq, s, bs, ring, prm, on_q, on_s, sc, last, lists, skin, kept, before,
+                                                block_from, block_to);
+}
+
+// Every block of q (search_blocks), its outputs emptied first.
 template <class Real>
 void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, const Sheet<Real>& s,
                           const SheetBoxes<Real>& bs, int ring, const ContactParams<Real>& prm,
                           ContactForces<Real>& on_q, ContactForces<Real>& on_s, ContactScratch<Real>& sc,
                           std::uint32_t* last, Candidates* lists = nullptr, Real skin = 0,
                           KeptContacts* kept = nullptr, KeptContacts* before = nullptr) {
-  if constexpr (std::is_same_v<Real, double>)
-    HWY_DYNAMIC_DISPATCH(PointsAgainstCellsF64)(q, bq, s, bs, ring, prm, on_q, on_s, sc, last, lists, skin, kept, before);
-  else
-    HWY_DYNAMIC_DISPATCH(PointsAgainstCellsF32)(q, bq, s, bs, ring, prm, on_q, on_s, sc, last, lists, skin, kept, before);
+  const std::uint32_t blocks = bq.patch_rows * bq.patch_cols;
+  start_search(q.size(), blocks, lists, kept);
+  search_blocks(q, bq, s, bs, ring, prm, on_q, on_s, sc, last, lists, skin, kept, before, 0, blocks);
 }
 
 template <class Real>
@@ -1837,9 +1860,23 @@ constexpr std::uint32_t kListRest = 16;
 // Both directions of a pair (one for a sheet with itself, `ring` ≥ 0): through the kept
 // lists while they hold, else a search that makes new ones, or, while the pair rests from
 // lists that did not outlive a substep at the narrowest skin, a search that makes none.
-// Kept sets smaller than this (both directions) walk in one piece: splitting and appending
-// would cost more than the second thread saves.
+// Kept sets smaller than this (both directions; for a search, points of both sheets) walk or
+// are searched in one piece: splitting and appending would cost more than the second
+// thread saves.
 constexpr std::size_t kPartsFrom = 2048;
+
+// The forces of a pair's parts (walk_in_parts, search_in_parts: `per` parts a direction)
+// appended to the pair's, in the order one pass of both directions pushes them: the
+// points' forces of a's points, then b's, each direction's parts in order.
+template <class Real>
+void append_parts(PairContacts<Real>& w, std::size_t per, bool self) {
+  ContactForces<Real>& on_b = self ? w.on_a : w.on_b;
+  for (std::size_t k = 0; k < (self ? 1 : 2) * per; ++k) {
+    const bool back = k >= per;
+    (back ? on_b : w.on_a).append(w.part_on_q[k]);
+    if (!self) (back ? w.on_a : on_b).append(w.part_on_s[k]);
+  }
+}
 
 // A pair's kept sets walked (points_walking) in prm.parts parts per direction, as tasks, each
 // into its own forces, which are then appended in the order one walk of both directions
@@ -1863,11 +1900,59 @@ void walk_in_parts(const Sheet<Real>& a, const Sheet<Real>& b, int ring, const C
     points_walking(back ? b : a, back ? a : b, ring, kept, size * part / per, size * (part + 1) / per, prm, on_q, on_s,
                    back ? w.last_b.data() : w.last_a.data());
   });
-  ContactForces<Real>& on_b = self ? w.on_a : w.on_b;
-  for (std::size_t k = 0; k < count; ++k) {
-    const bool back = k >= per;
-    (back ? on_b : w.on_a).append(w.part_on_q[k]);
-    if (!self) (back ? w.on_a : on_b).append(w.part_on_s[k]);
+  append_parts(w, per, self);
+}
+
+// A pair's search for its kept sets (search_blocks, with `before` the sets so far in a
+// partial search) in prm.parts parts per direction, as tasks: each part a range of the
+// query sheet's blocks, into its own forces, kept set and scratch (the first part the
+// pair's, `sc`), then the forces appended as append_parts does and each direction's
+// kept set made of its parts' in block order (block_begin shifted by the entries before).
+// A block's points are its own, so the parts write nothing in common, and the forces and
+// sets are those of one search, bit for bit.
+template <class Real>
+void search_in_parts(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sheet<Real>& b,
+                     const SheetBoxes<Real>& bb, int ring, const ContactParams<Real>& prm, Real skin, bool partial,
+                     PairContacts<Real>& w, ContactScratch<Real>& sc) {
+  const bool self = &a == &b;
+  const std::size_t per = std::size_t(prm.parts), count = (self ? 1 : 2) * per;
+  w.part_on_q.resize(count);
+  w.part_on_s.resize(count);
+  w.part_kept.resize(count);
+  w.part_scratch.resize(count - 1);
+  auto blocks_of = [](const SheetBoxes<Real>& bq) { return bq.patch_rows * bq.patch_cols; };
+  tbb::parallel_for(std::size_t(0), count, [&](std::size_t k) {
+    const bool back = k >= per;  // b's points against a's cells
+    const Sheet<Real>& q = back ? b : a;
+    const SheetBoxes<Real>& bq = back ? bb : ba;
+    const std::size_t part = k % per, blocks = blocks_of(bq);
+    ContactForces<Real>& on_q = w.part_on_q[k];
+    ContactForces<Real>& on_s = self ? on_q : w.part_on_s[k];
+    on_q.clear();
+    on_s.clear();
+    start_search(q.size(), blocks, nullptr, &w.part_kept[k]);
+    search_blocks(q, bq, back ? a : b, back ? ba : bb, ring, prm, on_q, on_s, k == 0 ? sc : w.part_scratch[k - 1],
+                  back ? w.last_b.data() : w.last_a.data(), nullptr, skin, &w.part_kept[k],
+                  partial ? (back ? &w.b_on_a : &w.a_on_b) : nullptr, std::uint32_t(blocks * part / per),
+                  std::uint32_t(blocks * (part + 1) / per));
+  });
+  append_parts(w, per, self);
+  for (std::size_t direction = 0; direction < (self ? 1u : 2u); ++direction) {
+    KeptContacts& kept = direction == 0 ? w.spare_a : w.spare_b;
+    const std::size_t blocks = blocks_of(direction == 0 ? ba : bb);
+    start_search(0, blocks, nullptr, &kept);
+    for (std::size_t part = 0; part < per; ++part) {
+      const KeptContacts& from = w.part_kept[direction * per + part];
+      const std::uint32_t before = std::uint32_t(kept.point.size());
+      for (std::size_t block = blocks * part / per; block < blocks * (part + 1) / per; ++block) {
+        kept.block_begin[block] = before + from.block_begin[block];
+        kept.open[block] = from.open[block];
+      }
+      kept.point.insert(kept.point.end(), from.point.begin(), from.point.end());
+      kept.cell.insert(kept.cell.end(), from.cell.begin(), from.cell.end());
+      kept.until.insert(kept.until.end(), from.until.begin(), from.until.end());
+    }
+    kept.block_begin[blocks] = std::uint32_t(kept.point.size());
   }
 }
 
@@ -1921,11 +2006,15 @@ void contacts_of_pair(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sh
   Candidates* lists_b = prm.exact ? &w.b_near_a : nullptr;
   KeptContacts* kept_a = prm.exact ? nullptr : &w.spare_a;
   KeptContacts* kept_b = prm.exact ? nullptr : &w.spare_b;
-  points_against_cells(a, ba, b, bb, ring, pair, w.on_a, on_b, sc, w.last_a.data(), lists_a, skin, kept_a,
-                       partial ? &w.a_on_b : nullptr);
-  if (!self)
-    points_against_cells(b, bb, a, ba, ring, pair, on_b, w.on_a, sc, w.last_b.data(), lists_b, skin, kept_b,
-                         partial ? &w.b_on_a : nullptr);
+  if (!prm.exact && pair.parts > 1 && a.size() + (self ? 0 : b.size()) >= kPartsFrom) {
+    search_in_parts(a, ba, b, bb, ring, pair, skin, partial, w, sc);
+  } else {
+    points_against_cells(a, ba, b, bb, ring, pair, w.on_a, on_b, sc, w.last_a.data(), lists_a, skin, kept_a,
+                         partial ? &w.a_on_b : nullptr);
+    if (!self)
+      points_against_cells(b, bb, a, ba, ring, pair, on_b, w.on_a, sc, w.last_b.data(), lists_b, skin, kept_b,
+                           partial ? &w.b_on_a : nullptr);
+  }
   if (!prm.exact) {
     std::swap(w.a_on_b, w.spare_a);
     std::swap(w.b_on_a, w.spare_b);

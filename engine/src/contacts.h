@@ -349,9 +349,13 @@ struct PairContacts {
   // skin): no two points of the sheets can have come nearer by more than that, nor two edges
   // (rims_due). Forces from them are those of searching every substep, bit for bit.
   std::vector<std::array<std::uint32_t, 4>> rims_ab, rims_ba;
-  // The forces of each part of a walk in parts (ContactParams::parts), on the points' sheet
-  // and on the cells' (the same buffer for a sheet with itself); scratch within a substep.
+  // The forces of each part of a walk or search in parts (ContactParams::parts), on the
+  // points' sheet and on the cells' (the same buffer for a sheet with itself), a search's
+  // kept set of each part, and the scratch of every part but the first (which has the
+  // pair's): scratch within a substep.
   std::vector<ContactForces<Real>> part_on_q, part_on_s;
+  std::vector<KeptContacts> part_kept;
+  std::vector<ContactScratch<Real>> part_scratch;
   double rims_until = -std::numeric_limits<double>::infinity();
   const Topology<Real>* rims_topology_a = nullptr;
   const Topology<Real>* rims_topology_b = nullptr;
