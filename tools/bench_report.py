@@ -1139,11 +1139,19 @@ class Report:
                 self.used.add(exact.name)
                 exact_text = (f" With the exact search every substep (`contact_exact`) {us(exact.step_seconds)} µs, "
                               f"{exact.step_seconds / fold[1].step_seconds:.2f}× the default walk.")
+            threads = {k: self.runs.get(f"BM_SelfCollisionFoldThreads/threads:{k}/real_time") for k in (1, 2)}
+            threads_text = ""
+            if all(threads.values()):
+                self.used.update(r.name for r in threads.values())
+                threads_text = (f" The same fold on one and two threads (`BM_SelfCollisionFoldThreads`, its one pair "
+                                f"walked and searched in halves on two): {us(threads[1].step_seconds)} and "
+                                f"{us(threads[2].step_seconds)} µs per substep, "
+                                f"{threads[1].step_seconds / threads[2].step_seconds:.2f}×.")
             self.out(f"- Self-collision on one 128×128 sheet folded onto itself (its right half 12 mm over its left, "
                      f"one thread, wall time; substeps 2 to {2 + fold[1].substeps} of a fresh fold, a step(1) call "
                      f"each, at least 90 % of the upper half still within contact range of its mirror point at the end): "
                      f"{us(fold[1].step_seconds)} µs per substep with it, "
-                     f"{us(fold[0].step_seconds)} µs without, {ratio:.1f}×.{exact_text}")
+                     f"{us(fold[0].step_seconds)} µs without, {ratio:.1f}×.{exact_text}{threads_text}")
         walk, exact = self.get("BM_World48SheetsInContact/1/real_time"), self.get("BM_World48SheetsInContactExact/real_time")
         if walk and exact:
             self.used.add(exact.name)
