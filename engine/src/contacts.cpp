@@ -681,147 +681,145 @@ void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
 
   block_to = std::min(block_to, std::uint32_t(blocks));
   for (std::uint32_t block = block_from; block < block_to; ++block) {
-    {
-      const std::uint32_t bi = block / bq.patch_cols, bj = block % bq.patch_cols;
-      if (kept) kept->block_begin[block] = std::uint32_t(kept->point.size());
-      const std::size_t entries_before = kept ? kept->point.size() : 0;
-      // The block's points in the set walk and stay in it; only a block with points
-      // outside the set is searched, and only for those points.
-      std::uint32_t e0 = 0, e1 = 0;
-      if (before) {
-        e0 = before->block_begin[block];
-        e1 = before->block_begin[block + 1];
-        points_walking(q, s, ring, *before, e0, e1, prm, on_q, on_s, last);
-        kept->point.insert(kept->point.end(), before->point.begin() + e0, before->point.begin() + e1);
-        kept->cell.insert(kept->cell.end(), before->cell.begin() + e0, before->cell.begin() + e1);
-        kept->until.insert(kept->until.end(), before->until.begin() + e0, before->until.begin() + e1);
-        if (!before->open[block]) {
-          kept->open[block] = 0;
-          continue;
-        }
+    const std::uint32_t bi = block / bq.patch_cols, bj = block % bq.patch_cols;
+    if (kept) kept->block_begin[block] = std::uint32_t(kept->point.size());
+    const std::size_t entries_before = kept ? kept->point.size() : 0;
+    // The block's points in the set walk and stay in it; only a block with points
+    // outside the set is searched, and only for those points.
+    std::uint32_t e0 = 0, e1 = 0;
+    if (before) {
+      e0 = before->block_begin[block];
+      e1 = before->block_begin[block + 1];
+      points_walking(q, s, ring, *before, e0, e1, prm, on_q, on_s, last);
+      kept->point.insert(kept->point.end(), before->point.begin() + e0, before->point.begin() + e1);
+      kept->cell.insert(kept->cell.end(), before->cell.begin() + e0, before->cell.begin() + e1);
+      kept->until.insert(kept->until.end(), before->until.begin() + e0, before->until.begin() + e1);
+      if (!before->open[block]) {
+        kept->open[block] = 0;
+        continue;
       }
-      Aabb bb;
-      for (int k = 0; k < 3; ++k) {
-        bb.lo[k] = bq.patch_lo[k][block];
-        bb.hi[k] = bq.patch_hi[k][block];
-      }
-      if (!overlaps(bb.inflated(reach), bs.box)) continue;
-      // The patches of s within reach of the block, kept without a branch.
-      std::uint32_t np = 0;
-      for (std::uint32_t t = 0; t < spatches; ++t) {
-        unsigned keep = 1;
-        for (int k = 0; k < 3; ++k)
-          keep &= unsigned(double(plo[k][t]) <= bb.hi[k] + reach) & unsigned(double(phi[k][t]) >= bb.lo[k] - reach);
-        sc.patches[np] = t;
-        np += keep;
-      }
-      if (np == 0) continue;
-      // Their strips within reach of the block, gathered contiguous.
-      std::uint32_t count = 0;
-      for (std::uint32_t e = 0; e < np; ++e) {
-        const std::uint32_t t = sc.patches[e];
-        const std::uint32_t ti = t / bs.patch_cols, tj = t % bs.patch_cols;
-        const std::uint32_t ci1 = std::min((ti + 1) * P, bs.m), cj0 = tj * P, cj1 = std::min(cj0 + P, bs.n);
-        for (std::uint32_t ci = ti * P; ci < ci1; ++ci) {
-          const std::size_t strip = std::size_t(ci) * bs.patch_cols + tj;
-          unsigned keep = 1;  // branch-free: bitwise on 0/1, not && on bools
-          for (int k = 0; k < 3; ++k) {
-            rlo[k][count] = bs.strip_lo[k][strip];
-            rhi[k][count] = bs.strip_hi[k][strip];
-            keep &= unsigned(double(bs.strip_lo[k][strip]) <= bb.hi[k] + reach) &
-                    unsigned(double(bs.strip_hi[k][strip]) >= bb.lo[k] - reach);
-          }
-          rcorner[count] = ci * scols + cj0;
-          rrow[count] = ci;
-          rcount[count] = cj1 - cj0;
-          count += keep;
-        }
-      }
-      if (count == 0) continue;
-      const std::uint32_t i0 = bq.first(bi), i1 = bq.end_point(bi, bq.patch_rows, bq.m);
-      const std::uint32_t j0 = bq.first(bj), j1 = bq.end_point(bj, bq.patch_cols, bq.n);
-      if (before) {
-        sc.in_set.resize(q.size());
-        for (std::uint32_t e = e0; e < e1; ++e) sc.in_set[before->point[e]] = 1;
-      }
-      for (std::uint32_t i = i0; i < i1; ++i)
-        for (std::uint32_t j = j0; j < j1; ++j) {
-          const std::uint32_t p = i * qcols + j;
-          if (before && sc.in_set[p]) continue;  // walked above
-          const V3<Real> x{Q.x[p], Q.y[p], Q.z[p]};
-          // The gathered strips within R, then their cells within R.
-          box_gaps(hn::ScalableTag<Real>(), x, rlo, rhi, count, gap2);
-          std::uint32_t strips_near = 0;
-          for (std::uint32_t t = 0; t < count; ++t) {
-            pick[strips_near] = t;
-            strips_near += gap2[t] < L2;
-          }
-          std::uint32_t found = 0;
-          for (std::uint32_t e = 0; e < strips_near; ++e) {
-            const std::uint32_t t = pick[e], c0 = rcorner[t], cells = rcount[t];
-            const Real* lo[3] = {clo[0] + c0, clo[1] + c0, clo[2] + c0};
-            const Real* hi[3] = {chi[0] + c0, chi[1] + c0, chi[2] + c0};
-            box_gaps(hn::CappedTag<Real, P>(), x, lo, hi, P, cell_gap2);  // all 8: the arrays are padded
-            if (ring >= 0) {  // self-contact: not the cells of the point's own neighbourhood
-              const std::int64_t ci = rrow[t];
-              if (ci >= std::int64_t(i) - ring && ci < std::int64_t(i) + ring) {
-                const std::int64_t cj0 = c0 - ci * scols;
-                for (std::uint32_t c = 0; c < cells; ++c) {
-                  const std::int64_t cj = cj0 + c;
-                  near[found] = {c0 + c, cell_gap2[c]};
-                  found += cell_gap2[c] < L2 && !(cj >= std::int64_t(j) - ring && cj < std::int64_t(j) + ring);
-                }
-                continue;
-              }
-            }
-            for (std::uint32_t c = 0; c < cells; ++c) {
-              near[found] = {c0 + c, cell_gap2[c]};
-              found += cell_gap2[c] < L2;
-            }
-          }
-          // A point within R + skin joins the kept set at the cell whose box is nearest,
-          // or at its nearest triangle's cell if that is within R.
-          std::uint32_t start = kNoCell;
-          Real nearest_gap2 = 0;  // no triangle of s is nearer (every cell within R + skin is in `near`)
-          if (kept && found > 0) {
-            std::uint32_t nearest = 0;
-            for (std::uint32_t e = 1; e < found; ++e)
-              if (near[e].gap2 < near[nearest].gap2) nearest = e;
-            start = near[nearest].corner;
-            nearest_gap2 = near[nearest].gap2;
-          }
-          if (lists || kept) {  // the list, then only the cells within R
-            if (lists) {
-              lists->begin[p] = std::uint32_t(lists->cell.size());
-              lists->count[p] = found;
-            }
-            std::uint32_t within = 0;
-            for (std::uint32_t e = 0; e < found; ++e) {
-              if (lists) lists->cell.push_back(near[e].corner);
-              near[within] = near[e];
-              within += near[e].gap2 < R2;
-            }
-            found = within;
-          }
-          bool repelled = false;
-          if (found > 0) {
-            repel_nearest(q, p, x, s, near, found, prm, on_q, on_s, last[p]);
-            repelled = last[p] != kNoCell;
-            if (kept && repelled) start = last[p];
-          }
-          if (start != kNoCell) {
-            kept->point.push_back(p);
-            kept->cell.push_back(start);
-            // beyond R: walked again once the pair has travelled the gap to the nearest box
-            kept->until.push_back(repelled ? -std::numeric_limits<double>::infinity()
-                                           : skip_until(prm.travel, double(nearest_gap2), double(prm.range)));
-          }
-        }
-      if (before)
-        for (std::uint32_t e = e0; e < e1; ++e) sc.in_set[before->point[e]] = 0;
-      // The block visited rows [i0, i1) × columns [j0, j1): open unless all are in the set.
-      if (kept) kept->open[block] = kept->point.size() - entries_before < std::size_t(i1 - i0) * (j1 - j0);
     }
+    Aabb bb;
+    for (int k = 0; k < 3; ++k) {
+      bb.lo[k] = bq.patch_lo[k][block];
+      bb.hi[k] = bq.patch_hi[k][block];
+    }
+    if (!overlaps(bb.inflated(reach), bs.box)) continue;
+    // The patches of s within reach of the block, kept without a branch.
+    std::uint32_t np = 0;
+    for (std::uint32_t t = 0; t < spatches; ++t) {
+      unsigned keep = 1;
+      for (int k = 0; k < 3; ++k)
+        keep &= unsigned(double(plo[k][t]) <= bb.hi[k] + reach) & unsigned(double(phi[k][t]) >= bb.lo[k] - reach);
+      sc.patches[np] = t;
+      np += keep;
+    }
+    if (np == 0) continue;
+    // Their strips within reach of the block, gathered contiguous.
+    std::uint32_t count = 0;
+    for (std::uint32_t e = 0; e < np; ++e) {
+      const std::uint32_t t = sc.patches[e];
+      const std::uint32_t ti = t / bs.patch_cols, tj = t % bs.patch_cols;
+      const std::uint32_t ci1 = std::min((ti + 1) * P, bs.m), cj0 = tj * P, cj1 = std::min(cj0 + P, bs.n);
+      for (std::uint32_t ci = ti * P; ci < ci1; ++ci) {
+        const std::size_t strip = std::size_t(ci) * bs.patch_cols + tj;
+        unsigned keep = 1;  // branch-free: bitwise on 0/1, not && on bools
+        for (int k = 0; k < 3; ++k) {
+          rlo[k][count] = bs.strip_lo[k][strip];
+          rhi[k][count] = bs.strip_hi[k][strip];
+          keep &= unsigned(double(bs.strip_lo[k][strip]) <= bb.hi[k] + reach) &
+                  unsigned(double(bs.strip_hi[k][strip]) >= bb.lo[k] - reach);
+        }
+        rcorner[count] = ci * scols + cj0;
+        rrow[count] = ci;
+        rcount[count] = cj1 - cj0;
+        count += keep;
+      }
+    }
+    if (count == 0) continue;
+    const std::uint32_t i0 = bq.first(bi), i1 = bq.end_point(bi, bq.patch_rows, bq.m);
+    const std::uint32_t j0 = bq.first(bj), j1 = bq.end_point(bj, bq.patch_cols, bq.n);
+    if (before) {
+      sc.in_set.resize(q.size());
+      for (std::uint32_t e = e0; e < e1; ++e) sc.in_set[before->point[e]] = 1;
+    }
+    for (std::uint32_t i = i0; i < i1; ++i)
+      for (std::uint32_t j = j0; j < j1; ++j) {
+        const std::uint32_t p = i * qcols + j;
+        if (before && sc.in_set[p]) continue;  // walked above
+        const V3<Real> x{Q.x[p], Q.y[p], Q.z[p]};
+        // The gathered strips within R, then their cells within R.
+        box_gaps(hn::ScalableTag<Real>(), x, rlo, rhi, count, gap2);
+        std::uint32_t strips_near = 0;
+        for (std::uint32_t t = 0; t < count; ++t) {
+          pick[strips_near] = t;
+          strips_near += gap2[t] < L2;
+        }
+        std::uint32_t found = 0;
+        for (std::uint32_t e = 0; e < strips_near; ++e) {
+          const std::uint32_t t = pick[e], c0 = rcorner[t], cells = rcount[t];
+          const Real* lo[3] = {clo[0] + c0, clo[1] + c0, clo[2] + c0};
+          const Real* hi[3] = {chi[0] + c0, chi[1] + c0, chi[2] + c0};
+          box_gaps(hn::CappedTag<Real, P>(), x, lo, hi, P, cell_gap2);  // all 8: the arrays are padded
+          if (ring >= 0) {  // self-contact: not the cells of the point's own neighbourhood
+            const std::int64_t ci = rrow[t];
+            if (ci >= std::int64_t(i) - ring && ci < std::int64_t(i) + ring) {
+              const std::int64_t cj0 = c0 - ci * scols;
+              for (std::uint32_t c = 0; c < cells; ++c) {
+                const std::int64_t cj = cj0 + c;
+                near[found] = {c0 + c, cell_gap2[c]};
+                found += cell_gap2[c] < L2 && !(cj >= std::int64_t(j) - ring && cj < std::int64_t(j) + ring);
+              }
+              continue;
+            }
+          }
+          for (std::uint32_t c = 0; c < cells; ++c) {
+            near[found] = {c0 + c, cell_gap2[c]};
+            found += cell_gap2[c] < L2;
+          }
+        }
+        // A point within R + skin joins the kept set at the cell whose box is nearest,
+        // or at its nearest triangle's cell if that is within R.
+        std::uint32_t start = kNoCell;
+        Real nearest_gap2 = 0;  // no triangle of s is nearer (every cell within R + skin is in `near`)
+        if (kept && found > 0) {
+          std::uint32_t nearest = 0;
+          for (std::uint32_t e = 1; e < found; ++e)
+            if (near[e].gap2 < near[nearest].gap2) nearest = e;
+          start = near[nearest].corner;
+          nearest_gap2 = near[nearest].gap2;
+        }
+        if (lists || kept) {  // the list, then only the cells within R
+          if (lists) {
+            lists->begin[p] = std::uint32_t(lists->cell.size());
+            lists->count[p] = found;
+          }
+          std::uint32_t within = 0;
+          for (std::uint32_t e = 0; e < found; ++e) {
+            if (lists) lists->cell.push_back(near[e].corner);
+            near[within] = near[e];
+            within += near[e].gap2 < R2;
+          }
+          found = within;
+        }
+        bool repelled = false;
+        if (found > 0) {
+          repel_nearest(q, p, x, s, near, found, prm, on_q, on_s, last[p]);
+          repelled = last[p] != kNoCell;
+          if (kept && repelled) start = last[p];
+        }
+        if (start != kNoCell) {
+          kept->point.push_back(p);
+          kept->cell.push_back(start);
+          // beyond R: walked again once the pair has travelled the gap to the nearest box
+          kept->until.push_back(repelled ? -std::numeric_limits<double>::infinity()
+                                         : skip_until(prm.travel, double(nearest_gap2), double(prm.range)));
+        }
+      }
+    if (before)
+      for (std::uint32_t e = e0; e < e1; ++e) sc.in_set[before->point[e]] = 0;
+    // The block visited rows [i0, i1) × columns [j0, j1): open unless all are in the set.
+    if (kept) kept->open[block] = kept->point.size() - entries_before < std::size_t(i1 - i0) * (j1 - j0);
   }
   if (kept && block_to == blocks) kept->block_begin[blocks] = std::uint32_t(kept->point.size());
 }
@@ -1857,9 +1855,6 @@ namespace {
 // their substep: making them costs more than it saves while the sheets move that fast.
 constexpr std::uint32_t kListRest = 16;
 
-// Both directions of a pair (one for a sheet with itself, `ring` ≥ 0): through the kept
-// lists while they hold, else a search that makes new ones, or, while the pair rests from
-// lists that did not outlive a substep at the narrowest skin, a search that makes none.
 // Kept sets smaller than this (both directions; for a search, points of both sheets) walk or
 // are searched in one piece: splitting and appending would cost more than the second
 // thread saves.
@@ -1956,6 +1951,9 @@ void search_in_parts(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const She
   }
 }
 
+// Both directions of a pair (one for a sheet with itself, `ring` ≥ 0): through the kept
+// lists while they hold, else a search that makes new ones, or, while the pair rests from
+// lists that did not outlive a substep at the narrowest skin, a search that makes none.
 template <class Real>
 void contacts_of_pair(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sheet<Real>& b,
                       const SheetBoxes<Real>& bb, int ring, const ContactParams<Real>& prm, PairContacts<Real>& w,

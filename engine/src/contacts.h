@@ -85,9 +85,10 @@ struct ContactParams {
   // its own). A kept entry beyond R skips its walk while the sheets have not travelled the
   // entry's slack since its last test (KeptContacts::until). NaN, unknown: none skips.
   double travel = std::numeric_limits<double>::quiet_NaN();
-  // Walk a kept set (between searches) in this many parts at once, as tasks, each part's
-  // forces appended after the one before: the forces of one walk in order, bit for bit.
-  // The world asks for 2 when it has more threads than pairs to give them; 1: one walk.
+  // Walk a pair's kept sets, and search for them, in this many parts per direction at once,
+  // as tasks (contacts.cpp, walk_in_parts, search_in_parts), the parts' forces and sets
+  // joined in the order one pass makes them: the same bits. The world asks for 2 when it
+  // has threads to spare for its few pairs; 1: one pass.
   int parts = 1;
   // The substep this pair runs in, as the world counts them from 1 (0: none): a sheet's
   // moved_lo / moved_hi serve only when measured in it (measure_travel).
@@ -119,13 +120,7 @@ struct ContactForces {
   // other's entries after these, in their order
   void append(const ContactForces& other) {
     const std::size_t total = count + other.count;
-    if (total > point.size()) {
-      const std::size_t room = std::max<std::size_t>(64, std::max(total, 2 * point.size()));
-      point.resize(room);
-      fx.resize(room);
-      fy.resize(room);
-      fz.resize(room);
-    }
+    while (total > point.size()) grow();
     std::copy_n(other.point.begin(), other.count, point.begin() + std::ptrdiff_t(count));
     std::copy_n(other.fx.begin(), other.count, fx.begin() + std::ptrdiff_t(count));
     std::copy_n(other.fy.begin(), other.count, fy.begin() + std::ptrdiff_t(count));
@@ -349,17 +344,17 @@ struct PairContacts {
   // skin): no two points of the sheets can have come nearer by more than that, nor two edges
   // (rims_due). Forces from them are those of searching every substep, bit for bit.
   std::vector<std::array<std::uint32_t, 4>> rims_ab, rims_ba;
-  // The forces of each part of a walk or search in parts (ContactParams::parts), on the
-  // points' sheet and on the cells' (the same buffer for a sheet with itself), a search's
-  // kept set of each part, and the scratch of every part but the first (which has the
-  // pair's): scratch within a substep.
-  std::vector<ContactForces<Real>> part_on_q, part_on_s;
-  std::vector<KeptContacts> part_kept;
-  std::vector<ContactScratch<Real>> part_scratch;
   double rims_until = -std::numeric_limits<double>::infinity();
   const Topology<Real>* rims_topology_a = nullptr;
   const Topology<Real>* rims_topology_b = nullptr;
   std::uint64_t rim_searches = 0;  // how often the rims' candidates were made (for tests)
+  // The forces of each part of a walk or search in parts (ContactParams::parts), on the
+  // points' sheet and on the cells' (the same buffer for a sheet with itself), a search's
+  // kept set of each part, and the scratch of every part but the first (which has the
+  // pair's): scratch within a substep, not memory.
+  std::vector<ContactForces<Real>> part_on_q, part_on_s;
+  std::vector<KeptContacts> part_kept;
+  std::vector<ContactScratch<Real>> part_scratch;
 };
 
 // Whether the pair's rim candidates must be made again this substep (both sheets' boxes then

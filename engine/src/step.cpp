@@ -246,9 +246,9 @@ template <class Real>
 void BasicWorld<Real>::Impl::narrow_phase(double h) {
   if (!contacting) return;
   auto params = contact_params(h);
-  // Fewer pairs than twice the threads: a pair walks its kept sets in two parts at once
-  // (ContactParams::parts), so that a sheet folding onto itself, or two sheets, use more
-  // than one core. The forces are the same either way.
+  // Fewer pairs than twice the threads: a pair walks and searches in two parts a direction
+  // at once (ContactParams::parts), so that a sheet folding onto itself, or two sheets, use
+  // more than one core. The forces are the same either way.
   const int threads = arena->max_concurrency();
   if (threads > 1 && pairs.size() < 2 * std::size_t(threads)) params.parts = 2;
   parallel(pairs.size(), [&](std::size_t q) {
