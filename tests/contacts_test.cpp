@@ -1276,15 +1276,17 @@ TEST(Contacts, WalkInPartsGivesTheForcesOfOneWalk) {
   });
 }
 
-// The same in a world: on two threads a world with fewer pairs than four walks them in
-// parts (one sheet folded onto itself, then two sheets draped over each other), and each
-// step's positions equal those of one thread, bit for bit.
-TEST(Contacts, FewPairsWalkedInPartsOnTwoThreadsGiveTheBitsOfOne) {
+// The same in a world: on two threads a world with fewer pairs than four walks and
+// searches them in parts (one sheet folded onto itself, then two sheets draped over each
+// other), and each step's positions equal those of one thread, bit for bit, in double and
+// in float.
+template <class W>
+void expect_few_pairs_in_parts_give_the_bits_of_one() {
   auto run = [](int threads, bool two_sheets) {
     WorldDef wd;
     wd.dt = 2e-4;
     wd.threads = threads;
-    World world(wd);
+    W world(wd);
     SheetDef d;
     d.m = d.n = 79;
     d.width = d.height = 0.8;
@@ -1322,6 +1324,10 @@ TEST(Contacts, FewPairsWalkedInPartsOnTwoThreadsGiveTheBitsOfOne) {
     for (std::size_t k = 0; k < one.size(); ++k) differ += one[k] != two[k];
     EXPECT_EQ(differ, 0u) << (two_sheets ? "two sheets" : "fold");
   }
+}
+TEST(Contacts, FewPairsWalkedInPartsOnTwoThreadsGiveTheBitsOfOne) { expect_few_pairs_in_parts_give_the_bits_of_one<World>(); }
+TEST(Contacts, FewPairsWalkedInPartsOnTwoThreadsGiveTheBitsOfOneInFloat) {
+  expect_few_pairs_in_parts_give_the_bits_of_one<WorldF>();
 }
 
 // The bound a pair's kept lists take from the sheets' travel (measure_travel): between two
