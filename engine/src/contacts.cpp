@@ -1864,6 +1864,22 @@ constexpr std::size_t kPartsFrom = 2048;
 // appended to the pair's, in the order one pass of both directions pushes them: the
 // points' forces of a's points, then b's, each direction's parts in order.
 template <class Real>
+struct PartForces {
+  ContactForces<Real>& on_q;  // on the points' sheet
+  ContactForces<Real>& on_s;  // on the cells' (the same buffer for a sheet with itself)
+};
+
+// Part k's forces (walk_in_parts, search_in_parts), emptied.
+template <class Real>
+PartForces<Real> part_forces(PairContacts<Real>& w, std::size_t k, bool self) {
+  ContactForces<Real>& on_q = w.part_on_q[k];
+  ContactForces<Real>& on_s = self ? on_q : w.part_on_s[k];
+  on_q.clear();
+  on_s.clear();
+  return {on_q, on_s};
+}
+
+template <class Real>
 void append_parts(PairContacts<Real>& w, std::size_t per, bool self) {
   ContactForces<Real>& on_b = self ? w.on_a : w.on_b;
   for (std::size_t k = 0; k < (self ? 1 : 2) * per; ++k) {
@@ -1888,12 +1904,9 @@ void walk_in_parts(const Sheet<Real>& a, const Sheet<Real>& b, int ring, const C
     const bool back = k >= per;  // b's points against a's cells
     KeptContacts& kept = back ? w.b_on_a : w.a_on_b;
     const std::size_t part = k % per, size = kept.point.size();
-    ContactForces<Real>& on_q = w.part_on_q[k];
-    ContactForces<Real>& on_s = self ? on_q : w.part_on_s[k];
-    on_q.clear();
-    on_s.clear();
-    points_walking(back ? b : a, back ? a : b, ring, kept, size * part / per, size * (part + 1) / per, prm, on_q, on_s,
-                   back ? w.last_b.data() : w.last_a.data());
+    const PartForces<Real> on = part_forces(w, k, self);
+    points_walking(back ? b : a, back ? a : b, ring, kept, size * part / per, size * (part + 1) / per, prm, on.on_q,
+                   on.on_s, back ? w.last_b.data() : w.last_a.data());
   });
   append_parts(w, per, self);
 }
@@ -1921,12 +1934,9 @@ void search_in_parts(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const She
     const Sheet<Real>& q = back ? b : a;
     const SheetBoxes<Real>& bq = back ? bb : ba;
     const std::size_t part = k % per, blocks = blocks_of(bq);
-    ContactForces<Real>& on_q = w.part_on_q[k];
-    ContactForces<Real>& on_s = self ? on_q : w.part_on_s[k];
-    on_q.clear();
-    on_s.clear();
+    const PartForces<Real> on = part_forces(w, k, self);
     start_search(q.size(), blocks, nullptr, &w.part_kept[k]);
-    search_blocks(q, bq, back ? a : b, back ? ba : bb, ring, prm, on_q, on_s, k == 0 ? sc : w.part_scratch[k - 1],
+    search_blocks(q, bq, back ? a : b, back ? ba : bb, ring, prm, on.on_q, on.on_s, k == 0 ? sc : w.part_scratch[k - 1],
                   back ? w.last_b.data() : w.last_a.data(), nullptr, skin, &w.part_kept[k],
                   partial ? (back ? &w.b_on_a : &w.a_on_b) : nullptr, std::uint32_t(blocks * part / per),
                   std::uint32_t(blocks * (part + 1) / per));

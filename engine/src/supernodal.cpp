@@ -174,7 +174,7 @@ void SupernodalFactor<Scalar>::split_groups(double split_from) {
     while (i < count && !in_top[std::size_t(supernode_of_[std::size_t(below[i])])]) ++i;
     top_from_[s] = i;
   }
-  private_x_.assign(3 * (first_.back()), Scalar(0));
+  private_x_.assign(3 * std::size_t(first_.back()), Scalar(0));
   second_gathered_.resize(gathered_.size());
 }
 
@@ -255,56 +255,54 @@ bool SupernodalFactor<Scalar>::factor() {
 // themselves subtracted from the later panels (with `second`, those of the top in private_).
 template <class Scalar>
 bool SupernodalFactor<Scalar>::factor_supernode(std::size_t s, Scalar* update, bool second) {
-  {
-    const int c0 = first_[s], width = first_[s + 1] - c0;
-    const int* rows = rows_.data() + row_start_[s];
-    const int count = row_start_[s + 1] - row_start_[s];
-    const Eigen::Index ld = Eigen::Index(leading_[s]);
-    Panel<Scalar> panel(value_.data() + value_start_[s], ld, 3 * width, Eigen::OuterStride<>(ld));
-    const Eigen::Index w3 = 3 * width;
-    auto diagonal = panel.topLeftCorner(w3, w3);
-    Eigen::LLT<Eigen::Ref<Dense<Scalar>>, Eigen::Lower> llt(diagonal);
-    // LLT refuses a pivot ≤ 0 but passes NaN and ∞ (a matrix beyond float's range)
-    if (llt.info() != Eigen::Success || !diagonal.diagonal().allFinite()) return false;
-    if (count > width) {
-      auto below = panel.bottomRows(ld - w3);
-      diagonal.template triangularView<Eigen::Lower>().transpose().template solveInPlace<Eigen::OnTheRight>(below);
-      // Right-looking: the rows below times themselves, subtracted at once from the later
-      // supernodes' panels (the lower triangle, one group of rows at a time). Each
-      // supernode's update is one product, not one per later supernode it reaches.
-      const Eigen::Index m = ld - w3;
-      Eigen::Map<Dense<Scalar>> product(update, m, m);
-      if (m <= kWholeProduct)
-        product.noalias() = below * below.transpose();
-      else
-        product.template triangularView<Eigen::Lower>() = below * below.transpose();
-      for (int g = group_start_[s]; g < group_start_[s + 1]; ++g) {
-        const std::size_t t = std::size_t(group_target_[std::size_t(g)]);
-        const int begin = group_begin_[std::size_t(g)];
-        const int end = g + 1 < group_start_[s + 1] ? group_begin_[std::size_t(g) + 1] : count;
-        const int* relative = relative_.data() + relative_start_[std::size_t(g)];  // rows begin, begin + 1, …
-        const std::size_t tld = leading_[t];
-        const bool to_top = second && begin - width >= top_from_[s];  // a group is in one supernode
-        Scalar* target = to_top ? private_.data() + private_start_[t] : value_.data() + value_start_[t];
-        for (int b = begin; b < end; ++b) {
-          const std::size_t column = 3 * std::size_t(rows[b] - first_[t]);
-          for (int c = 0; c < 3; ++c) {
-            Scalar* into = target + (column + std::size_t(c)) * tld;
-            const Scalar* from = product.col(3 * (b - width) + c).data();
-            for (int r = c; r < 3; ++r) into[3 * relative[b - begin] + r] -= from[3 * (b - width) + r];  // (lower)
-            for (int a = b + 1; a < count; ++a) {
-              Scalar* t3 = into + 3 * relative[a - begin];
-              const Scalar* u = from + 3 * (a - width);
-              t3[0] -= u[0];
-              t3[1] -= u[1];
-              t3[2] -= u[2];
-            }
+  const int c0 = first_[s], width = first_[s + 1] - c0;
+  const int* rows = rows_.data() + row_start_[s];
+  const int count = row_start_[s + 1] - row_start_[s];
+  const Eigen::Index ld = Eigen::Index(leading_[s]);
+  Panel<Scalar> panel(value_.data() + value_start_[s], ld, 3 * width, Eigen::OuterStride<>(ld));
+  const Eigen::Index w3 = 3 * width;
+  auto diagonal = panel.topLeftCorner(w3, w3);
+  Eigen::LLT<Eigen::Ref<Dense<Scalar>>, Eigen::Lower> llt(diagonal);
+  // LLT refuses a pivot ≤ 0 but passes NaN and ∞ (a matrix beyond float's range)
+  if (llt.info() != Eigen::Success || !diagonal.diagonal().allFinite()) return false;
+  if (count > width) {
+    auto below = panel.bottomRows(ld - w3);
+    diagonal.template triangularView<Eigen::Lower>().transpose().template solveInPlace<Eigen::OnTheRight>(below);
+    // Right-looking: the rows below times themselves, subtracted at once from the later
+    // supernodes' panels (the lower triangle, one group of rows at a time). Each
+    // supernode's update is one product, not one per later supernode it reaches.
+    const Eigen::Index m = ld - w3;
+    Eigen::Map<Dense<Scalar>> product(update, m, m);
+    if (m <= kWholeProduct)
+      product.noalias() = below * below.transpose();
+    else
+      product.template triangularView<Eigen::Lower>() = below * below.transpose();
+    for (int g = group_start_[s]; g < group_start_[s + 1]; ++g) {
+      const std::size_t t = std::size_t(group_target_[std::size_t(g)]);
+      const int begin = group_begin_[std::size_t(g)];
+      const int end = g + 1 < group_start_[s + 1] ? group_begin_[std::size_t(g) + 1] : count;
+      const int* relative = relative_.data() + relative_start_[std::size_t(g)];  // rows begin, begin + 1, …
+      const std::size_t tld = leading_[t];
+      const bool to_top = second && begin - width >= top_from_[s];  // a group is in one supernode
+      Scalar* target = to_top ? private_.data() + private_start_[t] : value_.data() + value_start_[t];
+      for (int b = begin; b < end; ++b) {
+        const std::size_t column = 3 * std::size_t(rows[b] - first_[t]);
+        for (int c = 0; c < 3; ++c) {
+          Scalar* into = target + (column + std::size_t(c)) * tld;
+          const Scalar* from = product.col(3 * (b - width) + c).data();
+          for (int r = c; r < 3; ++r) into[3 * relative[b - begin] + r] -= from[3 * (b - width) + r];  // (lower)
+          for (int a = b + 1; a < count; ++a) {
+            Scalar* t3 = into + 3 * relative[a - begin];
+            const Scalar* u = from + 3 * (a - width);
+            t3[0] -= u[0];
+            t3[1] -= u[1];
+            t3[2] -= u[2];
           }
         }
       }
     }
-    fixed_width(w3, [&](auto w) { invert_lower<3 * decltype(w)::value>(panel.data(), ld); });  // for solve()
   }
+  fixed_width(w3, [&](auto w) { invert_lower<3 * decltype(w)::value>(panel.data(), ld); });  // for solve()
   return true;
 }
 
