@@ -20,7 +20,10 @@ are noise). Record it again after such a change to the benchmark, with the same 
 With --current BENCH (tools/bench.sh passes its own drape_bench), today's engine runs the same
 scenes in rounds alternating with the baseline's (--rounds, one repetition each), and both sides'
 runs go into the record: the report then divides figures measured side by side, round by
-round (the median of the ratios within rounds).
+round (the median of the ratios within rounds). A scene file with a key newer than the
+baseline's loader (NEWER_KEYS) runs on the baseline's side without it; with --current, today's
+engine also runs those scenes without it in the same rounds, so the report can divide like for
+like (the same physics) beside the scene as shipped (which pays for the newer feature).
 
 Usage: tools/scenes_baseline.py [--commit 0598513] [--current BENCH] [--rounds 5] [--out docs/scenes-baseline.json]
 tools/bench.sh runs it before its own measurements; it waits for a quiet machine (load < 0.5)
@@ -49,13 +52,16 @@ CMAKE_OPTIONS = ["-DCMAKE_BUILD_TYPE=Release", "-DDRAPE_NATIVE=ON", "-DDRAPE_WER
                  "-DDRAPE_BUILD_APPS=ON", "-DDRAPE_BUILD_PYTHON=OFF", "-DDRAPE_BUILD_TOOLS=OFF"]
 BENCH_SOURCE = "bench/bench_scenes.cpp"
 # Top-level scene keys added after the baseline commit, which its loader refuses: the baseline
-# runs each scene without them (the engine then had no such feature), today's build with them.
+# runs each scene without them (the engine then had no such feature), today's build with them,
+# and, for the scenes that had any, once more without them in the same rounds (like for like).
 NEWER_KEYS = ("contact_rims",)
 
 
 def scenes_without_newer_keys(scenes_dir, out_dir):
-    """Copies of the scene files with NEWER_KEYS removed, in out_dir; returns out_dir."""
+    """Copies of the scene files with NEWER_KEYS removed, in out_dir; returns out_dir and, per scene
+    that had any, the keys removed from it."""
     os.makedirs(out_dir)
+    removed = {}
     for name in os.listdir(scenes_dir):
         path = os.path.join(scenes_dir, name)
         if not name.endswith(".json"):
@@ -63,11 +69,14 @@ def scenes_without_newer_keys(scenes_dir, out_dir):
             continue
         with open(path) as f:
             scene = json.load(f)
-        for key in NEWER_KEYS:
-            scene.pop(key, None)
+        keys = [key for key in NEWER_KEYS if key in scene]
+        for key in keys:
+            del scene[key]
+        if keys:
+            removed[name[:-len(".json")]] = keys
         with open(os.path.join(out_dir, name), "w") as f:
             json.dump(scene, f, indent=2)
-    return out_dir
+    return out_dir, removed
 
 
 recorder = Recorder("scenes_baseline")
@@ -111,10 +120,15 @@ def main():
             stdout=subprocess.DEVNULL)
         command = [os.path.join(build, "bench", "drape_bench"), "--benchmark_filter=^BM_Scene/"]
         env = {"DRAPE_SCENES_DIR": scenes_dir}
-        old_env = {"DRAPE_SCENES_DIR": scenes_without_newer_keys(scenes_dir, os.path.join(tree, "scenes-baseline"))}
+        old_scenes, removed = scenes_without_newer_keys(scenes_dir, os.path.join(tree, "scenes-baseline"))
+        old_env = {"DRAPE_SCENES_DIR": old_scenes}
         sides = {"baseline": (command, old_env)}
         if args.current:
             sides["current"] = ([os.path.abspath(args.current), *command[1:]], env)
+            if removed:  # like for like: today's engine on the files the baseline ran, those scenes only
+                sides["current_without_newer_keys"] = (
+                    [os.path.abspath(args.current), f"--benchmark_filter=^BM_Scene/({'|'.join(sorted(removed))})/"],
+                    old_env)
         load_before = recorder.settle()
         measured = recorder.alternate(sides, args.rounds)
         load_after = list(os.getloadavg())
@@ -151,11 +165,17 @@ def main():
         "load_avg_after": load_after,
         "note": "measured on a shared 2-core machine; the load averages say how busy it was",
         "results": results,
+        "newer_keys_removed": removed,
     }
     if args.current:
         record["current"] = {"what": "today's drape_bench on the same scene files, each round run right before or "
                                      "after the baseline's", "binary": os.path.abspath(args.current),
                              "results": measured["current"]}
+    if "current_without_newer_keys" in measured:
+        record["current_without_newer_keys"] = {
+            "what": "today's drape_bench on the scene files as the baseline ran them (newer_keys_removed taken out), "
+                    "in the same rounds: the same physics on both sides",
+            "binary": os.path.abspath(args.current), "results": measured["current_without_newer_keys"]}
     recorder.write(record, args.out)
 
 

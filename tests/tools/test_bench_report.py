@@ -161,6 +161,30 @@ class ScenesAgainstTheirSheetsAlone(unittest.TestCase):
         [(_, _, _, _, by)] = self.report(with_alone=False).targets
         self.assertEqual(by, "8.3× short")
 
+    def test_a_scene_file_the_baseline_ran_without_a_newer_key_is_also_divided_like_for_like(self):
+        # the baseline ran the scene without contact_rims in 0.6 s; today's engine takes 0.75 s
+        # with it (0.6 / 0.75 = 0.80×, 12.5× short of 10×) and 0.48 s without it, as the baseline
+        # ran it (0.6 / 0.48 = 1.25×); the sheets alone 0.25 s (2.4×). A scene whose file
+        # the baseline ran as it is (fig05) shows one figure in both columns.
+        fig05 = "BM_Scene/fig05/threads:1/min_time:1.000"
+        few = self.scene_run(fig05, 0.3)
+        few.update(sheets=5)  # not a many-sheet scene: no verdict of its own
+        today = [self.scene_run(self.SCENE, 0.75), self.scene_run(self.ALONE, 0.25), few]
+        baseline = {"commit": "0598513000", "newer_keys_removed": {"rain_torus": ["contact_rims"]},
+                    "results": {"benchmarks": [self.scene_run(self.SCENE, 0.6), self.scene_run(fig05, 0.6)]},
+                    "current_without_newer_keys": {"results": {"benchmarks": [self.scene_run(self.SCENE, 0.48)]}}}
+        report = bench_report.Report({}, bench_report.runs_of({"benchmarks": today}), ".", ".", ".",
+                                     scenes_baseline=baseline)
+        report.scenes()
+        [(what, value, goal, verdict, by)] = report.targets
+        self.assertEqual(value, "0.80×")
+        self.assertEqual(by, "12.5× short; its sheets alone allow 2.4×; like for like (without contact_rims) 1.25×")
+        row = next(line for line in report.lines if line.startswith("| rain_torus | 1 |"))
+        self.assertIn("| 0.80× | 1.25× |", row)
+        row = next(line for line in report.lines if line.startswith("| fig05 | 1 |"))
+        self.assertIn("| 2.00× | 2.00× |", row)
+        self.assertTrue(any("`contact_rims`" in line for line in report.lines))
+
 
 class SpeedupShortfall(unittest.TestCase):
     def test_a_ratio_just_under_its_goal_is_short_by_a_named_amount(self):
