@@ -185,7 +185,10 @@ HWY_INLINE void column_springs(std::uint32_t cols, const Real* xa, const Real* y
 }
 
 // The rows terms 2–4 of terms/terms.h read when row q arrives, q − 2 to q (those the window
-// can read), as plain pointers.
+// can read), as plain pointers. last_rows fills them in the window it returns (not in a
+// LastRows of its own copied in at the end: GCC copied that with vector moves, whose loads
+// could not be forwarded from the pointers' scalar stores just made, a stall every row that
+// cost small cloth sheets a fifth of their step; BM_SceneSheetsAlone/rain_torus).
 template <class Real>
 struct LastRows {
   ConstVec3Ptr<Real> xs[3] = {}, vs[3] = {};
@@ -198,7 +201,8 @@ struct LastRows {
 
 template <class Real, class Access>
 RowWindow<Real, LastRows<Real>> last_rows(const RowWindow<Real, Access>& w, std::uint32_t q) {
-  LastRows<Real> rows;
+  RowWindow<Real, LastRows<Real>> out{{}, w.read_lo, w.own_lo, w.own_hi, w.scratch};
+  LastRows<Real>& rows = out.access;
   rows.first = q - 2;
   for (std::uint32_t slot = 0; slot < 3; ++slot) {
     const std::uint32_t i = q - 2 + slot;
@@ -207,7 +211,7 @@ RowWindow<Real, LastRows<Real>> last_rows(const RowWindow<Real, Access>& w, std:
     rows.vs[slot] = w.v(i);
     rows.fs[slot] = w.f(i);
   }
-  return {rows, w.read_lo, w.own_lo, w.own_hi, w.scratch};
+  return out;
 }
 
 // A run of springs that adds to one row and subtracts from another (shear's diagonals).
