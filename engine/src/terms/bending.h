@@ -21,24 +21,38 @@
 
 namespace drape::detail::bending {
 
-// One component of row q's own line: r_j = x_{j−1} − 2x_j + x_{j+1} for j = 1 … n−1 into
-// the scratch row (r_0 = r_n = 0), then f_j −= k (r_{j−1} − 2 r_j + r_{j+1}): each loop
-// writes one point per iteration through restrict pointers, so both vectorise.
+// One component of row q's own line: with r_j = x_{j−1} − 2x_j + x_{j+1} for j = 1 … n−1
+// (r_0 = r_n = 0), f_j −= k (r_{j−1} − 2 r_j + r_{j+1}). Each r is computed where it is used,
+// from x, not stored in a scratch row and loaded back: those loads, one element off the
+// stores just made, could not be forwarded from them (a stall per vector on a short row). The
+// same operations in the same order as through the scratch row, so the same bits.
 template <class Real>
-DRAPE_ROW_INLINE void along_line(std::uint32_t n, const Real* __restrict x, Real k, Real* __restrict r, Real* __restrict f) {
-  r[0] = r[n] = Real(0);
-  for (std::uint32_t j = 1; j < n; ++j) r[j] = x[j - 1] - Real(2) * x[j] + x[j + 1];
-  f[0] -= k * r[1];
-  for (std::uint32_t j = 1; j < n; ++j) f[j] -= k * (r[j - 1] - Real(2) * r[j] + r[j + 1]);
-  f[n] -= k * r[n - 1];
+DRAPE_ROW_INLINE Real second_difference(const Real* __restrict x, std::uint32_t j) {
+  return x[j - 1] - Real(2) * x[j] + x[j + 1];
 }
 
 template <class Real>
-DRAPE_ROW_INLINE void along_row(std::uint32_t n, ConstVec3Ptr<Real> x, Real k, Vec3Ptr<Real> r, Vec3Ptr<Real> f) {
+DRAPE_ROW_INLINE void along_line(std::uint32_t n, const Real* __restrict x, Real k, Real* __restrict f) {
+  const Real zero = Real(0);  // r_0 and r_n
+  const Real first = second_difference(x, 1), last = second_difference(x, n - 1);
+  f[0] -= k * first;
+  if (n == 2) {
+    f[1] -= k * (zero - Real(2) * first + zero);
+  } else {
+    f[1] -= k * (zero - Real(2) * first + second_difference(x, 2));
+    for (std::uint32_t j = 2; j + 1 < n; ++j)
+      f[j] -= k * (second_difference(x, j - 1) - Real(2) * second_difference(x, j) + second_difference(x, j + 1));
+    f[n - 1] -= k * (second_difference(x, n - 2) - Real(2) * last + zero);
+  }
+  f[n] -= k * last;
+}
+
+template <class Real>
+DRAPE_ROW_INLINE void along_row(std::uint32_t n, ConstVec3Ptr<Real> x, Real k, Vec3Ptr<Real> f) {
   if (n < 2) return;
-  along_line(n, x.x, k, r.x, f.x);
-  along_line(n, x.y, k, r.y, f.y);
-  along_line(n, x.z, k, r.z, f.z);
+  along_line(n, x.x, k, f.x);
+  along_line(n, x.y, k, f.y);
+  along_line(n, x.z, k, f.z);
 }
 
 // One component of the column lines through rows a, b, c (consecutive): r = xa − 2xb + xc
@@ -66,7 +80,7 @@ DRAPE_ROW_INLINE void across_rows(std::uint32_t cols, ConstVec3Ptr<Real> a, Cons
 // Row q has arrived: its own line's triples, then the column triples of rows q−2, q−1, q.
 template <class Real, class Window>
 DRAPE_ROW_INLINE void arrive(Real k, std::uint32_t n, const Window& w, std::uint32_t q) {
-  if (w.owns(q)) along_row(n, w.x(q), k, w.scratch, w.f(q));
+  if (w.owns(q)) along_row(n, w.x(q), k, w.f(q));
   if (q < 2 || q - 2 < w.read_lo) return;
   const bool ta = w.owns(q - 2), tb = w.owns(q - 1), tc = w.owns(q);
   const auto a = w.x(q - 2), b = w.x(q - 1), c = w.x(q);
