@@ -575,10 +575,10 @@ class Report:
                 keys = sorted({k for ks in removed.values() for k in ks})
                 intro += (f" The scene files {', '.join(sorted(removed))} use {', '.join(f'`{k}`' for k in keys)}, "
                           f"which the baseline's engine did not have: its side ran them without, and so did today's "
-                          f"engine once more, in the same rounds. *Like for like* is the baseline's time over that run's, "
-                          f"round by round as ×: the same physics on both sides; × is the scene as shipped, what a user runs, and includes "
-                          f"what the newer feature costs. For the other scenes both sides ran the same file: the two "
-                          f"are one figure.")
+                          f"engine once more, in the same rounds. *Like for like* is the baseline's time over that "
+                          f"run's, round by round as ×: the same physics on both sides; × is the scene as shipped, "
+                          f"what a user runs, and includes what the newer feature costs. For the other scenes both "
+                          f"sides ran the same file: the two are one figure.")
         else:
             intro += " No baseline (docs/scenes-baseline.json, written by `tools/scenes_baseline.py`) was found."
         if record and any("iterations:1" in b.get("name", "") for b in record.get("results", {}).get("benchmarks", [])):
