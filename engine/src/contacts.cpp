@@ -1229,17 +1229,18 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
   };
   std::size_t next = e0;
   while (next < e1) {
-    // The next chunk's entries due; those skipped have no triangle within R.
+    // The next chunk's entries due; those skipped have no triangle within R. Without a
+    // branch on the skip (which half the entries of a settling stack take, unpredictably):
+    // every entry is written at the chunk's end and counted only when due, and every
+    // point's last cell cleared, which a due entry's walk below sets again.
     std::size_t count = 0;
     for (; next < e1 && count < kChunk; ++next) {
-      if (travel < kept.until[next]) {
-        last[kept.point[next]] = kNoCell;
-        continue;
-      }
+      const std::uint32_t p = kept.point[next];
+      last[p] = kNoCell;
       due[count] = next;
-      due_point[count] = kept.point[next];
+      due_point[count] = p;
       due_cell[count] = kept.cell[next];
-      ++count;
+      count += !(travel < kept.until[next]);
     }
     // Whole vectors in lanes, the rest (and every entry without vectors) one by one.
     const std::size_t tested_end = count / lanes * lanes;
