@@ -511,16 +511,27 @@ template <class Real>
   consider(x, 2 * p00 + 1, p00, p11, p10, x00, x11, x10, best);
 }
 
-// Point p of q (at x) against `near`, its cells of s whose boxes are within R, with their
-// boxes' squared gaps: `last` (the point's nearest cell of the last substep, if it had
-// one) is tested first, else the cell whose box is nearest (the first of equally near
-// ones), then the others in their order while their boxes are still nearer than the best
-// triangle (a cell whose box is no nearer cannot hold a nearer one); the nearest triangle
-// repels, and becomes `last`.
+// The index of the first of the nearest boxes among near[0, found), found > 0.
+template <class Real>
+std::uint32_t nearest_box(const typename ContactScratch<Real>::Near* near, std::uint32_t found) {
+  std::uint32_t nearest = 0;
+  for (std::uint32_t e = 1; e < found; ++e)
+    if (near[e].gap2 < near[nearest].gap2) nearest = e;
+  return nearest;
+}
+
+// Point p of q (at x) against `near`, its cells of s whose boxes are within R (and any
+// farther ones: their boxes are no nearer than the bound below, so they are never tested),
+// with their boxes' squared gaps: `last` (the point's nearest cell of the last substep, if it
+// had one) is tested first, else the cell whose box is nearest (the first of equally near
+// ones; `nearest`, its index in `near`, when the caller knows it), then the others in their
+// order while their boxes are still nearer than the best triangle (a cell whose box is no
+// nearer cannot hold a nearer one); the nearest triangle repels, and becomes `last`.
 template <class Real>
 void repel_nearest(const Sheet<Real>& q, std::uint32_t p, V3<Real> x, const Sheet<Real>& s,
                    const typename ContactScratch<Real>::Near* near, std::uint32_t found, const ContactParams<Real>& prm,
-                   ContactForces<Real>& on_q, ContactForces<Real>& on_s, std::uint32_t& last) {
+                   ContactForces<Real>& on_q, ContactForces<Real>& on_s, std::uint32_t& last,
+                   std::uint32_t nearest = kNoCell) {
   const std::uint32_t cols = s.topology->cols();
   const Real R2 = prm.range * prm.range;
   Nearest<Real> best{};
@@ -530,9 +541,7 @@ void repel_nearest(const Sheet<Real>& q, std::uint32_t p, V3<Real> x, const Shee
   // bound tight at once), else the cell whose box is nearest.
   std::uint32_t first = last;
   if (first == kNoCell) {
-    std::uint32_t nearest = 0;
-    for (std::uint32_t e = 1; e < found; ++e)
-      if (near[e].gap2 < near[nearest].gap2) nearest = e;
+    if (nearest == kNoCell) nearest = nearest_box<Real>(near, found);
     first = near[nearest].corner;
   }
   test_cell(s, cols, x, first, best);
@@ -780,23 +789,22 @@ void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
         }
         // A point within R + skin joins the kept set at the cell whose box is nearest,
         // or at its nearest triangle's cell if that is within R.
-        std::uint32_t start = kNoCell;
+        std::uint32_t start = kNoCell, nearest = kNoCell;
         Real nearest_gap2 = 0;  // no triangle of s is nearer (every cell within R + skin is in `near`)
         if (kept && found > 0) {
-          std::uint32_t nearest = 0;
-          for (std::uint32_t e = 1; e < found; ++e)
-            if (near[e].gap2 < near[nearest].gap2) nearest = e;
+          nearest = nearest_box<Real>(near, found);
           start = near[nearest].corner;
           nearest_gap2 = near[nearest].gap2;
+          // repel_nearest passes over the cells beyond R (their boxes are no nearer than
+          // its bound), so the whole list serves; within R only if the nearest box is
+          if (!(nearest_gap2 < R2)) found = 0;
         }
-        if (lists || kept) {  // the list, then only the cells within R
-          if (lists) {
-            lists->begin[p] = std::uint32_t(lists->cell.size());
-            lists->count[p] = found;
-          }
+        if (lists) {  // the list, then only the cells within R
+          lists->begin[p] = std::uint32_t(lists->cell.size());
+          lists->count[p] = found;
           std::uint32_t within = 0;
           for (std::uint32_t e = 0; e < found; ++e) {
-            if (lists) lists->cell.push_back(near[e].corner);
+            lists->cell.push_back(near[e].corner);
             near[within] = near[e];
             within += near[e].gap2 < R2;
           }
@@ -804,7 +812,7 @@ void points_against_cells(const Sheet<Real>& q, const SheetBoxes<Real>& bq, cons
         }
         bool repelled = false;
         if (found > 0) {
-          repel_nearest(q, p, x, s, near, found, prm, on_q, on_s, last[p]);
+          repel_nearest(q, p, x, s, near, found, prm, on_q, on_s, last[p], nearest);
           repelled = last[p] != kNoCell;
           if (kept && repelled) start = last[p];
         }
