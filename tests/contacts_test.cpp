@@ -1513,6 +1513,19 @@ TEST(Contacts, WalkOverAnAlignedGridStaysAtItsVertexThroughRoundingInFloat) {
   expect_walk_stays_at_aligned_vertices<float>();
 }
 
+// Within test::for_each_target: the first target's values kept in `first`, every later
+// target's `got` the same bit for bit.
+template <class Real>
+void expect_bits_of_first_target(const std::vector<Real>& got, std::vector<Real>& first) {
+  if (first.empty()) {
+    first = got;
+    return;
+  }
+  ASSERT_EQ(got.size(), first.size());
+  for (std::size_t k = 0; k < got.size(); ++k)
+    ASSERT_EQ(std::memcmp(&got[k], &first[k], sizeof(Real)), 0) << "value " << k << ": " << got[k] << " vs " << first[k];
+}
+
 // Two equal grids, one 8 mm above the other, searched while flat: every point lies over a
 // vertex of the other sheet and its walk starts there. Then some of the lower sheet's
 // points rise 0.4 mm (within the skin, so the kept sets serve): the triangles around a
@@ -1568,14 +1581,72 @@ TEST(Contacts, WalkFromAnAlignedVertexFindsTheRaisedNeighboursTriangles) {
       }
     }
     EXPECT_GT(moved, b.size());  // many walks left their vertex
-    if (first.empty()) {
-      first = got;
-      return;
-    }
-    ASSERT_EQ(got.size(), first.size());
-    for (std::size_t k = 0; k < got.size(); ++k)
-      ASSERT_EQ(std::memcmp(&got[k], &first[k], sizeof(double)), 0) << "value " << k << ": " << got[k] << " vs " << first[k];
+    expect_bits_of_first_target(got, first);
   });
+}
+
+// Damping and friction taken in lanes (dissipate_lanes, AVX2 and AVX-512: a vector of
+// walked entries at a time, both sides of each choice computed and the lane's kept) against
+// dissipate one entry at a time (the other targets): two rumpled 24×24 sheets 3–9 mm apart,
+// sliding over each other at speeds from well under to well over what friction stops within
+// the step, approaching and parting, their points' masses spread over a factor of 30 (the
+// damping coefficient capped at the lighter, not at the heavier), and two patches pinned in
+// both sheets (no mass to dissipate), walked for 8 steps: the forces are the same bit for
+// bit on every instruction set. (The physics of dissipate itself is tested by hand above.)
+template <class Real>
+void expect_dissipation_same_on_every_target() {
+  std::vector<Real> first;
+  test::for_each_target([&](std::int64_t) {
+    SheetDef da;
+    da.m = da.n = 23;
+    da.width = da.height = 0.24;
+    SheetDef db = da;
+    db.center = {0.004, -0.003, 0.006};
+    db.orientation = quat_from_axis_angle({0, 0, 1}, 0.05);
+    Sheet<Real> a = build_sheet<Real>(da), b = build_sheet<Real>(db);
+    a.friction = 0.4;
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> bump(-0.003, 0.003), speed(-0.03, 0.03), scale(1.0, 30.0);
+    for (Real& z : b.position.z) z += Real(bump(rng));
+    const std::uint32_t cols = da.n + 1;
+    for (Sheet<Real>* s : {&a, &b})
+      for (std::uint32_t p = 0; p < s->size(); ++p) {
+        s->velocity.x[p] = Real(speed(rng));
+        s->velocity.y[p] = Real(speed(rng));
+        s->velocity.z[p] = Real(0.5 * speed(rng));
+        const std::uint32_t i = p / cols, j = p % cols;
+        const bool pinned = (i >= 4 && i < 8 && j >= 4 && j < 8) || (i >= 14 && i < 17 && j >= 15 && j < 19);
+        s->inv_mass[p] = pinned ? Real(0) : s->inv_mass[p] * Real(scale(rng));
+      }
+    ContactParams<Real> prm = ContactParams<Real>::make(0.005, 0.002, 1e-4, 6.0);
+    prm.rims = false;
+    prm.dt = Real(1e-3);
+    prm.damping = Real(5);
+    PairContacts<Real> work;
+    ContactScratch<Real> scratch;
+    std::vector<Real> got;
+    for (int step = 0; step < 8; ++step) {
+      SheetBoxes<Real> ba, bb;
+      build_boxes(a, ba);
+      build_boxes(b, bb);
+      pair_contacts(a, ba, b, bb, prm, work, scratch);
+      for (const ContactForces<Real>* f : {&work.on_a, &work.on_b})
+        for (std::size_t e = 0; e < f->size(); ++e) got.insert(got.end(), {Real(f->point[e]), f->fx[e], f->fy[e], f->fz[e]});
+      for (std::uint32_t p = 0; p < b.size(); ++p) {  // b moves on by its velocity
+        b.position.x[p] += prm.dt * b.velocity.x[p];
+        b.position.y[p] += prm.dt * b.velocity.y[p];
+        b.position.z[p] += prm.dt * b.velocity.z[p];
+      }
+    }
+    EXPECT_EQ(work.searches, 1u);  // the walk served every later step
+    ASSERT_GT(got.size(), 4 * a.size());
+    expect_bits_of_first_target(got, first);
+  });
+}
+
+TEST(Contacts, DampingAndFrictionInLanesGiveTheBitsOfOneEntryAtATime) { expect_dissipation_same_on_every_target<double>(); }
+TEST(Contacts, DampingAndFrictionInLanesGiveTheBitsOfOneEntryAtATimeInFloat) {
+  expect_dissipation_same_on_every_target<float>();
 }
 
 // The same over whole runs of a World, where a different force changes the trajectory:

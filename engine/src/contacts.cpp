@@ -247,22 +247,28 @@ Real exponent_at(Real dist, const ContactParams<Real>& prm) {
 template <class Real>
 Real force_exp(Real x) { return static_cast<Real>(lanes::exp_one(double(x))); }
 
-// The force f along the unit direction d on point q, with damping and friction, pushed to `on_q`, and
-// −w_k times it to corner k of the triangle `best` for each nonzero weight w_k, in that
-// order (best's corners' positions are not read).
+// The force f along the unit direction d on point q, plus the dissipative force t (damping and
+// friction, dissipate's or dissipate_lanes'), pushed to `on_q`, and −w_k times it to corner k
+// of the triangle `best` for each nonzero weight w_k, in that order (best's corners'
+// positions are not read).
 template <class Real>
-void push_repulsion(const Sheet<Real>& qs, std::uint32_t q, const Sheet<Real>& ss, const Nearest<Real>& best,
-                    V3<Real> d, Real f, const ContactParams<Real>& prm, ContactForces<Real>& on_q,
-                    ContactForces<Real>& on_s) {
+void push_repulsion(std::uint32_t q, const Nearest<Real>& best, V3<Real> d, Real f, V3<Real> t,
+                    const ContactParams<Real>& prm, ContactForces<Real>& on_q, ContactForces<Real>& on_s) {
   V3<Real> F{f * d.x, f * d.y, f * d.z};
-  if (prm.friction > 0 || prm.damping > 0) {
-    const V3<Real> t = dissipate(qs, q, ss, best, d, f, prm);
-    F = {F.x + t.x, F.y + t.y, F.z + t.z};
-  }
+  if (prm.friction > 0 || prm.damping > 0) F = {F.x + t.x, F.y + t.y, F.z + t.z};
   on_q.push(q, F.x, F.y, F.z);
   const Real wt[3] = {best.w.x, best.w.y, best.w.z};
   for (int k = 0; k < 3; ++k)
     if (wt[k] != 0) on_s.push(best.tri[k], -wt[k] * F.x, -wt[k] * F.y, -wt[k] * F.z);
+}
+
+// The same with its damping and friction computed here (dissipate).
+template <class Real>
+void push_repulsion(const Sheet<Real>& qs, std::uint32_t q, const Sheet<Real>& ss, const Nearest<Real>& best,
+                    V3<Real> d, Real f, const ContactParams<Real>& prm, ContactForces<Real>& on_q,
+                    ContactForces<Real>& on_s) {
+  const V3<Real> t = prm.friction > 0 || prm.damping > 0 ? dissipate(qs, q, ss, best, d, f, prm) : V3<Real>{0, 0, 0};
+  push_repulsion(q, best, d, f, t, prm, on_q, on_s);
 }
 
 template <class Real>
@@ -1007,6 +1013,7 @@ struct FirstTests {
   alignas(64) Real dist2[kSize], second[kSize], w[3][kSize];
   alignas(64) Real unit[3][kSize];  // p − q, then (force_lanes) divided by the distance
   alignas(64) Real force[kSize];    // the exponent, then (force_lanes) the force f
+  alignas(64) Real extra[3][kSize];  // dissipate_lanes: damping and friction, as dissipate gives them
   // 1 where the walk ends at this triangle without testing another cell, at a positive
   // distance: the closest point is off the cell's outer edges (points_walking's move test
   // finds no row or column to cross), or at a corner inside the grid that vertex_is_nearest
@@ -1187,6 +1194,89 @@ HWY_INLINE void force_lanes(const ContactParams<Real>& prm, std::size_t count, F
     if (within[k / N]) hn::Store(hn::Mul(c_over_xi, hn::Sub(hn::Load(d, t.force + k), tail)), d, t.force + k);
 }
 
+// dissipate's force (damping and friction, dissipate_motion) for entries [0, count) of `t`
+// (first_tests' triangle and weights, force_lanes' unit direction and force), count a
+// multiple of the lanes, into t.extra: each lane does dissipate's operations in their order,
+// both sides of each choice taken and the lane's one kept, so every entry gets the bits
+// dissipate gives it one at a time. Vectors with no lane within R are skipped, as
+// force_lanes skips them; a lane beyond R gets values nobody reads.
+template <class Real>
+HWY_INLINE void dissipate_lanes(const Sheet<Real>& q, const Sheet<Real>& s, const std::uint32_t* points,
+                                const std::uint32_t* cells, std::size_t count, const ContactParams<Real>& prm,
+                                FirstTests<Real>& t) {
+  const hn::ScalableTag<Real> d;
+  using V = hn::Vec<decltype(d)>;
+  const hn::RebindToSigned<decltype(d)> di;
+  using Index = hn::TFromD<decltype(di)>;
+  const std::size_t N = hn::Lanes(d);
+  auto indices = [&](const std::uint32_t* from) {
+    if constexpr (sizeof(Index) == 8)
+      return hn::PromoteTo(di, hn::LoadU(hn::Rebind<std::int32_t, decltype(d)>(), reinterpret_cast<const std::int32_t*>(from)));
+    else
+      return hn::BitCast(di, hn::LoadU(hn::RebindToUnsigned<decltype(d)>(), from));
+  };
+  auto velocity_at = [&](const Sheet<Real>& sheet, auto at) {
+    return V3s<Real, V>{hn::GatherIndex(d, sheet.velocity.x.data(), at), hn::GatherIndex(d, sheet.velocity.y.data(), at),
+                        hn::GatherIndex(d, sheet.velocity.z.data(), at)};
+  };
+  const auto cols = hn::Set(di, Index(s.topology->cols())), one_i = hn::Set(di, Index(1));
+  const V zero = hn::Zero(d), R2 = hn::Set(d, prm.range * prm.range), dt = hn::Set(d, prm.dt);
+  const V damping = hn::Set(d, prm.damping), friction = hn::Set(d, prm.friction);
+  const V share = hn::Set(d, Real(kDampingShare)), one = hn::Set(d, Real(1));
+  for (std::size_t k = 0; k < count; k += N) {
+    if (hn::AllFalse(d, hn::Lt(hn::Load(d, t.dist2 + k), R2))) continue;
+    // dissipate: the point's velocity less the triangle's at the weights, and Σ w²/m
+    const auto p = indices(points + k), c00 = indices(cells + k);
+    const auto c01 = hn::Add(c00, one_i), c10 = hn::Add(c00, cols), c11 = hn::Add(c10, one_i);
+    const auto second = hn::RebindMask(di, hn::Ne(hn::Load(d, t.second + k), zero));
+    const decltype(c00) tri[3] = {c00, hn::IfThenElse(second, c11, c01), hn::IfThenElse(second, c10, c11)};
+    V3s<Real, V> rel = velocity_at(q, p);
+    V inv_mass = hn::GatherIndex(d, q.inv_mass.data(), p);
+    for (int c = 0; c < 3; ++c) {
+      const V w = hn::Load(d, t.w[c] + k);
+      const V3s<Real, V> u = velocity_at(s, tri[c]);
+      rel = {hn::Sub(rel.x, hn::Mul(w, u.x)), hn::Sub(rel.y, hn::Mul(w, u.y)), hn::Sub(rel.z, hn::Mul(w, u.z))};
+      inv_mass = hn::Add(inv_mass, hn::Mul(hn::Mul(w, w), hn::GatherIndex(d, s.inv_mass.data(), tri[c])));
+    }
+    // dissipate_motion
+    const V3s<Real, V> n{hn::Load(d, t.unit[0] + k), hn::Load(d, t.unit[1] + k), hn::Load(d, t.unit[2] + k)};
+    V force = hn::Load(d, t.force + k);
+    const V normal = dot_lanes(rel, n);
+    V3s<Real, V> damped{zero, zero, zero};
+    if (prm.damping > 0) {
+      const V alpha_f = hn::Mul(damping, force);
+      const auto capped = hn::Gt(hn::Mul(hn::Mul(alpha_f, inv_mass), dt), share);
+      const V b = hn::IfThenElse(capped, hn::Div(share, hn::Mul(inv_mass, dt)), alpha_f);
+      const V pushed = hn::Mul(hn::Neg(b), normal), floor = hn::Neg(force);
+      const V change = hn::IfThenElse(hn::Lt(pushed, floor), floor, pushed);  // std::max(pushed, floor)
+      damped = {hn::Mul(change, n.x), hn::Mul(change, n.y), hn::Mul(change, n.z)};
+      force = hn::Add(force, change);
+    }
+    V3s<Real, V> out = damped;
+    if (prm.friction > 0) {
+      const V3s<Real, V> slip{hn::Sub(rel.x, hn::Mul(normal, n.x)), hn::Sub(rel.y, hn::Mul(normal, n.y)),
+                              hn::Sub(rel.z, hn::Mul(normal, n.z))};
+      const V slip2 = dot_lanes(slip, slip);
+      const V mu_f = hn::Mul(friction, force);
+      const V held = hn::Mul(hn::Mul(mu_f, inv_mass), dt);
+      const V stop = hn::Div(one, hn::Mul(inv_mass, dt)), slide = hn::Div(mu_f, hn::Sqrt(slip2));
+      const V neg_k = hn::Neg(hn::IfThenElse(hn::Lt(slip2, hn::Mul(held, held)), stop, slide));
+      const V3s<Real, V> rub{hn::Mul(neg_k, slip.x), hn::Mul(neg_k, slip.y), hn::Mul(neg_k, slip.z)};
+      const V3s<Real, V> sum = prm.damping > 0 ? V3s<Real, V>{hn::Sub(damped.x, hn::Mul(hn::Neg(neg_k), slip.x)),
+                                                               hn::Sub(damped.y, hn::Mul(hn::Neg(neg_k), slip.y)),
+                                                               hn::Sub(damped.z, hn::Mul(hn::Neg(neg_k), slip.z))}
+                                               : rub;
+      const auto slides = hn::Gt(slip2, zero);
+      out = {hn::IfThenElse(slides, sum.x, damped.x), hn::IfThenElse(slides, sum.y, damped.y),
+             hn::IfThenElse(slides, sum.z, damped.z)};
+    }
+    const auto moves = hn::Gt(inv_mass, zero);
+    hn::Store(hn::IfThenElseZero(moves, out.x), d, t.extra[0] + k);
+    hn::Store(hn::IfThenElseZero(moves, out.y), d, t.extra[1] + k);
+    hn::Store(hn::IfThenElseZero(moves, out.z), d, t.extra[2] + k);
+  }
+}
+
 // The entries [e0, e1) of `kept` (points of q against cells of s), in order: each walks
 // from its cell to a local minimum of the distance (KeptContacts), which becomes its cell,
 // and repels if within R. Self-contact (`ring` ≥ 0): cells within `ring` rows/columns of
@@ -1213,6 +1303,7 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
 #endif
   FirstTests<Real> first;
   constexpr std::size_t kChunk = FirstTests<Real>::kSize;
+  const bool dissipative = prm.friction > 0 || prm.damping > 0;
   const std::size_t lanes = vectors ? hn::Lanes(hn::ScalableTag<Real>()) : kChunk + 1;
   // An entry beyond R is walked again once the pair has travelled its slack (until): until
   // then no point of it can be within R, in the walk's view of the nearest triangle.
@@ -1256,6 +1347,7 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
       if (tested_end > 0) {
         first_tests(q, s, due_point, due_cell, tested_end, first);
         force_lanes(prm, tested_end, first);
+        if (dissipative) dissipate_lanes(q, s, due_point, due_cell, tested_end, prm, first);
       }
     }
     for (std::size_t k = 0; k < count; ++k) {
@@ -1269,7 +1361,8 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
           Nearest<Real> best;
           tested_triangle(k, cell, best);
           const V3<Real> unit{first.unit[0][k], first.unit[1][k], first.unit[2][k]};
-          push_repulsion(q, p, s, best, unit, first.force[k], prm, on_q, on_s);
+          push_repulsion(p, best, unit, first.force[k], {first.extra[0][k], first.extra[1][k], first.extra[2][k]}, prm,
+                         on_q, on_s);
         } else {
           last[p] = kNoCell;
           beyond(e, first.dist2[k]);
@@ -1347,7 +1440,8 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
         last[p] = cell;
         if (best.key == lanes_key && best.dist2 > 0) {  // the triangle the lanes tested: their force
           const V3<Real> unit{first.unit[0][k], first.unit[1][k], first.unit[2][k]};
-          push_repulsion(q, p, s, best, unit, first.force[k], prm, on_q, on_s);
+          push_repulsion(p, best, unit, first.force[k], {first.extra[0][k], first.extra[1][k], first.extra[2][k]}, prm,
+                         on_q, on_s);
         } else {  // moved, or on the triangle (its normal): the scalar force, from the corners
           if (best.key == lanes_key)
             for (int c = 0; c < 3; ++c) best.v[c] = at(s, best.tri[c]);
