@@ -1260,12 +1260,13 @@ HWY_INLINE void dissipate_lanes(const Sheet<Real>& q, const Sheet<Real>& s, cons
       const V mu_f = hn::Mul(friction, force);
       const V held = hn::Mul(hn::Mul(mu_f, inv_mass), dt);
       const V stop = hn::Div(one, hn::Mul(inv_mass, dt)), slide = hn::Div(mu_f, hn::Sqrt(slip2));
-      const V neg_k = hn::Neg(hn::IfThenElse(hn::Lt(slip2, hn::Mul(held, held)), stop, slide));
-      const V3s<Real, V> rub{hn::Mul(neg_k, slip.x), hn::Mul(neg_k, slip.y), hn::Mul(neg_k, slip.z)};
-      const V3s<Real, V> sum = prm.damping > 0 ? V3s<Real, V>{hn::Sub(damped.x, hn::Mul(hn::Neg(neg_k), slip.x)),
-                                                               hn::Sub(damped.y, hn::Mul(hn::Neg(neg_k), slip.y)),
-                                                               hn::Sub(damped.z, hn::Mul(hn::Neg(neg_k), slip.z))}
-                                               : rub;
+      const V kf = hn::IfThenElse(hn::Lt(slip2, hn::Mul(held, held)), stop, slide), neg_k = hn::Neg(kf);
+      // damped − k·slip with damping, (−k)·slip without: dissipate_motion's two returns
+      const V3s<Real, V> sum =
+          prm.damping > 0
+              ? V3s<Real, V>{hn::Sub(damped.x, hn::Mul(kf, slip.x)), hn::Sub(damped.y, hn::Mul(kf, slip.y)),
+                             hn::Sub(damped.z, hn::Mul(kf, slip.z))}
+              : V3s<Real, V>{hn::Mul(neg_k, slip.x), hn::Mul(neg_k, slip.y), hn::Mul(neg_k, slip.z)};
       const auto slides = hn::Gt(slip2, zero);
       out = {hn::IfThenElse(slides, sum.x, damped.x), hn::IfThenElse(slides, sum.y, damped.y),
              hn::IfThenElse(slides, sum.z, damped.z)};
