@@ -1021,6 +1021,15 @@ struct FirstTests {
   alignas(64) Real ends[kSize];
 };
 
+// A vector of point indices from `from` (one per lane), as the gathers of di's lanes take them.
+template <class DI>
+HWY_INLINE hn::Vec<DI> lane_indices(DI di, const std::uint32_t* from) {
+  if constexpr (sizeof(hn::TFromD<DI>) == 8)
+    return hn::PromoteTo(di, hn::LoadU(hn::Rebind<std::int32_t, DI>(), reinterpret_cast<const std::int32_t*>(from)));
+  else
+    return hn::BitCast(di, hn::LoadU(hn::RebindToUnsigned<DI>(), from));
+}
+
 template <class Real>
 HWY_INLINE void first_tests(const Sheet<Real>& q, const Sheet<Real>& s, const std::uint32_t* points,
                             const std::uint32_t* cells, std::size_t count, FirstTests<Real>& out) {
@@ -1028,12 +1037,7 @@ HWY_INLINE void first_tests(const Sheet<Real>& q, const Sheet<Real>& s, const st
   using V = hn::Vec<decltype(d)>;
   const hn::RebindToSigned<decltype(d)> di;
   using Index = hn::TFromD<decltype(di)>;
-  auto indices = [&](const std::uint32_t* from) {
-    if constexpr (sizeof(Index) == 8)
-      return hn::PromoteTo(di, hn::LoadU(hn::Rebind<std::int32_t, decltype(d)>(), reinterpret_cast<const std::int32_t*>(from)));
-    else
-      return hn::BitCast(di, hn::LoadU(hn::RebindToUnsigned<decltype(d)>(), from));
-  };
+  auto indices = [&](const std::uint32_t* from) { return lane_indices(di, from); };
   const auto cols = hn::Set(di, Index(s.topology->cols())), one = hn::Set(di, Index(1));
   // A corner's row and column come from a quotient in Real, rounded down exactly while
   // index + columns stays below 2^24 in float (2^53 in double): larger float sheets leave
@@ -1209,12 +1213,7 @@ HWY_INLINE void dissipate_lanes(const Sheet<Real>& q, const Sheet<Real>& s, cons
   const hn::RebindToSigned<decltype(d)> di;
   using Index = hn::TFromD<decltype(di)>;
   const std::size_t N = hn::Lanes(d);
-  auto indices = [&](const std::uint32_t* from) {
-    if constexpr (sizeof(Index) == 8)
-      return hn::PromoteTo(di, hn::LoadU(hn::Rebind<std::int32_t, decltype(d)>(), reinterpret_cast<const std::int32_t*>(from)));
-    else
-      return hn::BitCast(di, hn::LoadU(hn::RebindToUnsigned<decltype(d)>(), from));
-  };
+  auto indices = [&](const std::uint32_t* from) { return lane_indices(di, from); };
   auto velocity_at = [&](const Sheet<Real>& sheet, auto at) {
     return V3s<Real, V>{hn::GatherIndex(d, sheet.velocity.x.data(), at), hn::GatherIndex(d, sheet.velocity.y.data(), at),
                         hn::GatherIndex(d, sheet.velocity.z.data(), at)};
