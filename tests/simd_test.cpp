@@ -9,6 +9,7 @@
 #include <drape/drape.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -179,6 +180,46 @@ void expect_cell_boxes_hold_their_corners() {
 
 TEST(Simd, CellBoxesOfEveryTargetHoldTheirFourCorners) { expect_cell_boxes_hold_their_corners<double>(); }
 TEST(Simd, CellBoxesOfEveryTargetHoldTheirFourCornersInFloat) { expect_cell_boxes_hold_their_corners<float>(); }
+
+// The same boxes where the corners tie at zeros of both signs or are not numbers: each box is
+// std::min(std::min(a0, a1), std::min(b0, b1)) and the same with std::max, bit for bit (which
+// zero, which NaN), on every target: the kernels' min and max (simd/select-inl.h) are one
+// instruction on x86, whose operand order decides exactly these cases.
+template <class Real>
+void expect_cell_boxes_keep_std_min_and_max_bits() {
+  using Bits = std::conditional_t<std::is_same_v<Real, double>, std::uint64_t, std::uint32_t>;
+  const Real nan = std::numeric_limits<Real>::quiet_NaN();
+  const Real values[] = {Real(0), -Real(0), Real(1), -Real(1), nan, -nan};
+  // Row a holds every ordered pair of the values (x, y) as neighbours, row b the pairs in
+  // another order, so the cells meet every pair on a's side and many on both.
+  const std::size_t kinds = std::size(values), pairs = kinds * kinds, cells = 2 * pairs - 1;
+  std::vector<Real> a, b;
+  for (std::size_t k = 0; k < pairs; ++k) {
+    a.insert(a.end(), {values[k / kinds], values[k % kinds]});
+    const std::size_t other = (7 * k + 3) % pairs;
+    b.insert(b.end(), {values[other % kinds], values[other / kinds]});
+  }
+  const auto bits = [](Real v) { return std::bit_cast<Bits>(v); };
+  for_each_target([&](std::int64_t) {
+    std::vector<Real> lo(cells, Real(9)), hi(cells, Real(9));
+    detail::simd::cell_boxes(detail::simd::CellRow<Real>{cells, a.data(), b.data(), lo.data(), hi.data()});
+    for (std::size_t j = 0; j < cells; ++j) {
+      const Real want_lo = std::min(std::min(a[j], a[j + 1]), std::min(b[j], b[j + 1]));
+      const Real want_hi = std::max(std::max(a[j], a[j + 1]), std::max(b[j], b[j + 1]));
+      EXPECT_EQ(bits(lo[j]), bits(want_lo)) << detail::simd::target_name() << ", cell " << j << ": " << a[j] << " "
+                                            << a[j + 1] << " " << b[j] << " " << b[j + 1];
+      EXPECT_EQ(bits(hi[j]), bits(want_hi)) << detail::simd::target_name() << ", cell " << j << ": " << a[j] << " "
+                                            << a[j + 1] << " " << b[j] << " " << b[j + 1];
+    }
+  });
+}
+
+TEST(Simd, CellBoxesOfEveryTargetKeepStdMinAndMaxBitsAtSignedZerosAndNaN) {
+  expect_cell_boxes_keep_std_min_and_max_bits<double>();
+}
+TEST(Simd, CellBoxesOfEveryTargetKeepStdMinAndMaxBitsAtSignedZerosAndNaNInFloat) {
+  expect_cell_boxes_keep_std_min_and_max_bits<float>();
+}
 
 // Air on a row of cells (terms/air.h) against the law in long double, written with the
 // cell's unit normal n = c/|c| and area A = |c|/2 of the diagonals' cross product c: the

@@ -1181,7 +1181,7 @@ HWY_INLINE void force_lanes(const ContactParams<Real>& prm, std::size_t count, F
     const auto dist = hn::Sqrt(hn::Load(d, t.dist2 + k));
     for (int c = 0; c < 3; ++c) hn::Store(hn::Div(hn::Load(d, t.unit[c] + k), dist), d, t.unit[c] + k);
     const auto ratio = hn::Div(hn::Sub(h, dist), xi);
-    hn::Store(hn::IfThenElse(hn::Lt(cap, ratio), cap, ratio), d, t.force + k);
+    hn::Store(lanes::first_min(ratio, cap), d, t.force + k);
   }
   const hn::ScalableTag<double> dd;
   for (std::size_t k = 0; k < count; k += hn::Lanes(dd)) {  // force_exp
@@ -1247,7 +1247,7 @@ HWY_INLINE void dissipate_lanes(const Sheet<Real>& q, const Sheet<Real>& s, cons
       const auto capped = hn::Gt(hn::Mul(hn::Mul(alpha_f, inv_mass), dt), share);
       const V b = hn::IfThenElse(capped, hn::Div(share, hn::Mul(inv_mass, dt)), alpha_f);
       const V pushed = hn::Mul(hn::Neg(b), normal), floor = hn::Neg(force);
-      const V change = hn::IfThenElse(hn::Lt(pushed, floor), floor, pushed);  // std::max(pushed, floor)
+      const V change = lanes::first_max(pushed, floor);
       damped = {hn::Mul(change, n.x), hn::Mul(change, n.y), hn::Mul(change, n.z)};
       force = hn::Add(force, change);
     }

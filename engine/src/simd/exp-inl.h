@@ -11,6 +11,8 @@
 
 #include <hwy/highway.h>
 
+#include "simd/select-inl.h"
+
 HWY_BEFORE_NAMESPACE();
 namespace drape::detail::simd {
 namespace HWY_NAMESPACE {
@@ -30,8 +32,7 @@ template <class D, class V>
 HWY_INLINE V exp_lanes(D d, V x) {
   const hn::RebindToUnsigned<D> du;
   const V low = hn::Set(d, -700.0), high = hn::Set(d, 709.0);
-  x = hn::IfThenElse(hn::Lt(x, low), low, x);
-  x = hn::IfThenElse(hn::Lt(high, x), high, x);
+  x = first_min(first_max(x, low), high);
   const V shifter = hn::Set(d, 0x1.8p52);  // adding it rounds to an integer held in the low bits
   const V shifted = hn::Add(hn::Mul(x, hn::Set(d, 0x1.71547652b82fep0)), shifter);
   const auto k = hn::BitCast(du, shifted);

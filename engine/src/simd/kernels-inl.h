@@ -15,6 +15,7 @@
 #include <type_traits>
 
 #include "simd/kernels.h"
+#include "simd/select-inl.h"
 
 HWY_BEFORE_NAMESPACE();
 namespace drape::detail::simd {
@@ -301,8 +302,8 @@ HWY_INLINE void air_cells_of(const AirCells<Real>& r) {
 // box) by v, as Extent::include does; the bounds pass and the integrators' update share it.
 template <class V>
 HWY_INLINE void extent_take(V v, V& lo, V& hi) {
-  lo = hn::IfThenElse(hn::Lt(v, lo), v, lo);
-  hi = hn::IfThenElse(hn::Gt(v, hi), v, hi);
+  lo = first_min(lo, v);  // v < lo ? v : lo
+  hi = first_max(hi, v);  // hi < v ? v : hi
 }
 
 // Coordinate k of `into` grown by the lanes of lo and hi.
@@ -430,12 +431,6 @@ HWY_INLINE Extent<Real> points_extent_of(const Real* x, const Real* y, const Rea
   extent_of(z, count, 2, e);
   return e;
 }
-
-// std::min(x, y) is x unless y < x; std::max(x, y) is x unless x < y.
-template <class V>
-HWY_INLINE V first_min(V x, V y) { return hn::IfThenElse(hn::Lt(y, x), y, x); }
-template <class V>
-HWY_INLINE V first_max(V x, V y) { return hn::IfThenElse(hn::Lt(x, y), y, x); }
 
 template <class Real>
 HWY_INLINE void cell_boxes_of(const CellRow<Real>& r) {
