@@ -87,7 +87,8 @@ settle "the portable run"
   --rounds "$rounds" --out "$portable_json" -- "--benchmark_min_time=$min_time" \
   "--benchmark_filter=^BM_(Sheets48_f|HugeSheet|Fig13/semi_implicit_euler/f64/|Paper1000Points|CeilingSheets48($|Frames)|ArithmeticBound)"
 # Issue 13's floor against the bare world (docs/benchmarks-floor.json): BM_Feature_bare,
-# BM_Feature_obstacle and its friction and damping variants, and the stacked sheets with and
+# BM_Feature_obstacle and its friction and damping variants, the bare kernel (issue 6's overhead of
+# the World around it, judged from these rounds too), and the stacked sheets with and
 # without friction and damping between them, from the native binary in alternating rounds of one
 # repetition each (tools/floor_pair.py). In the main run they are repetitions minutes apart,
 # and a slow spell during one of them once moved the floor's price from +11 % to +41 %; the report

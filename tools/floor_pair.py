@@ -13,7 +13,9 @@ tools/bench_report.py shows the fastest of each benchmark's rounds and judges th
 over the rounds of the price within a round. The stacked sheets in contact with friction and
 damping between them (issue 13's pricing of the contact terms) are paired the same way against
 the plain stack, and the same floor in the machine ceiling (bench/bench_ceiling.cpp) against the
-ceiling's bare step, which prices the floor's own arithmetic with no engine around it.
+ceiling's bare step, which prices the floor's own arithmetic with no engine around it. The bare
+world is paired with the bare kernel (BM_Feature_kernel_only) too, for issue 6's overhead of the
+World around the kernel, which the report judges from these rounds as well.
 
 Usage: tools/floor_pair.py --bench BENCH [--rounds 5] [--out docs/benchmarks-floor.json]
                            [--benchmarks BM_Feature_bare BM_Feature_obstacle ...]
@@ -31,7 +33,8 @@ recorder = Recorder("floor_pair")
 BENCHMARKS = ["BM_Feature_bare", "BM_Feature_obstacle", "BM_Feature_obstacle_friction", "BM_Feature_obstacle_damping",
               "BM_CeilingSheets48", "BM_CeilingSheets48Floor/full_gradient:0", "BM_CeilingSheets48Floor/full_gradient:1",
               "BM_World48SheetsInContact/1/real_time", "BM_World48SheetsInContactDissipative/0/real_time",
-              "BM_World48SheetsInContactDissipative/1/real_time", "BM_World48SheetsInContactDissipative/2/real_time"]
+              "BM_World48SheetsInContactDissipative/1/real_time", "BM_World48SheetsInContactDissipative/2/real_time",
+              "BM_Feature_kernel_only"]
 
 
 def main():
