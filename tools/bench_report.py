@@ -245,6 +245,7 @@ class Report:
                  scenes_baseline=None, scenes_dir="scenes", simd_baseline=None, floor=None):
         self.context, self.runs = context, runs
         self.floor = floor  # tools/floor_pair.py's JSON, or None
+        self.floor_runs = runs_of(floor) if floor else {}  # its runs by name, every round kept
         self.simd_baseline = simd_baseline  # tools/simd_baseline.py's JSON, or None
         self.scenes_baseline = scenes_baseline  # tools/scenes_baseline.py's JSON, or None
         self.scenes_dir = scenes_dir
@@ -987,7 +988,7 @@ class Report:
         self.out("")
         # judged from tools/floor_pair.py's alternating rounds where it ran both (the main run's
         # repetitions of the two are minutes apart, and one slow repetition flipped the verdict)
-        paired = runs_of(self.floor) if self.floor else {}
+        paired = self.floor_runs
         paired_bare, paired_kernel = paired.get("BM_Feature_bare"), paired.get("BM_Feature_kernel_only")
         kernel = found.get("kernel_only")
         over = None
@@ -1070,7 +1071,7 @@ class Report:
         fold = {k: self.runs.get(f"BM_SelfCollisionFold/{k}/real_time") for k in (0, 1)}
         # the floor's verdict: only from tools/floor_pair.py's alternating rounds, never from the main run,
         # whose bare and floor repetitions are minutes apart and see different slow spells
-        paired = runs_of(self.floor) if self.floor else {}
+        paired = self.floor_runs
         bare, floor = paired.get("BM_Feature_bare"), paired.get("BM_Feature_obstacle")
         rub = paired.get("BM_Feature_obstacle_friction")
         damp = paired.get("BM_Feature_obstacle_damping")
