@@ -83,7 +83,7 @@ TEST(SceneFile, EveryBadInputNamesFilePathAndProblem) {
   const Case cases[] = {
       {"{\"frames\": 1,\n  \"sheets\": [}", "test.json:2:14: syntax error"},
       {R"({"frames": 1})", "test.json: sheets: missing (required)"},
-      {R"({"sheets": [{)" + sheet + "}]}", "test.json: frames: missing: give frames or duration"},
+      {R"({"sheets": [{)" + sheet + "}]}", "test.json: frames: missing: the scene needs frames or duration (--frames on the command line only overrides them)"},
       {R"({"frames": 1, "sheets": [{"grid": [4, 4], "size": [1, 1]}]})", "test.json: sheets[0].stiffness: missing"},
       {R"({"frames": "ten", "sheets": [{)" + sheet + "}]}", "test.json: frames: must be a number, got a string"},
       {R"({"frames": 1, "sheets": [{)" + sheet + R"(, "colour": 1}]})", "test.json: sheets[0].colour: unknown key"},

@@ -691,7 +691,7 @@ Scene parse_scene(std::string_view text, const std::string& file, std::span<cons
     if (frames > 1e7) top.child("duration").fail("gives more than 10^7 frames");
     scene.frames = int(std::max(1.0, frames));
   } else {
-    top.child("frames").fail("missing: give frames or duration");
+    top.child("frames").fail("missing: the scene needs frames or duration (--frames on the command line only overrides them)");
   }
   const Node sheets = top.required("sheets");
   for (std::size_t k = 0, count = sheets.array(1); k < count; ++k) {
