@@ -294,10 +294,34 @@ TEST(SceneFile, SetOverrideOnAMissingPathNamesIt) {
   EXPECT_EQ(error("output.dir"), "m.json: --set output.dir: the scene has no \"output\"");
   EXPECT_EQ(error("frames[0]"), "m.json: --set frames[0]: \"[0]\" needs an array, the scene has a number");
   EXPECT_EQ(error("sheets[x].m"), "m.json: --set sheets[x].m: \"[x]\" is not an index or [*]");
-  EXPECT_EQ(error("sheets[*].stifness"), "m.json: sheets[0].stifness: unknown key (known here: name, grid, size, "
+  EXPECT_EQ(error("sheets[*].stifness"), "m.json: sheets[0].stifness: unknown key (did you mean \"stiffness\"? known "
+                                         "here: name, grid, size, "
                                          "center, orientation, velocity, mass, point_mass, stiffness, "
                                          "stiffness_regions, rest_length, damping, anchors, pins, self_collision, shear, "
                                          "bending, air, friction)");
+}
+
+// An unknown key that misspells a known one by a few edits (a third of its length, at least
+// one: a letter added, dropped, changed, or two swapped) is named with the key it likely
+// means; a key near none is not, nor is one nearer another than the obvious word.
+TEST(SceneFile, UnknownKeyNamesTheKnownKeyItMisspells) {
+  const std::string sheet = R"("grid": [4, 4], "size": [1, 1], "stiffness": 50)";
+  auto top = [&](const std::string& field) { return error_of(R"({"frames": 1, )" + field + R"(, "sheets": [{)" + sheet + "}]}"); };
+  auto in_sheet = [&](const std::string& field) { return error_of(R"({"frames": 1, "sheets": [{)" + sheet + ", " + field + "}]}"); };
+  const struct {
+    std::string message, expected;
+  } cases[] = {
+      {in_sheet(R"("slef_collision": true)"), "test.json: sheets[0].slef_collision: unknown key (did you mean \"self_collision\"? known here: name,"},
+      {in_sheet(R"("frction": 0.5)"), "test.json: sheets[0].frction: unknown key (did you mean \"friction\"? known here:"},
+      {in_sheet(R"("Mass": 2)"), "test.json: sheets[0].Mass: unknown key (did you mean \"mass\"? known here:"},
+      {top(R"("contact_thicknes": 0.01)"), "test.json: contact_thicknes: unknown key (did you mean \"contact_thickness\"? known here:"},
+      {top(R"("dtt": 0.001)"), "test.json: dtt: unknown key (did you mean \"dt\"? known here:"},
+      // too far from every key: no guess
+      {in_sheet(R"("colour": 1)"), "test.json: sheets[0].colour: unknown key (known here: name,"},
+      {in_sheet(R"("stiff": 1)"), "test.json: sheets[0].stiff: unknown key (known here: name,"},
+      {top(R"("frame_rate": 30)"), "test.json: frame_rate: unknown key (known here: description,"},
+  };
+  for (const auto& [message, expected] : cases) EXPECT_EQ(message.rfind(expected, 0), 0u) << message;
 }
 
 // Inputs the fuzzer (scene_fuzz) found or that are built like them: each is refused with a

@@ -11,6 +11,8 @@
 #include <initializer_list>
 #include <numbers>
 #include <sstream>
+#include <string_view>
+#include <vector>
 
 #include "checkpoint.h"
 
@@ -82,6 +84,36 @@ std::string number_text(double v) {
   return out.str();
 }
 
+// The edits (insert, delete, replace a character, or swap two neighbours) that turn a into
+// b: the optimal string alignment distance (Damerau–Levenshtein without repeated edits of a
+// substring), enough to tell a typo from another word.
+std::size_t edit_distance(std::string_view a, std::string_view b) {
+  std::vector<std::vector<std::size_t>> d(a.size() + 1, std::vector<std::size_t>(b.size() + 1));
+  for (std::size_t i = 0; i <= a.size(); ++i) d[i][0] = i;
+  for (std::size_t j = 0; j <= b.size(); ++j) d[0][j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i)
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1]) d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+    }
+  return d[a.size()][b.size()];
+}
+
+// The known key an unknown one most likely misspells: the nearest within a third of its
+// length (at least one edit), the first of equally near ones; empty when none is that near.
+std::string_view likely_key(std::string_view key, std::initializer_list<std::string_view> known) {
+  std::string_view best;
+  std::size_t best_distance = std::max<std::size_t>(1, key.size() / 3) + 1;
+  for (auto k : known) {
+    const std::size_t distance = edit_distance(key, k);
+    if (distance < best_distance) {
+      best = k;
+      best_distance = distance;
+    }
+  }
+  return best;
+}
+
 // Reading context: the file name for messages and one JSON node with its path.
 class Node {
  public:
@@ -101,7 +133,9 @@ class Node {
       if (std::find(known.begin(), known.end(), item.key()) == known.end()) {
         std::string list;
         for (auto k : known) list += (list.empty() ? "" : ", ") + std::string(k);
-        child(item.key()).fail("unknown key (known here: " + list + ")");
+        const std::string_view likely = likely_key(item.key(), known);
+        const std::string guess = likely.empty() ? "" : "did you mean \"" + std::string(likely) + "\"? ";
+        child(item.key()).fail("unknown key (" + guess + "known here: " + list + ")");
       }
     }
   }
