@@ -1019,6 +1019,8 @@ struct FirstTests {
   // finds no row or column to cross), or at a corner inside the grid that vertex_is_nearest
   // takes.
   alignas(64) Real ends[kSize];
+  // (push_lanes) the force on the point, F = f·unit (+ extra), as push_repulsion computes it
+  alignas(64) Real push[3][kSize];
 };
 
 // A vector of point indices from `from` (one per lane), as the gathers of di's lanes take them.
@@ -1198,6 +1200,26 @@ HWY_INLINE void force_lanes(const ContactParams<Real>& prm, std::size_t count, F
     if (within[k / N]) hn::Store(hn::Mul(c_over_xi, hn::Sub(hn::Load(d, t.force + k), tail)), d, t.force + k);
 }
 
+// push_repulsion's force on the point for entries [0, count) of `t` (first_tests',
+// force_lanes' and, with `dissipative`, dissipate_lanes'), count a multiple of the lanes,
+// into t.push: each lane does push_repulsion's operations in their order, so the same bits.
+// Vectors with no lane within R are skipped.
+template <class Real>
+HWY_INLINE void push_lanes(const ContactParams<Real>& prm, std::size_t count, bool dissipative, FirstTests<Real>& t) {
+  const hn::ScalableTag<Real> d;
+  const std::size_t N = hn::Lanes(d);
+  const auto R2 = hn::Set(d, prm.range * prm.range);
+  for (std::size_t k = 0; k < count; k += N) {
+    if (hn::AllFalse(d, hn::Lt(hn::Load(d, t.dist2 + k), R2))) continue;
+    const auto f = hn::Load(d, t.force + k);
+    for (int c = 0; c < 3; ++c) {
+      auto F = hn::Mul(f, hn::Load(d, t.unit[c] + k));
+      if (dissipative) F = hn::Add(F, hn::Load(d, t.extra[c] + k));
+      hn::Store(F, d, t.push[c] + k);
+    }
+  }
+}
+
 // dissipate's force (damping and friction, dissipate_motion) for entries [0, count) of `t`
 // (first_tests' triangle and weights, force_lanes' unit direction and force), count a
 // multiple of the lanes, into t.extra: each lane does dissipate's operations in their order,
@@ -1316,14 +1338,18 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
   std::uint32_t due_point[kChunk], due_cell[kChunk];
   // The triangle the lanes found nearest for entry k at `cell` (its corners' positions not
   // read), as test_cell from an empty best finds it.
-  auto tested_triangle = [&](std::size_t k, std::uint32_t cell, Nearest<Real>& best) {
+  // Its corners: triangle 0 of the cell is (00, 01, 11), triangle 1 (00, 11, 10).
+  auto corners_of = [&](std::size_t k, std::uint32_t cell, std::uint32_t (&tri)[3]) {
     const std::uint32_t p00 = cell, p01 = p00 + 1, p10 = p00 + cols, p11 = p10 + 1;
     const bool second = first.second[k] != 0;
+    tri[0] = p00;
+    tri[1] = second ? p11 : p01;
+    tri[2] = second ? p10 : p11;
+  };
+  auto tested_triangle = [&](std::size_t k, std::uint32_t cell, Nearest<Real>& best) {
     best.dist2 = first.dist2[k];
-    best.key = 2 * p00 + (second ? 1 : 0);
-    best.tri[0] = p00;
-    best.tri[1] = second ? p11 : p01;
-    best.tri[2] = second ? p10 : p11;
+    best.key = 2 * cell + (first.second[k] != 0 ? 1 : 0);
+    corners_of(k, cell, best.tri);
     best.w = {first.w[0][k], first.w[1][k], first.w[2][k]};
   };
   std::size_t next = e0;
@@ -1348,8 +1374,14 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
         first_tests(q, s, due_point, due_cell, tested_end, first);
         force_lanes(prm, tested_end, first);
         if (dissipative) dissipate_lanes(q, s, due_point, due_cell, tested_end, prm, first);
+        push_lanes(prm, tested_end, dissipative, first);
       }
     }
+    // Room for the pushes of the chunk's first tested_end entries, made in order: each pushes
+    // at most its point to on_q and three corners to on_s (to on_q too in self-contact),
+    // whether the lanes finish it or it walks, so the unchecked pushes below stay in it.
+    on_q.reserve_more(4 * tested_end);
+    on_s.reserve_more(3 * tested_end);
     for (std::size_t k = 0; k < count; ++k) {
       const std::size_t e = due[k];
       const std::uint32_t p = due_point[k];
@@ -1358,11 +1390,16 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
         kept.until[e] = kAlways;
         if (first.dist2[k] < R2) {
           last[p] = cell;
-          Nearest<Real> best;
-          tested_triangle(k, cell, best);
-          const V3<Real> unit{first.unit[0][k], first.unit[1][k], first.unit[2][k]};
-          push_repulsion(p, best, unit, first.force[k], {first.extra[0][k], first.extra[1][k], first.extra[2][k]}, prm,
-                         on_q, on_s);
+          // push_repulsion's pushes, in its order and with its operations, from the force the
+          // lanes computed as it does (push_lanes), into the room made for them
+          const Real F[3] = {first.push[0][k], first.push[1][k], first.push[2][k]};
+          on_q.push_unchecked(p, F[0], F[1], F[2]);
+          std::uint32_t tri[3];
+          corners_of(k, cell, tri);
+          for (int w = 0; w < 3; ++w) {
+            const Real weight = first.w[w][k];
+            if (weight != 0) on_s.push_unchecked(tri[w], -weight * F[0], -weight * F[1], -weight * F[2]);
+          }
         } else {
           last[p] = kNoCell;
           beyond(e, first.dist2[k]);

@@ -110,13 +110,20 @@ struct ContactForces {
   void clear() { count = 0; }
   void push(std::uint32_t p, Real x, Real y, Real z) {
     if (count == point.size()) grow();
+    push_unchecked(p, x, y, z);
+  }
+  std::size_t size() const { return count; }
+  // Room for n more pushes, then push_unchecked as many times at most.
+  void reserve_more(std::size_t n) {
+    while (count + n > point.size()) grow();
+  }
+  void push_unchecked(std::uint32_t p, Real x, Real y, Real z) {
     point[count] = p;
     fx[count] = x;
     fy[count] = y;
     fz[count] = z;
     ++count;
   }
-  std::size_t size() const { return count; }
   // other's entries after these, in their order
   void append(const ContactForces& other) {
     const std::size_t total = count + other.count;
