@@ -1336,9 +1336,8 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
   // The entries due, a chunk at a time: their indices, points and cells, contiguous.
   std::size_t due[kChunk];
   std::uint32_t due_point[kChunk], due_cell[kChunk];
-  // The triangle the lanes found nearest for entry k at `cell` (its corners' positions not
-  // read), as test_cell from an empty best finds it.
-  // Its corners: triangle 0 of the cell is (00, 01, 11), triangle 1 (00, 11, 10).
+  // The corners of the triangle the lanes found nearest for entry k at `cell`: triangle 0 of
+  // the cell is (00, 01, 11), triangle 1 (00, 11, 10).
   auto corners_of = [&](std::size_t k, std::uint32_t cell, std::uint32_t (&tri)[3]) {
     const std::uint32_t p00 = cell, p01 = p00 + 1, p10 = p00 + cols, p11 = p10 + 1;
     const bool second = first.second[k] != 0;
@@ -1346,6 +1345,7 @@ void points_walking(const Sheet<Real>& q, const Sheet<Real>& s, int ring, KeptCo
     tri[1] = second ? p11 : p01;
     tri[2] = second ? p10 : p11;
   };
+  // That triangle (its corners' positions not read), as test_cell from an empty best finds it.
   auto tested_triangle = [&](std::size_t k, std::uint32_t cell, Nearest<Real>& best) {
     best.dist2 = first.dist2[k];
     best.key = 2 * cell + (first.second[k] != 0 ? 1 : 0);
