@@ -324,6 +324,32 @@ TEST(SceneFile, UnknownKeyNamesTheKnownKeyItMisspells) {
   for (const auto& [message, expected] : cases) EXPECT_EQ(message.rfind(expected, 0), 0u) << message;
 }
 
+// An unknown integrator, obstacle type or constraint type is refused with the names the
+// loader knows and, where it is a few edits from one of them, that one first.
+TEST(SceneFile, UnknownNameListsTheKnownOnesAndTheOneItMisspells) {
+  const std::string sheet = R"({"grid": [4, 4], "size": [1, 1], "stiffness": 50})";
+  const struct {
+    std::string text, expected;
+  } cases[] = {
+      {R"({"frames": 1, "integrator": "semi_implict_euler", "sheets": [)" + sheet + "]}",
+       "test.json: integrator: unknown integrator \"semi_implict_euler\" (did you mean \"semi_implicit_euler\"? known: "
+       "forward_euler, semi_implicit_euler,"},
+      {R"({"frames": 1, "integrator": "leapfrog", "sheets": [)" + sheet + "]}",
+       "test.json: integrator: unknown integrator \"leapfrog\" (known: forward_euler, semi_implicit_euler,"},
+      {R"({"frames": 1, "sheets": [)" + sheet + R"(], "obstacles": [{"type": "sphear"}]})",
+       "test.json: obstacles[0].type: unknown obstacle type \"sphear\" (did you mean \"sphere\"? known: plane, sphere,"},
+      {R"({"frames": 1, "sheets": [)" + sheet + R"(], "obstacles": [{"type": "cone"}]})",
+       "test.json: obstacles[0].type: unknown obstacle type \"cone\" (known: plane, sphere,"},
+      {R"({"frames": 1, "sheets": [)" + sheet + R"(], "constraints": [{"type": "rial"}]})",
+       "test.json: constraints[0].type: unknown constraint type \"rial\" (did you mean \"rail\"? known: point_to_point, "
+       "path, frame, rail)"},
+  };
+  for (const auto& c : cases) {
+    const std::string message = error_of(c.text);
+    EXPECT_EQ(message.rfind(c.expected, 0), 0u) << message;
+  }
+}
+
 // Inputs the fuzzer (scene_fuzz) found or that are built like them: each is refused with a
 // message naming its file, or read; the sanitizer build checks memory and arithmetic.
 TEST(SceneFile, FuzzRegressionInputsAreRefusedOrReadCleanly) {

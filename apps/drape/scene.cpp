@@ -10,6 +10,7 @@
 #include <fstream>
 #include <initializer_list>
 #include <numbers>
+#include <span>
 #include <sstream>
 #include <string_view>
 #include <vector>
@@ -99,19 +100,29 @@ std::size_t edit_distance(std::string_view a, std::string_view b) {
   return d[a.size()][b.size()];
 }
 
-// The known key an unknown one most likely misspells: the nearest within a third of its
+// The known word an unknown one most likely misspells: the nearest within a third of its
 // length (at least one edit), the first of equally near ones; empty when none is that near.
-std::string_view likely_key(std::string_view key, std::initializer_list<std::string_view> known) {
+std::string_view likely_word(std::string_view word, std::span<const std::string_view> known) {
   std::string_view best;
-  std::size_t best_distance = std::max<std::size_t>(1, key.size() / 3) + 1;
+  std::size_t best_distance = std::max<std::size_t>(1, word.size() / 3) + 1;
   for (auto k : known) {
-    const std::size_t distance = edit_distance(key, k);
+    const std::size_t distance = edit_distance(word, k);
     if (distance < best_distance) {
       best = k;
       best_distance = distance;
     }
   }
   return best;
+}
+
+// `known` as a list for a message ("a, b, c"), after a guess at the one `word` misspells if
+// there is one near it (likely_word): `did you mean "b"? known: a, b, c`.
+std::string known_words(std::string_view word, std::span<const std::string_view> known, std::string_view label) {
+  std::string list;
+  for (auto k : known) list += (list.empty() ? "" : ", ") + std::string(k);
+  const std::string_view likely = likely_word(word, known);
+  const std::string guess = likely.empty() ? "" : "did you mean \"" + std::string(likely) + "\"? ";
+  return guess + std::string(label) + ": " + list;
 }
 
 // Reading context: the file name for messages and one JSON node with its path.
@@ -130,13 +141,8 @@ class Node {
   void expect_object(std::initializer_list<std::string_view> known) const {
     if (!j_.is_object()) fail("must be an object, got " + type_name(j_));
     for (const auto& item : j_.items()) {
-      if (std::find(known.begin(), known.end(), item.key()) == known.end()) {
-        std::string list;
-        for (auto k : known) list += (list.empty() ? "" : ", ") + std::string(k);
-        const std::string_view likely = likely_key(item.key(), known);
-        const std::string guess = likely.empty() ? "" : "did you mean \"" + std::string(likely) + "\"? ";
-        child(item.key()).fail("unknown key (" + guess + "known here: " + list + ")");
-      }
+      if (std::find(known.begin(), known.end(), item.key()) == known.end())
+        child(item.key()).fail("unknown key (" + known_words(item.key(), {known.begin(), known.size()}, "known here") + ")");
     }
   }
   bool has(const char* key) const { return j_.contains(key); }
@@ -407,13 +413,12 @@ ObstacleDef read_obstacle(const Node& node) {
   const std::string type = node.required("type").string();
   ObstacleDef d;
   std::optional<ObstacleShape> shape;
-  std::string known;  // the shapes the engine names, in the enum's order
+  std::vector<std::string_view> known;  // the shapes the engine names, in the enum's order
   for (int k = 0; obstacle_shape_name(ObstacleShape(k)) != "unknown"; ++k) {
-    const std::string_view name = obstacle_shape_name(ObstacleShape(k));
-    known += (k ? ", " : "") + std::string(name);
-    if (name == type) shape = ObstacleShape(k);
+    known.push_back(obstacle_shape_name(ObstacleShape(k)));
+    if (known.back() == type) shape = ObstacleShape(k);
   }
-  if (!shape) node.child("type").fail("unknown obstacle type \"" + type + "\" (known: " + known + ")");
+  if (!shape) node.child("type").fail("unknown obstacle type \"" + type + "\" (" + known_words(type, known, "known") + ")");
   d.shape = *shape;
   switch (d.shape) {
     case ObstacleShape::Plane:
@@ -482,7 +487,8 @@ ConstraintDef read_constraint(const Node& node, const Scene& scene) {
     node.expect_object({"type", "sheet", "points", "stiffness", "rail"});
     c.kind = ConstraintKind::Rail;
   } else {
-    node.child("type").fail("unknown constraint type \"" + type + "\" (known: point_to_point, path, frame, rail)");
+    static constexpr std::string_view kinds[] = {"point_to_point", "path", "frame", "rail"};
+    node.child("type").fail("unknown constraint type \"" + type + "\" (" + known_words(type, kinds, "known") + ")");
   }
   auto points_of = [&](const char* key, SheetId sheet) {
     const SheetDef& s = scene.sheets[sheet.index];
@@ -703,7 +709,11 @@ Scene parse_scene(std::string_view text, const std::string& file, std::span<cons
   if (top.has("integrator")) {
     const std::string name = top.child("integrator").string();
     const auto integrator = integrator_from_name(name);
-    if (!integrator) top.child("integrator").fail("unknown integrator \"" + name + "\"");
+    if (!integrator) {
+      std::vector<std::string_view> known;
+      for (Integrator i : integrators()) known.push_back(integrator_name(i));
+      top.child("integrator").fail("unknown integrator \"" + name + "\" (" + known_words(name, known, "known") + ")");
+    }
     scene.world.integrator = *integrator;
   }
   read_world_knobs(top, scene.world);
