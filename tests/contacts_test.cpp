@@ -1779,10 +1779,11 @@ TEST(ContactMemory, PackedAndOneEntryAWordLayoutsReadBackTheSamePairs) {
 // and every sheet's travel: read back, they are the pair's and the sheets' own, and the
 // words written again are the same; the same words cut short are refused, leaving the
 // pairs and travel as they were.
-TEST(ContactMemory, LayoutThreeCarriesTheSkipsAndEverySheetsTravel) {
+TEST(ContactMemory, LayoutFourCarriesTheSkipsEverySheetsTravelAndWhenEachPairWasPresent) {
   auto [a, b] = close_sheets(7);
   for (double& z : b.position.z) z += 0.012;  // most points beyond R: their entries skip
-  const std::vector<PairContacts<double>> pairs = jostled_pair(a, b, true);
+  std::vector<PairContacts<double>> pairs = jostled_pair(a, b, true);
+  pairs[0].present_at = 5;
   const PairContacts<double>& p = pairs[0];
   ASSERT_GT(a.travel, 0.0);
   const auto skips = std::count_if(p.a_on_b.until.begin(), p.a_on_b.until.end(),
@@ -1790,11 +1791,12 @@ TEST(ContactMemory, LayoutThreeCarriesTheSkipsAndEverySheetsTravel) {
   ASSERT_GT(skips, 0);
   const std::array<const Sheet<double>*, 2> sheets{&a, &b};
   const auto words = write_contact_memory<double>(pairs, sheets);
-  ASSERT_EQ(words.front(), 3u);
+  ASSERT_EQ(words.front(), 4u);
   std::vector<PairContacts<double>> read;
   std::vector<SheetTravel<double>> travel;
   read_contact_memory<double>(words, sheets, read, travel);
   ASSERT_EQ(read.size(), 1u);
+  EXPECT_EQ(read[0].present_at, 5u);
   EXPECT_EQ(read[0].a_on_b.until, p.a_on_b.until);
   EXPECT_EQ(read[0].b_on_a.until, p.b_on_a.until);
   ASSERT_EQ(travel.size(), 2u);
@@ -1813,6 +1815,12 @@ TEST(ContactMemory, LayoutThreeCarriesTheSkipsAndEverySheetsTravel) {
   EXPECT_THROW(read_contact_memory<double>(cut, sheets, untouched, kept_travel), std::invalid_argument);
   EXPECT_EQ(write_contact_memory<double>(untouched, sheets), words);
   EXPECT_EQ(kept_travel.size(), 2u);
+  // Layout 3 has no substep a pair was last present: its pairs read as present at the one given.
+  const auto three = write_contact_memory<double>(pairs, sheets, 3);
+  EXPECT_EQ(three.size() + 1, words.size());
+  read_contact_memory<double>(three, sheets, read, travel, 9);
+  EXPECT_EQ(read[0].present_at, 9u);
+  EXPECT_EQ(read[0].a_on_b.until, p.a_on_b.until);
 }
 
 // In float, lists of positions pack two to a word as well: a WorldF stack in contact takes

@@ -16,8 +16,9 @@ namespace {
 // Bumped whenever the words below change. Layout 1 gave every list entry a word of its own;
 // layout 2 packs entries of 4 bytes or less (indices, flags, floats) two to a word, first
 // in the low half, and keeps doubles one to a word; layout 3 adds each kept set's skips
-// (KeptContacts::until) and every sheet's travel. All three are read.
-constexpr std::uint64_t kLayout = 3, kPacked = 2, kOneEntryAWord = 1;
+// (KeptContacts::until) and every sheet's travel; layout 4 each pair's last substep in the
+// world's list (PairContacts::present_at). All four are read.
+constexpr std::uint64_t kLayout = 4, kSkips = 3, kPacked = 2, kOneEntryAWord = 1;
 constexpr std::uint32_t kNone = ~std::uint32_t(0);
 
 [[noreturn]] void bad(const std::string& problem) { throw std::invalid_argument("drape: contact memory " + problem); }
@@ -220,6 +221,7 @@ std::vector<std::uint64_t> write_contact_memory(const std::vector<PairContacts<R
     w.word(p.resting);
     w.word(p.searches);
     w.word(std::uint64_t(std::int64_t(p.decided) + 1));
+    if (layout >= 4) w.word(p.present_at);
     for (const Vec3Array<Real>* at : {&p.made_at_a, &p.made_at_b}) {
       const Vec3Array<Real>& v = kept ? *at : none;
       w.list(v.x);
@@ -256,10 +258,12 @@ std::vector<std::uint64_t> write_contact_memory(const std::vector<PairContacts<R
 
 template <class Real>
 void read_contact_memory(std::span<const std::uint64_t> memory, std::span<const Sheet<Real>* const> sheets,
-                         std::vector<PairContacts<Real>>& pair_work, std::vector<SheetTravel<Real>>& travel) {
+                         std::vector<PairContacts<Real>>& pair_work, std::vector<SheetTravel<Real>>& travel,
+                         std::uint64_t present_at) {
   Reading<Real> in(memory);
   const std::uint64_t layout = in.word("its layout");
-  if (layout != kLayout && layout != kPacked && layout != kOneEntryAWord) bad("has another layout than this drape writes");
+  if (layout != kLayout && layout != kSkips && layout != kPacked && layout != kOneEntryAWord)
+    bad("has another layout than this drape writes");
   in.packed = layout != kOneEntryAWord;
   if (in.word("its precision") != sizeof(Real)) bad("was written by a world of the other precision");
   if (in.word("its sheet count") != sheets.size()) bad("was written for another number of sheets");
@@ -283,6 +287,7 @@ void read_contact_memory(std::span<const std::uint64_t> memory, std::span<const 
     const std::uint64_t decided = in.word("a pair's decision");
     if (decided > 2) bad("has an unknown decision");
     p.decided = static_cast<signed char>(std::int64_t(decided) - 1);
+    p.present_at = layout >= 4 ? in.word("a pair's last substep present") : present_at;
     for (auto [at, sheet] : {std::pair{&p.made_at_a, &a}, std::pair{&p.made_at_b, &b}}) {
       in.list(at->x, "positions lists were made at");
       in.list(at->y, "positions lists were made at");
@@ -353,7 +358,8 @@ void read_contact_memory(std::span<const std::uint64_t> memory, std::span<const 
   template std::vector<std::uint64_t> write_contact_memory<Real>(const std::vector<PairContacts<Real>>&,      \
                                                                  std::span<const Sheet<Real>* const>, int);   \
   template void read_contact_memory<Real>(std::span<const std::uint64_t>, std::span<const Sheet<Real>* const>, \
-                                          std::vector<PairContacts<Real>>&, std::vector<SheetTravel<Real>>&);
+                                          std::vector<PairContacts<Real>>&, std::vector<SheetTravel<Real>>&, \
+                                          std::uint64_t);
 DRAPE_CONTACT_MEMORY(double)
 DRAPE_CONTACT_MEMORY(float)
 #undef DRAPE_CONTACT_MEMORY

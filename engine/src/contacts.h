@@ -316,6 +316,12 @@ bool measured_in(const Sheet<Real>& s, std::uint64_t stamp) {
 // lists for the next 16 substeps (making them costs more than it saves while the sheets
 // move that fast), then start again at R/4. A kept contact set's skin (below) doubles up
 // to 2R and never halves below R/2.
+// Substeps a pair's work (PairContacts) waits for the pair's return after it left the
+// world's list; then it is dropped. About a frame of substeps or a few, so a pair that
+// flickers at the broad phase's range keeps its lists, and a scene whose pairs keep
+// changing holds only the work of pairs present lately.
+inline constexpr std::uint64_t kGoneSubsteps = 64;
+
 template <class Real>
 struct PairContacts {
   std::uint32_t a = 0, b = 0;  // positions in the world's sheet order
@@ -343,6 +349,11 @@ struct PairContacts {
   const Topology<Real>* guessed_a = nullptr;
   const Topology<Real>* guessed_b = nullptr;
   std::uint64_t searches = 0;            // how often the lists were made (for tests)
+  // The last substep (its contact stamp) the pair was in the world's list: a pair gone for
+  // more than kGoneSubsteps substeps since does not find this work again on its return
+  // (step.cpp, keep_pair_work). A rule of the pair's own, so that sheets stepped in groups
+  // (frames.cpp) keep and drop the same work as the whole world stepped at once.
+  std::uint64_t present_at = 0;
   signed char decided = -1;              // pair_needs_boxes's decision: 1 keep, 0 search, −1 none
   // The rims' candidates (ContactParams::rims): edge pairs within R + R/2 (R/2 their skin)
   // when made, a's rim edges against b's edges, then b's rim edges against a's off its rim, each
@@ -437,10 +448,12 @@ void gather_contacts(std::span<const ContactForces<Real>* const> sources, Vec3Ar
 // world that takes it back continues bit for bit. `sheets` are the world's sheets in order.
 // read_contact_memory checks every count and index against them and throws
 // std::invalid_argument naming the problem, leaving `pair_work` and `travel` as they were;
-// `travel` gets one entry per sheet, or none from a layout before 3. Layout 3 (written
-// by default) packs indices, flags and floats two to a word as layout 2 does; layouts 2
-// and 1 (one word per entry) have no skips or travel, and are still read (for older
-// checkpoints): their entries walk every substep until the next search.
+// `travel` gets one entry per sheet, or none from a layout before 3. Layout 4 (written
+// by default) packs indices, flags and floats two to a word as layouts 2 and 3 do, and
+// holds each pair's last substep in the list; layout 3 lacks that (its pairs read as
+// present at `present_at`, the world's last substep), layouts 2 and 1 (one word per entry)
+// also skips and travel, and are still read (for older checkpoints): their entries walk
+// every substep until the next search.
 template <class Real>
 struct SheetTravel {
   double travel = 0;
@@ -448,9 +461,10 @@ struct SheetTravel {
 };
 template <class Real>
 std::vector<std::uint64_t> write_contact_memory(const std::vector<PairContacts<Real>>& pair_work,
-                                                std::span<const Sheet<Real>* const> sheets, int layout = 3);
+                                                std::span<const Sheet<Real>* const> sheets, int layout = 4);
 template <class Real>
 void read_contact_memory(std::span<const std::uint64_t> memory, std::span<const Sheet<Real>* const> sheets,
-                         std::vector<PairContacts<Real>>& pair_work, std::vector<SheetTravel<Real>>& travel);
+                         std::vector<PairContacts<Real>>& pair_work, std::vector<SheetTravel<Real>>& travel,
+                         std::uint64_t present_at = 0);
 
 }  // namespace drape::detail

@@ -153,43 +153,48 @@ void BasicWorld<Real>::Impl::find_pairs() {
 // Slot q of pair_work serves pairs[q]. A pair keeps its work (its kept contact set,
 // contacts.h) while pairs appear and vanish around it: when the list changed, each pair
 // takes the work last made for the same two sheets, wherever it sat, and work of pairs
-// gone stays behind the list for their return. Only the pair list decides, so the result
-// is the same on any thread count.
+// gone stays behind the list for their return, for kGoneSubsteps substeps. Only the pair
+// list and the stamp decide, pair by pair, so the result is the same on any thread count,
+// and for sheets stepped in groups (frames.cpp, try_groups) as for the whole world at once.
 namespace {
 template <class Real>
-void keep_pair_work(const std::vector<detail::BoxPair>& pairs, std::vector<detail::PairContacts<Real>>& pair_work) {
+void keep_pair_work(const std::vector<detail::BoxPair>& pairs, std::vector<detail::PairContacts<Real>>& pair_work,
+                    std::uint64_t stamp) {
   auto same = [&](std::size_t q) { return pair_work[q].a == pairs[q].first && pair_work[q].b == pairs[q].second; };
+  auto waited = [&](const detail::PairContacts<Real>& w) { return w.present_at + detail::kGoneSubsteps < stamp; };
   std::size_t q = 0;
   while (q < pairs.size() && q < pair_work.size() && same(q)) ++q;
-  if (q == pairs.size()) return;
-  auto key = [](std::uint32_t a, std::uint32_t b) { return (std::uint64_t(a) << 32) | b; };
-  std::vector<std::uint32_t> order(pair_work.size());
-  for (std::uint32_t r = 0; r < order.size(); ++r) order[r] = r;
-  std::stable_sort(order.begin(), order.end(), [&](std::uint32_t x, std::uint32_t y) {
-    return key(pair_work[x].a, pair_work[x].b) < key(pair_work[y].a, pair_work[y].b);
-  });
-  std::vector<char> taken(pair_work.size(), 0);
-  std::vector<detail::PairContacts<Real>> next;
-  next.reserve(std::max(pairs.size(), pair_work.size()));
-  for (const detail::BoxPair& pair : pairs) {
-    const std::uint64_t want = key(pair.first, pair.second);
-    auto it = std::lower_bound(order.begin(), order.end(), want, [&](std::uint32_t r, std::uint64_t k) {
-      return key(pair_work[r].a, pair_work[r].b) < k;
+  if (q < pairs.size()) {
+    auto key = [](std::uint32_t a, std::uint32_t b) { return (std::uint64_t(a) << 32) | b; };
+    std::vector<std::uint32_t> order;
+    for (std::uint32_t r = 0; r < pair_work.size(); ++r)
+      if (!waited(pair_work[r])) order.push_back(r);
+    std::stable_sort(order.begin(), order.end(), [&](std::uint32_t x, std::uint32_t y) {
+      return key(pair_work[x].a, pair_work[x].b) < key(pair_work[y].a, pair_work[y].b);
     });
-    while (it != order.end() && key(pair_work[*it].a, pair_work[*it].b) == want && taken[*it]) ++it;
-    if (it != order.end() && key(pair_work[*it].a, pair_work[*it].b) == want) {
-      taken[*it] = 1;
-      next.push_back(std::move(pair_work[*it]));
-    } else {
-      next.emplace_back();
-      next.back().a = pair.first;
-      next.back().b = pair.second;
+    std::vector<char> taken(pair_work.size(), 0);
+    std::vector<detail::PairContacts<Real>> next;
+    next.reserve(std::max(pairs.size(), pair_work.size()));
+    for (const detail::BoxPair& pair : pairs) {
+      const std::uint64_t want = key(pair.first, pair.second);
+      auto it = std::lower_bound(order.begin(), order.end(), want, [&](std::uint32_t r, std::uint64_t k) {
+        return key(pair_work[r].a, pair_work[r].b) < k;
+      });
+      while (it != order.end() && key(pair_work[*it].a, pair_work[*it].b) == want && taken[*it]) ++it;
+      if (it != order.end() && key(pair_work[*it].a, pair_work[*it].b) == want) {
+        taken[*it] = 1;
+        next.push_back(std::move(pair_work[*it]));
+      } else {
+        next.emplace_back();
+        next.back().a = pair.first;
+        next.back().b = pair.second;
+      }
     }
+    for (std::uint32_t r : order)
+      if (!taken[r]) next.push_back(std::move(pair_work[r]));
+    pair_work = std::move(next);
   }
-  // At most as many gone as present, so a scene whose pairs keep changing does not grow.
-  for (std::size_t r = 0; r < pair_work.size() && next.size() < 2 * pairs.size(); ++r)
-    if (!taken[r]) next.push_back(std::move(pair_work[r]));
-  pair_work = std::move(next);
+  for (q = 0; q < pairs.size(); ++q) pair_work[q].present_at = stamp;
 }
 }  // namespace
 
@@ -202,7 +207,7 @@ void BasicWorld<Real>::Impl::contact_boxes(double h) {
   if (!contacting) return;
   const auto params = contact_params(h);
   const std::size_t count = active.size();
-  keep_pair_work(pairs, pair_work);
+  keep_pair_work(pairs, pair_work, params.stamp);
   // every sheet in a pair: where it is on its travel scale, for all of its pairs' decisions
   in_pair.assign(count, 0);
   for (const auto& pair : pairs) in_pair[pair.first] = in_pair[pair.second] = 1;

@@ -499,7 +499,7 @@ void BasicWorld<Real>::set_contact_memory(std::span<const std::uint64_t> memory)
   std::vector<const detail::Sheet<Real>*> sheets;
   for (std::size_t k = 0; k < impl_->active.size(); ++k) sheets.push_back(&impl_->at(k));
   std::vector<detail::SheetTravel<Real>> travel;
-  detail::read_contact_memory<Real>(memory, sheets, impl_->pair_work, travel);
+  detail::read_contact_memory<Real>(memory, sheets, impl_->pair_work, travel, impl_->steps);
   for (std::size_t k = 0; k < travel.size(); ++k) {
     impl_->at(k).travel = travel[k].travel;
     impl_->at(k).travel_from = std::move(travel[k].from);
