@@ -707,6 +707,7 @@ PYBIND11_MODULE(drape, m) {
       .field("contact_exact", &WorldDef::contact_exact, "exact nearest triangle every substep (the reference)")
       .field("contact_rims", &WorldDef::contact_rims, "rim edges also repel the other sheet's edges (default True)")
       .field("block_points", &WorldDef::block_points, "points per row block of a large sheet")
+      .field("group_points", &WorldDef::group_points, "worlds of at least this many points try frames in groups of sheets in contact (0: all)")
       .done();
 
   py::class_<Energies>(m, "Energies", "J")

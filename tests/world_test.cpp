@@ -730,6 +730,115 @@ TEST(Worlds, ContactFreeFramesChangeNoBit) {
     }
 }
 
+// Frames of groups (frames.cpp, try_frame): sheets closed under the pairs at a frame's
+// start, self-colliding sheets and sheets at an obstacle step the frame group by group, and
+// the frame is kept only if no two groups came within contact range. Three scenes, each
+// against one substep per call, bit for bit, down to the step count and the contact
+// stage's memory (every pair's kept sets and every sheet's travel, which the bits of the
+// forces may not show): columns of layers in contact, far apart (every frame kept); two
+// such columns and a self-colliding sheet (a group of its own) falling onto one of them
+// (kept while it falls, undone when it comes within range, and kept again); a self-colliding fold, a sheet resting on a floor
+// and a sheet far from both falling freely (a group each and a free sheet).
+enum class Groups { Columns, Falling, FoldFloorFree };
+
+template <class W>
+struct GroupsRun {
+  std::vector<unsigned char> state;
+  std::uint64_t steps;
+  std::vector<std::uint64_t> memory;
+  typename W::FrameStats stats;
+};
+
+template <class W>
+GroupsRun<W> run_groups(Groups scene, int threads, std::uint32_t block_points, int frames, int substeps,
+                        std::uint32_t group_points = 0) {
+  WorldDef wd;
+  wd.dt = 1e-3;
+  wd.threads = threads;
+  wd.block_points = block_points;
+  wd.group_points = group_points;  // 0: groups in a world this small too
+  wd.guard = false;
+  W w(wd);
+  SheetDef d;
+  d.m = 24;  // 25 × 13 points: split into blocks at block_points 150
+  d.n = 12;
+  d.width = 0.3;
+  d.height = 0.3;
+  d.stiffness = 100;
+  d.damping = 0.001;
+  d.friction = 0.3;
+  if (scene == Groups::FoldFloorFree) {
+    ObstacleDef floor;
+    floor.shape = ObstacleShape::Plane;
+    floor.center = {0, 0, -0.02};  // the first sheet within its reach from the start, and after
+    floor.c = 0.01;
+    floor.friction = 0.5;
+    w.add_obstacle(floor);
+    w.add_sheet(d);
+    SheetDef fold = d;  // its upper half over its lower half, thrown at it
+    fold.self_collision = true;
+    fold.center = {1.0, 0, 0.3};
+    const SheetId id = w.add_sheet(fold);
+    auto st = w.state(id);
+    const std::uint32_t cols = fold.n + 1;
+    for (std::uint32_t i = 13; i <= fold.m; ++i)
+      for (std::uint32_t j = 0; j < cols; ++j) {
+        const std::uint32_t p = i * cols + j, mirror = (fold.m - i) * cols + j;
+        st.y[p] = st.y[mirror];
+        st.z[p] = 0.3 + 0.012;
+        st.vz[p] = -0.3;
+      }
+    d.center = {-1.0, 0, 5.0};
+    w.add_sheet(d);
+  } else {
+    const int columns = scene == Groups::Columns ? 3 : 2;
+    SheetDef layer = d;
+    layer.pins = corner_points(d.m, d.n);
+    for (int c = 0; c < columns; ++c)
+      for (int k = 0; k < 3; ++k) {
+        layer.center = {0.6 * c, 0, 0.006 * k};
+        w.add_sheet(layer);
+      }
+    if (scene == Groups::Falling) {  // a group of its own (self-colliding), onto the second column from 0.1 m over it
+      d.center = {0.6, 0.05, 0.112};
+      d.initial_velocity = {0, 0, -1.0};
+      d.self_collision = true;
+      w.add_sheet(d);
+    }
+  }
+  for (int k = 0; k < frames; ++k) w.step(substeps);
+  return {state_bytes(w), w.step_count(), w.contact_memory(), w.frame_stats()};
+}
+
+template <class W>
+void expect_groups_change_no_bit() {
+  for (Groups scene : {Groups::Columns, Groups::Falling, Groups::FoldFloorFree})
+    for (auto [threads, block_points] : {std::pair{1, 1u << 30}, std::pair{2, 150u}}) {
+      const GroupsRun<W> one_by_one = run_groups<W>(scene, threads, block_points, 300, 1);
+      EXPECT_EQ(one_by_one.stats.kept + one_by_one.stats.undone, 0u);
+      for (int substeps : {10, 30}) {
+        const GroupsRun<W> framed = run_groups<W>(scene, threads, block_points, 300 / substeps, substeps);
+        const std::string where = "scene " + std::to_string(int(scene)) + ", " + std::to_string(threads) +
+                                  " threads, frames of " + std::to_string(substeps);
+        EXPECT_TRUE(framed.state == one_by_one.state) << where;
+        EXPECT_EQ(framed.steps, one_by_one.steps) << where;
+        EXPECT_TRUE(framed.memory == one_by_one.memory) << where;
+        EXPECT_GT(framed.stats.kept, 0u) << where;
+        if (scene == Groups::Falling)
+          EXPECT_GT(framed.stats.undone, 0u) << where;
+        else
+          EXPECT_EQ(framed.stats.undone, 0u) << where;
+      }
+      // by default a world this small (at most 2,275 points) is not tried in groups
+      const GroupsRun<W> small = run_groups<W>(scene, threads, block_points, 10, 30, WorldDef{}.group_points);
+      EXPECT_TRUE(small.state == one_by_one.state);
+      EXPECT_EQ(small.stats.kept + small.stats.undone, 0u);
+    }
+}
+
+TEST(Worlds, FramesOfGroupsChangeNoBit) { expect_groups_change_no_bit<World>(); }
+TEST(Worlds, FramesOfGroupsChangeNoBitInFloat) { expect_groups_change_no_bit<WorldF>(); }
+
 TEST(Worlds, SheetsFarApartStepExactlyAsIfAlone) {
   WorldDef wd;
   wd.dt = 2e-4;

@@ -647,6 +647,7 @@ void read_world_knobs(const Node& top, WorldDef& w) {
   if (top.has("contact_exact")) w.contact_exact = top.child("contact_exact").boolean();
   if (top.has("contact_rims")) w.contact_rims = top.child("contact_rims").boolean();
   if (top.has("block_points")) w.block_points = std::uint32_t(top.child("block_points").whole(1, 4294967295u));
+  if (top.has("group_points")) w.group_points = std::uint32_t(top.child("group_points").whole(0, 4294967295u));
   if (top.has("wind")) {
     const Node wind = top.child("wind");
     wind.expect_object({"velocity", "density"});
@@ -687,7 +688,7 @@ Scene parse_scene(std::string_view text, const std::string& file, std::span<cons
   top.expect_object({"description", "dt", "substeps", "fps", "frames", "duration", "integrator", "precision",
                      "gravity", "cg_tolerance", "cg_max_iterations", "cg_preconditioner", "local_global_iterations", "vertex_block_iterations", "adaptive", "adaptive_safety", "guard",
                      "guard_energy_growth", "contact_thickness", "contact_xi", "contact_strength", "contact_range",
-                     "contact_damping", "contact_exact", "contact_rims", "block_points", "wind", "sheets", "obstacles", "constraints", "output", "camera"});
+                     "contact_damping", "contact_exact", "contact_rims", "block_points", "group_points", "wind", "sheets", "obstacles", "constraints", "output", "camera"});
   Scene scene;
   scene.file = file;
   scene.source = std::string(text);

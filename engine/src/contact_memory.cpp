@@ -222,8 +222,8 @@ std::vector<std::uint64_t> write_contact_memory(const std::vector<PairContacts<R
     w.word(p.searches);
     w.word(std::uint64_t(std::int64_t(p.decided) + 1));
     if (layout >= 4) w.word(p.present_at);
-    for (const Vec3Array<Real>* at : {&p.made_at_a, &p.made_at_b}) {
-      const Vec3Array<Real>& v = kept ? *at : none;
+    for (const KeptPositions<Real>* at : {&p.made_at_a, &p.made_at_b}) {
+      const Vec3Array<Real>& v = kept ? at->get() : none;
       w.list(v.x);
       w.list(v.y);
       w.list(v.z);
@@ -288,7 +288,8 @@ void read_contact_memory(std::span<const std::uint64_t> memory, std::span<const 
     if (decided > 2) bad("has an unknown decision");
     p.decided = static_cast<signed char>(std::int64_t(decided) - 1);
     p.present_at = layout >= 4 ? in.word("a pair's last substep present") : present_at;
-    for (auto [at, sheet] : {std::pair{&p.made_at_a, &a}, std::pair{&p.made_at_b, &b}}) {
+    for (auto [kept_at, sheet] : {std::pair{&p.made_at_a, &a}, std::pair{&p.made_at_b, &b}}) {
+      Vec3Array<Real>* at = &kept_at->to_write();
       in.list(at->x, "positions lists were made at");
       in.list(at->y, "positions lists were made at");
       in.list(at->z, "positions lists were made at");

@@ -1786,7 +1786,7 @@ bool patches_within_skin(ContactScratch<Real>& sc, std::uint32_t pa, std::uint32
 template <class Real>
 bool made_for(const PairContacts<Real>& w, const Sheet<Real>& a, const Sheet<Real>& b, bool exact) {
   return w.kept_exact == exact && w.kept_a == &a && w.kept_b == &b && w.kept_topology_a == a.topology.get() &&
-         w.kept_topology_b == b.topology.get() && w.made_at_a.x.size() == a.size() && w.made_at_b.x.size() == b.size();
+         w.kept_topology_b == b.topology.get() && w.made_at_a.size() == a.size() && w.made_at_b.size() == b.size();
 }
 
 // Substeps a kept contact set with entries serves at most since every block was searched:
@@ -1823,12 +1823,12 @@ bool lists_hold(PairContacts<Real>& w, const Sheet<Real>& a, const Sheet<Real>& 
     if (measured_in(s, prm.stamp) && s.moved_hi() - lo <= double(limit)) return true;
     return within(s, then, limit2);
   };
-  if (still(a, w.moved_lo_a, w.made_at_a) && (&a == &b || still(b, w.moved_lo_b, w.made_at_b))) {
+  if (still(a, w.moved_lo_a, w.made_at_a.get()) && (&a == &b || still(b, w.moved_lo_b, w.made_at_b.get()))) {
     ++w.kept_for;
     return true;
   }
-  patch_motion(a, w.made_at_a, sc.mid_a, sc.radius_a, sc);
-  if (&a != &b) patch_motion(b, w.made_at_b, sc.mid_b, sc.radius_b, sc);
+  patch_motion(a, w.made_at_a.get(), sc.mid_a, sc.radius_a, sc);
+  if (&a != &b) patch_motion(b, w.made_at_b.get(), sc.mid_b, sc.radius_b, sc);
   const auto& mid_b = &a != &b ? sc.mid_b : sc.mid_a;
   const auto& radius_b = &a != &b ? sc.radius_b : sc.radius_a;
   const auto patches = [](const Sheet<Real>& s) {
@@ -1907,8 +1907,8 @@ void keep_lists_for(PairContacts<Real>& w, const Sheet<Real>& a, const SheetBoxe
   w.kept_b = &b;
   w.kept_topology_a = a.topology.get();
   w.kept_topology_b = b.topology.get();
-  remember(w.made_at_a, a);
-  remember(w.made_at_b, b);
+  remember(w.made_at_a.to_write(), a);
+  remember(w.made_at_b.to_write(), b);
   ++w.searches;
 }
 

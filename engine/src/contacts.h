@@ -46,6 +46,7 @@
 #include <array>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -294,6 +295,30 @@ bool measured_in(const Sheet<Real>& s, std::uint64_t stamp) {
   return stamp != 0 && s.moved_stamp == stamp;
 }
 
+// The positions a pair's kept lists were made at. Copies of a pair's work share them (a
+// frame's saved state, frames.cpp) until a search makes new ones, which then go to a buffer
+// of their own: saving the work copies no positions, and a search with no copy around
+// reuses its buffer.
+template <class Real>
+class KeptPositions {
+ public:
+  const Vec3Array<Real>& get() const { return *at_; }
+  std::size_t size() const { return at_->x.size(); }
+  Vec3Array<Real>& to_write() {
+    if (!at_ || at_.use_count() > 1) at_ = std::make_shared<Vec3Array<Real>>();
+    return *at_;
+  }
+
+ private:
+  std::shared_ptr<Vec3Array<Real>> at_ = std::make_shared<Vec3Array<Real>>();
+};
+
+// Substeps a pair's work (PairContacts) waits for the pair's return after it left the
+// world's list; then it is dropped. About a frame of substeps or a few, so a pair that
+// flickers at the broad phase's range keeps its lists, and a scene whose pairs keep
+// changing holds only the work of pairs present lately.
+inline constexpr std::uint64_t kGoneSubsteps = 64;
+
 // The contact work of one overlapping pair of sheets (a < b), or of one sheet with itself
 // (a == b, only on_a used). Written by one task, read by the gather: no sharing.
 //
@@ -316,25 +341,20 @@ bool measured_in(const Sheet<Real>& s, std::uint64_t stamp) {
 // lists for the next 16 substeps (making them costs more than it saves while the sheets
 // move that fast), then start again at R/4. A kept contact set's skin (below) doubles up
 // to 2R and never halves below R/2.
-// Substeps a pair's work (PairContacts) waits for the pair's return after it left the
-// world's list; then it is dropped. About a frame of substeps or a few, so a pair that
-// flickers at the broad phase's range keeps its lists, and a scene whose pairs keep
-// changing holds only the work of pairs present lately.
-inline constexpr std::uint64_t kGoneSubsteps = 64;
-
+// What a pair carries from one substep to the next: its sheets, kept lists and sets, the
+// positions and clearances they were made at, its counters, decisions and guesses. Written
+// as words by write_contact_memory; copied as it is for a frame's saved state (frames.cpp).
 template <class Real>
-struct PairContacts {
+struct PairMemory {
   std::uint32_t a = 0, b = 0;  // positions in the world's sheet order
-  ContactForces<Real> on_a, on_b;
   const Sheet<Real>* kept_a = nullptr;  // the sheets the kept lists were made for
   const Sheet<Real>* kept_b = nullptr;
   const Topology<Real>* kept_topology_a = nullptr;
   const Topology<Real>* kept_topology_b = nullptr;
-  Vec3Array<Real> made_at_a, made_at_b;  // their positions then
+  KeptPositions<Real> made_at_a, made_at_b;  // their positions then
   std::vector<Real> clearance;           // then: the gap of patch A of a to patch B of b
   Candidates a_near_b, b_near_a;         // points of a against cells of b, and back (exact)
   KeptContacts a_on_b, b_on_a;           // the same as kept contact sets (not exact)
-  KeptContacts spare_a, spare_b;         // the sets a search makes while it walks the old ones
   bool kept_exact = false;               // which of the two the search made
   Real skin = 0;                         // of the kept lists (0: none made yet)
   std::uint32_t kept_for = 0;            // substeps the kept lists have served
@@ -366,6 +386,14 @@ struct PairContacts {
   const Topology<Real>* rims_topology_a = nullptr;
   const Topology<Real>* rims_topology_b = nullptr;
   std::uint64_t rim_searches = 0;  // how often the rims' candidates were made (for tests)
+};
+
+// The pair's memory, with its work within a substep: its forces on each sheet (read by
+// the gather), the sets a search makes while it walks the old ones, and its parts' scratch.
+template <class Real>
+struct PairContacts : PairMemory<Real> {
+  ContactForces<Real> on_a, on_b;
+  KeptContacts spare_a, spare_b;
   // The forces of each part of a walk or search in parts (ContactParams::parts), on the
   // points' sheet and on the cells' (the same buffer for a sheet with itself), a search's
   // kept set of each part, and the scratch of every part but the first (which has the

@@ -153,13 +153,12 @@ void BasicWorld<Real>::Impl::find_pairs() {
 // Slot q of pair_work serves pairs[q]. A pair keeps its work (its kept contact set,
 // contacts.h) while pairs appear and vanish around it: when the list changed, each pair
 // takes the work last made for the same two sheets, wherever it sat, and work of pairs
-// gone stays behind the list for their return, for kGoneSubsteps substeps. Only the pair
-// list and the stamp decide, pair by pair, so the result is the same on any thread count,
-// and for sheets stepped in groups (frames.cpp, try_groups) as for the whole world at once.
-namespace {
+// gone stays behind the list for their return (in the order of their sheets) for
+// kGoneSubsteps substeps. Only the pair list and the stamp decide, pair by pair, so the
+// result is the same on any thread count, and for sheets stepped in groups (frames.cpp,
+// try_frame) as for the whole world at once, down to the order of the work.
 template <class Real>
-void keep_pair_work(const std::vector<detail::BoxPair>& pairs, std::vector<detail::PairContacts<Real>>& pair_work,
-                    std::uint64_t stamp) {
+void BasicWorld<Real>::Impl::keep_pair_work(std::uint64_t stamp) {
   auto same = [&](std::size_t q) { return pair_work[q].a == pairs[q].first && pair_work[q].b == pairs[q].second; };
   auto waited = [&](const detail::PairContacts<Real>& w) { return w.present_at + detail::kGoneSubsteps < stamp; };
   std::size_t q = 0;
@@ -193,10 +192,12 @@ void keep_pair_work(const std::vector<detail::BoxPair>& pairs, std::vector<detai
     for (std::uint32_t r : order)
       if (!taken[r]) next.push_back(std::move(pair_work[r]));
     pair_work = std::move(next);
+  } else {
+    // the list is the same: only work that waited its time out goes, the rest keeps its order
+    pair_work.erase(std::remove_if(pair_work.begin() + std::ptrdiff_t(q), pair_work.end(), waited), pair_work.end());
   }
   for (q = 0; q < pairs.size(); ++q) pair_work[q].present_at = stamp;
 }
-}  // namespace
 
 // Each pair first decides whether its kept contacts serve this substep (contacts.h,
 // pair_needs_boxes); then the boxes of every sheet in a pair that needs them are made
@@ -207,7 +208,7 @@ void BasicWorld<Real>::Impl::contact_boxes(double h) {
   if (!contacting) return;
   const auto params = contact_params(h);
   const std::size_t count = active.size();
-  keep_pair_work(pairs, pair_work, params.stamp);
+  keep_pair_work(params.stamp);
   // every sheet in a pair: where it is on its travel scale, for all of its pairs' decisions
   in_pair.assign(count, 0);
   for (const auto& pair : pairs) in_pair[pair.first] = in_pair[pair.second] = 1;
@@ -433,6 +434,7 @@ void BasicWorld<Real>::Impl::count_substeps(double h, std::uint64_t count) {
   template void BasicWorld<Real>::Impl::contact_bounds(double);                                       \
   template void BasicWorld<Real>::Impl::active_bounds(std::vector<detail::Aabb>&) const;               \
   template void BasicWorld<Real>::Impl::find_pairs();                                                 \
+  template void BasicWorld<Real>::Impl::keep_pair_work(std::uint64_t);                                \
   template void BasicWorld<Real>::Impl::contact_boxes(double);                                        \
   template void BasicWorld<Real>::Impl::narrow_phase(double);                                         \
   template void BasicWorld<Real>::Impl::plan_gather();                                                \

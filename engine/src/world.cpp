@@ -196,6 +196,7 @@ SheetId BasicWorld<Real>::add_sheet(const SheetDef& def) {
   impl_->active.push_back(index);
   impl_->broad_phase.reset();
   impl_->swept_broad_phase.reset();
+  impl_->groups.clear();  // their broad phases track other sheets now
   return impl_->sheet_ids.id(index);
 }
 
@@ -244,6 +245,7 @@ RemovedSheet<Real> BasicWorld<Real>::take_sheet(SheetId id) {
   if (held) impl_->constraints_changed();  // the sheets it was joined to lost anchors
   impl_->broad_phase.reset();
   impl_->swept_broad_phase.reset();
+  impl_->groups.clear();  // their broad phases track other sheets now
   return RemovedSheet<Real>(std::move(taken), last);
 }
 
@@ -444,6 +446,9 @@ template <class Real>
 std::size_t BasicWorld<Real>::contact_pair_count() const { return impl_->pairs.size(); }
 template <class Real>
 std::uint64_t BasicWorld<Real>::step_count() const { return impl_->steps; }
+
+template <class Real>
+typename BasicWorld<Real>::FrameStats BasicWorld<Real>::frame_stats() const { return impl_->frame_stats; }
 
 template <class Real>
 void BasicWorld<Real>::set_step_count(std::uint64_t steps) {

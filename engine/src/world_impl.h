@@ -112,7 +112,34 @@ struct BasicWorld<Real>::Impl {
   // try_frame's scratch (frames.cpp)
   std::vector<detail::Aabb> swept, swept_grown, block_swept;
   detail::TrackingBroadPhase swept_broad_phase;  // over the frames' swept boxes; reset with broad_phase
-  std::vector<detail::Vec3Array<Real>> saved;  // positions, then velocities, per sheet
+  // A frame's groups: sheets closed under the pairs at the frame's start, with those near an
+  // obstacle; each steps the frame alone, substep by substep, with the world's stages.
+  struct Group {
+    std::vector<std::uint32_t> members;  // positions in `active`, ascending
+    std::vector<std::uint32_t> active;   // their slots: the group's `active` while it steps
+    detail::TrackingBroadPhase broad_phase;
+    std::vector<detail::BoxPair> pairs;
+    std::vector<detail::PairContacts<Real>> pair_work;  // its pairs' work, in its positions
+    std::vector<detail::PairMemory<Real>> saved_work;  // as the frame found it
+  };
+  std::vector<Group> groups;
+  std::size_t group_count = 0;           // groups[0, group_count) serve this frame
+  std::vector<std::uint32_t> group_of;    // per position in `active`: its group, or kFree
+  static constexpr std::uint32_t kFree = ~std::uint32_t(0);
+  std::vector<std::uint32_t> free_sheets;  // positions of the sheets in no group: independent runs
+  std::vector<detail::Aabb> free_swept;
+  std::vector<detail::PairContacts<Real>> aside;  // gone pairs' work of sheets in two groups
+  std::vector<detail::BoxPair> frame_pairs;
+  // Per sheet, as the frame found it: positions, velocities, and its travel (Sheet::travel
+  // and the measurement of it, contacts.h), the contact stage's state of the sheet.
+  struct Saved {
+    detail::Vec3Array<Real> position, velocity, travel_from;
+    double travel = 0, moved = 0, moved_travel = 0;
+    std::uint64_t moved_stamp = 0;
+  };
+  std::vector<Saved> saved;
+  FrameStats frame_stats;
+  std::uint32_t try_backoff = 0, tries_to_skip = 0;  // substeps(): tries skipped after one undone
 
   // ---- The pools and ids behind the public API (world.cpp) --------------------------
 
@@ -190,6 +217,8 @@ struct BasicWorld<Real>::Impl {
   Real pair_exponent_cap(std::size_t a, std::size_t b, double h) const;
   void contact_bounds(double h);
   void find_pairs();
+  // pair_work in the order of `pairs` (a pair's work kept across changes of the list)
+  void keep_pair_work(std::uint64_t stamp);
   void contact_boxes(double h);
   void narrow_phase(double h);
   void plan_gather();
@@ -210,8 +239,14 @@ struct BasicWorld<Real>::Impl {
   bool sheets_independent() const { return !contacts_possible() && active_obstacles.empty(); }
   void plan_wave_blocks(std::uint32_t levels);
   void integrate_runs(double h, std::uint64_t count, std::vector<detail::Aabb>* swept = nullptr);
-  bool frame_may_be_contact_free() const;
-  bool apart(const std::vector<detail::Aabb>& boxes, detail::TrackingBroadPhase& tracker);
+  bool frame_may_be_tried() const;
+  void plan_groups(const std::vector<detail::Aabb>& boxes);
+  bool groups_pay() const;
+  void save_sheet(std::size_t k);
+  void restore_sheet(std::size_t k);
+  void step_group(Group& g, double h, std::uint64_t count);
+  bool groups_stayed_apart();
+  void end_groups(bool kept);
   bool try_frame(double h, std::uint64_t count);
   void substeps(double h, std::uint64_t count);
   double omega_max() const;

@@ -94,6 +94,13 @@ struct WorldDef {
   // A sheet of at least 2·block_points points is stepped as row blocks of about this many
   // points, so one large sheet keeps every core busy; the result is the same bit for bit.
   std::uint32_t block_points = 8192;
+
+  // A step() of several substeps on sheets that contacts or obstacles couple tries them in
+  // groups (the sheets in contact with each other, each group stepping the frame alone while
+  // its state is in cache, kept only if no two groups met) in worlds of at least this many
+  // points whose groups hold at least an eighth of it each on average; 0: in every world.
+  // The result is the same bit for bit either way (frame_stats() counts the tries).
+  std::uint32_t group_points = 65536;
 };
 
 // Throws nothing: an empty string when the definition is usable, else one message naming
@@ -351,6 +358,14 @@ class BasicWorld {
   // that no contact coupled).
   std::size_t contact_pair_count() const;
   std::uint64_t step_count() const;   // substeps taken
+  // How step() ran its frames (calls of more than one substep) on sheets that contacts or
+  // obstacles could couple: frames stepped in groups of sheets that stayed apart over the
+  // frame (kept), and frames undone and stepped substep by substep because two groups met
+  // (each computed twice). docs/architecture.md, "Frames of groups".
+  struct FrameStats {
+    std::uint64_t kept = 0, undone = 0;
+  };
+  FrameStats frame_stats() const;
 
   // Full state, for checkpoints. Everything step() changes is the step count, each sheet's
   // positions and velocities, the integrator's memory of each sheet and the contact
