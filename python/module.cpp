@@ -457,6 +457,9 @@ void bind_world(py::module_& m, const char* name, const char* doc) {
   w.def_property_readonly("time", locked<PW>(&W::time));
   w.def("set_threads", locked<PW>(&W::set_threads), py::arg("threads"));
   w.def_property_readonly("contact_pair_count", locked<PW>(&W::contact_pair_count));
+  w.def_property_readonly("frame_stats", locked<PW>(&W::frame_stats),
+                          "Frames tried in groups of sheets in contact: kept, and undone (stepped again substep by "
+                          "substep because two groups met).");
   w.def_property("step_count", locked<PW>(&W::step_count), locked<PW>(&W::set_step_count));
   w.def("diagnostics", locked<PW>(&W::diagnostics), py::arg("sheet"));
   w.def("obstacle_penetration", locked<PW>(&W::obstacle_penetration), py::arg("sheet"),
@@ -481,6 +484,9 @@ void bind_world(py::module_& m, const char* name, const char* doc) {
       .def_readonly("relative_residual", &W::SolverStats::relative_residual)
       .def_readonly("converged", &W::SolverStats::converged)
       .def_readonly("unconverged_solves", &W::SolverStats::unconverged_solves);
+  py::class_<typename W::FrameStats>(w, "FrameStats")
+      .def_readonly("kept", &W::FrameStats::kept)
+      .def_readonly("undone", &W::FrameStats::undone);
 }
 
 template <class Id>

@@ -26,6 +26,7 @@
 #include <type_traits>
 
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include "simd/exp-inl.h"
 #include "simd/kernels.h"
@@ -2029,6 +2030,15 @@ void append_parts(PairContacts<Real>& w, std::size_t per, bool self) {
   }
 }
 
+// The parts of a pair (walk_in_parts, search_in_parts) as tasks. The thread that waits for
+// them takes no other task meanwhile (isolate): another pair's, run on this thread, would
+// take this thread's scratch (ContactScratch, one per thread) while the first part still
+// uses it.
+template <class Body>
+void in_parts(std::size_t count, Body&& body) {
+  tbb::this_task_arena::isolate([&] { tbb::parallel_for(std::size_t(0), count, body); });
+}
+
 // A pair's kept sets walked (points_walking) in prm.parts parts per direction, as tasks, each
 // into its own forces, which are then appended in the order one walk of both directions
 // pushes them: every entry belongs to one part and its point to one entry, so the parts
@@ -2040,7 +2050,7 @@ void walk_in_parts(const Sheet<Real>& a, const Sheet<Real>& b, int ring, const C
   const std::size_t per = std::size_t(prm.parts), count = (self ? 1 : 2) * per;
   w.part_on_q.resize(count);
   w.part_on_s.resize(count);
-  tbb::parallel_for(std::size_t(0), count, [&](std::size_t k) {
+  in_parts(count, [&](std::size_t k) {
     const bool back = k >= per;  // b's points against a's cells
     KeptContacts& kept = back ? w.b_on_a : w.a_on_b;
     const std::size_t part = k % per, size = kept.point.size();
@@ -2069,7 +2079,7 @@ void search_in_parts(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const She
   w.part_kept.resize(count);
   w.part_scratch.resize(count - 1);
   auto blocks_of = [](const SheetBoxes<Real>& bq) { return bq.patch_rows * bq.patch_cols; };
-  tbb::parallel_for(std::size_t(0), count, [&](std::size_t k) {
+  in_parts(count, [&](std::size_t k) {
     const bool back = k >= per;  // b's points against a's cells
     const Sheet<Real>& q = back ? b : a;
     const SheetBoxes<Real>& bq = back ? bb : ba;

@@ -18,7 +18,7 @@ namespace drape {
 // shorter than 4·levels rows.
 template <class Real>
 void BasicWorld<Real>::Impl::plan_wave_blocks(std::uint32_t levels) {
-  blocks.clear();
+  world.blocks.clear();
   const std::uint64_t threads = std::uint64_t(arena->max_concurrency());
   for (std::uint32_t k = 0; k < active.size(); ++k) {
     Sheet<Real>& s = at(k);
@@ -30,10 +30,10 @@ void BasicWorld<Real>::Impl::plan_wave_blocks(std::uint32_t levels) {
         points >= 2 * std::uint64_t(def.block_points))
       count = std::min({threads, points / def.block_points, std::uint64_t(rows / (4 * levels))});
     if (count <= 1) {
-      blocks.push_back({k, 0, rows, 0, false});
+      world.blocks.push_back({k, 0, rows, 0, false});
       continue;
     }
-    push_row_blocks(k, rows, count);
+    push_row_blocks(world, k, rows, count);
   }
 }
 
@@ -57,16 +57,16 @@ void BasicWorld<Real>::Impl::integrate_runs(double h, std::uint64_t count, std::
   for (std::uint64_t done = 0; done < count;) {
     const auto levels = static_cast<std::uint32_t>(std::min<std::uint64_t>(max_levels, count - done));
     plan_wave_blocks(levels);
-    if (block_scratch.size() < blocks.size()) block_scratch.resize(blocks.size());
-    if (swept) block_swept.assign(blocks.size(), detail::empty_box());
+    if (block_scratch.size() < world.blocks.size()) block_scratch.resize(world.blocks.size());
+    if (swept) block_swept.assign(world.blocks.size(), detail::empty_box());
     // every split block copies its halo before any block moves a row
-    if (std::any_of(blocks.begin(), blocks.end(), [](const Block& b) { return b.split; }))
-      parallel(blocks.size(), [&](std::size_t q) {
-        const Block& b = blocks[q];
+    if (std::any_of(world.blocks.begin(), world.blocks.end(), [](const Block& b) { return b.split; }))
+      parallel(world.blocks.size(), [&](std::size_t q) {
+        const Block& b = world.blocks[q];
         if (b.split) detail::wave_take_halo(at(b.sheet), levels, b.row_begin, b.row_end, block_scratch[q]);
       });
-    parallel(blocks.size(), [&](std::size_t q) {
-      const Block& b = blocks[q];
+    parallel(world.blocks.size(), [&](std::size_t q) {
+      const Block& b = world.blocks[q];
       Sheet<Real>& s = at(b.sheet);
       detail::Aabb* box = swept ? &block_swept[q] : nullptr;
       if (b.split) {
@@ -82,7 +82,7 @@ void BasicWorld<Real>::Impl::integrate_runs(double h, std::uint64_t count, std::
       }
     });
     if (swept)
-      for (std::size_t q = 0; q < blocks.size(); ++q) detail::include_box((*swept)[blocks[q].sheet], block_swept[q]);
+      for (std::size_t q = 0; q < world.blocks.size(); ++q) detail::include_box((*swept)[world.blocks[q].sheet], block_swept[q]);
     done += levels;
   }
 }
@@ -159,11 +159,14 @@ void BasicWorld<Real>::Impl::plan_groups(const std::vector<detail::Aabb>& boxes)
   if (groups.size() < group_count) groups.resize(group_count);
   for (std::size_t g = 0; g < group_count; ++g) {
     Group& group = groups[g];
-    if (group.members != members[g]) group.broad_phase.reset();  // its boxes are other sheets'
+    Scope& sc = group.scope;
+    if (group.members != members[g]) sc.broad_phase.reset();  // its boxes are other sheets'
     group.members = std::move(members[g]);
-    group.active.clear();
-    for (std::uint32_t k : group.members) group.active.push_back(active[k]);
-    group.pairs.clear();
+    sc.active.clear();
+    for (std::uint32_t k : group.members) sc.active.push_back(active[k]);
+    sc.pairs.clear();
+    sc.keeps_meets = true;
+    sc.met.clear();
   }
 }
 
@@ -215,23 +218,26 @@ void BasicWorld<Real>::Impl::restore_sheet(std::size_t k) {
   slots[active[k]].bounds_fresh = false;
 }
 
-// `count` substeps of group g alone: it becomes the world's list of sheets, pairs, their
-// work and broad phase while it steps. Its sheets' boxes after each substep go into swept.
+// `count` substeps of group g alone, with its own scope, from the world's step count and
+// clock; first its sheets' state and its pairs' memory are saved, in case the frame is
+// undone. Its sheets' boxes after each substep go into swept. Groups step at once: each
+// writes only its own sheets, scope and entries of swept and saved.
 template <class Real>
 void BasicWorld<Real>::Impl::step_group(Group& g, double h, std::uint64_t count) {
-  auto trade = [&] {
-    std::swap(active, g.active);
-    std::swap(pairs, g.pairs);
-    std::swap(pair_work, g.pair_work);
-    std::swap(broad_phase, g.broad_phase);
-  };
-  trade();
+  Scope& sc = g.scope;
+  for (std::uint32_t k : g.members) save_sheet(k);
+  // the positions kept lists were made at are shared, not copied
+  g.saved_work.resize(sc.pair_work.size());
+  for (std::size_t q = 0; q < sc.pair_work.size(); ++q) g.saved_work[q] = sc.pair_work[q];
+  sc.steps = steps;
+  sc.steps_base = steps_base;
+  sc.time_base = time_base;
+  sc.current_h = current_h;
   for (std::uint64_t j = 0; j < count; ++j) {
-    substep(h);
-    for (std::size_t i = 0; i < active.size(); ++i)
-      detail::include_box(swept[g.members[i]], current_bounds(slots[active[i]]));
+    substep(sc, h);
+    for (std::size_t i = 0; i < sc.active.size(); ++i)
+      detail::include_box(swept[g.members[i]], current_bounds(slots[sc.active[i]]));
   }
-  trade();
 }
 
 // Whether the frame's groups, and its free sheets, stayed as far apart as plan_groups
@@ -254,7 +260,8 @@ bool BasicWorld<Real>::Impl::groups_stayed_apart() {
 }
 
 // The groups' pairs and work back to the world, in its positions: as they ended the frame
-// if it is kept, else as they began it (with every sheet's state the frame found).
+// if it is kept (with its step count and clock, and the pairs met for the guard), else as
+// they began it (with every sheet's state the frame found).
 template <class Real>
 void BasicWorld<Real>::Impl::end_groups(bool kept) {
   pair_work = std::move(aside);
@@ -262,12 +269,15 @@ void BasicWorld<Real>::Impl::end_groups(bool kept) {
   if (kept) pairs.clear();
   for (std::size_t g = 0; g < group_count; ++g) {
     Group& group = groups[g];
+    Scope& sc = group.scope;
     if (kept) {
-      for (auto& w : group.pair_work) {
+      for (auto& w : sc.pair_work) {
         w.a = group.members[w.a];
         w.b = group.members[w.b];
         pair_work.push_back(std::move(w));
       }
+      for (const detail::BoxPair& pair : sc.pairs) pairs.push_back({group.members[pair.first], group.members[pair.second]});
+      for (const auto& [a, b] : sc.met) guard_meet(a, b);
     } else {
       for (auto& memory : group.saved_work) {
         detail::PairContacts<Real>& w = pair_work.emplace_back();
@@ -276,16 +286,21 @@ void BasicWorld<Real>::Impl::end_groups(bool kept) {
         w.b = group.members[w.b];
       }
     }
-    if (kept)
-      for (const detail::BoxPair& pair : group.pairs) pairs.push_back({group.members[pair.first], group.members[pair.second]});
-    group.pair_work.clear();
+    sc.pair_work.clear();
   }
-  if (kept) {
-    std::sort(pairs.begin(), pairs.end());
-    keep_pair_work(steps);  // the last substep's stamp: present pairs first, in the pairs' order
-  } else {
+  if (!kept) {
     parallel(active.size(), [&](std::size_t k) { restore_sheet(k); });
+    return;
   }
+  if (group_count > 0) {  // every group took the same substeps
+    const Scope& sc = groups[0].scope;
+    steps = sc.steps;
+    steps_base = sc.steps_base;
+    time_base = sc.time_base;
+    current_h = sc.current_h;
+  }
+  std::sort(pairs.begin(), pairs.end());
+  keep_pair_work(world, steps);  // the last substep's stamp: present pairs first, in the pairs' order
 }
 
 template <class Real>
@@ -308,12 +323,10 @@ bool BasicWorld<Real>::Impl::try_frame(double h, std::uint64_t count) {
     }
     w.a = local[w.a];
     w.b = local[w.b];
-    groups[g].pair_work.push_back(std::move(w));
+    groups[g].scope.pair_work.push_back(std::move(w));
   }
   pair_work.clear();
   saved.resize(n);
-  const std::uint64_t steps_then = steps, steps_base_then = steps_base;
-  const double time_base_then = time_base, h_then = current_h;
   // The free sheets as independent runs, with the world's list of sheets theirs meanwhile.
   if (!free_sheets.empty()) {
     parallel(free_sheets.size(), [&](std::size_t i) { save_sheet(free_sheets[i]); });
@@ -328,29 +341,14 @@ bool BasicWorld<Real>::Impl::try_frame(double h, std::uint64_t count) {
     std::swap(active, slots_of);
     for (std::size_t i = 0; i < free_sheets.size(); ++i) swept[free_sheets[i]] = free_swept[i];
   }
-  // Each group alone, from the frame's start.
-  for (std::size_t g = 0; g < group_count; ++g) {
-    Group& group = groups[g];
-    parallel(group.members.size(), [&](std::size_t i) { save_sheet(group.members[i]); });
-    // the positions kept lists were made at are shared, not copied
-    group.saved_work.resize(group.pair_work.size());
-    for (std::size_t q = 0; q < group.pair_work.size(); ++q) group.saved_work[q] = group.pair_work[q];
-    steps = steps_then;
-    steps_base = steps_base_then;
-    time_base = time_base_then;
-    current_h = h_then;
-    step_group(group, h, count);
-  }
+  // The groups at once, each a task; a thread waiting inside one group's stages takes only
+  // that group's work meanwhile (isolate), never a whole other group.
+  parallel(group_count, [&](std::size_t g) {
+    tbb::this_task_arena::isolate([&] { step_group(groups[g], h, count); });
+  });
   const bool kept = groups_stayed_apart();
   ++(kept ? frame_stats.kept : frame_stats.undone);
-  if (!kept) {
-    steps = steps_then;
-    steps_base = steps_base_then;
-    time_base = time_base_then;
-    current_h = h_then;
-  } else if (group_count == 0) {
-    count_substeps(h, count);  // else each group's substeps counted them
-  }
+  if (kept && group_count == 0) count_substeps(h, count);  // else each group counted its substeps
   end_groups(kept);
   return kept;
 }

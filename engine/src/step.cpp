@@ -15,8 +15,8 @@ namespace drape {
 // Host stage, first: moving obstacles to their pose at the substep's start, and every
 // constrained point's target from the positions at that start.
 template <class Real>
-void BasicWorld<Real>::Impl::move_rigid_parts() {
-  const double t = time();
+void BasicWorld<Real>::Impl::move_rigid_parts(const Scope& sc) {
+  const double t = sc.time();
   for (std::uint32_t o : active_obstacles)
     if (obstacle_slots[o].def.motion) detail::place_obstacle(*obstacle_slots[o].obstacle, obstacle_slots[o].def, t);
   if (!constraints.empty()) constraints.set_targets(t, access());
@@ -25,9 +25,9 @@ void BasicWorld<Real>::Impl::move_rigid_parts() {
 // Host stage: each sheet's list of obstacles whose reach its bounding box overlaps, so a
 // sheet far from every obstacle runs no obstacle term at all.
 template <class Real>
-void BasicWorld<Real>::Impl::assign_obstacles(double h) {
+void BasicWorld<Real>::Impl::assign_obstacles(const Scope& sc, double h) {
   if (active_obstacles.empty()) return;
-  for (std::uint32_t index : active) {
+  for (std::uint32_t index : sc.active) {
     Sheet<Real>& s = *slots[index].sheet;
     const double lightest = slots[index].lightest_point;
     s.near_obstacles.clear();
@@ -41,67 +41,67 @@ void BasicWorld<Real>::Impl::assign_obstacles(double h) {
                                 .damping = obstacle.def.damping,
                                 .dt = h,
                                 .gravity = {def.gravity.x, def.gravity.y, def.gravity.z}};
-      if (near.friction > 0 || near.damping > 0) detail::set_obstacle_velocity(near, obstacle_slots[o].def, time(), h);
+      if (near.friction > 0 || near.damping > 0) detail::set_obstacle_velocity(near, obstacle_slots[o].def, sc.time(), h);
       s.near_obstacles.push_back(near);
     }
   }
 }
 
 template <class Real>
-bool BasicWorld<Real>::Impl::contacts_possible() const {
+bool BasicWorld<Real>::Impl::contacts_possible(const Scope& sc) const {
   if (!(def.contact_strength > 0)) return false;
-  return active.size() > 1 ||
-         std::any_of(active.begin(), active.end(), [&](auto i) { return slots[i].sheet->self_collision; });
+  return sc.active.size() > 1 ||
+         std::any_of(sc.active.begin(), sc.active.end(), [&](auto i) { return slots[i].sheet->self_collision; });
 }
 
 template <class Real>
-void BasicWorld<Real>::Impl::run_stage(Stage stage, double h) {
+void BasicWorld<Real>::Impl::run_stage(Scope& sc, Stage stage, double h) {
   switch (stage) {
-    case Stage::RigidParts: return move_rigid_parts();
-    case Stage::Bounds: return contact_bounds(h);
-    case Stage::BroadPhase: return find_pairs();
-    case Stage::ContactBoxes: return contact_boxes(h);
-    case Stage::NarrowPhase: return narrow_phase(h);
-    case Stage::GatherPlan: return plan_gather();
-    case Stage::Obstacles: return assign_obstacles(h);
-    case Stage::Integrate: return integrate_sheets(step_params(h));
+    case Stage::RigidParts: return move_rigid_parts(sc);
+    case Stage::Bounds: return contact_bounds(sc, h);
+    case Stage::BroadPhase: return find_pairs(sc);
+    case Stage::ContactBoxes: return contact_boxes(sc, h);
+    case Stage::NarrowPhase: return narrow_phase(sc, h);
+    case Stage::GatherPlan: return plan_gather(sc);
+    case Stage::Obstacles: return assign_obstacles(sc, h);
+    case Stage::Integrate: return integrate_sheets(sc, step_params(h));
   }
 }
 
 // The contact parameters of a substep of length h (friction stops at most one substep's slip).
 template <class Real>
-detail::ContactParams<Real> BasicWorld<Real>::Impl::contact_params(double h) const {
+detail::ContactParams<Real> BasicWorld<Real>::Impl::contact_params(const Scope& sc, double h) const {
   auto params = detail::ContactParams<Real>::make(def.contact_thickness, def.contact_xi, def.contact_strength,
                                                   def.contact_range);
   params.dt = static_cast<Real>(h);
   params.exact = def.contact_exact;
   params.rims = def.contact_rims;
   params.damping = static_cast<Real>(def.contact_damping);
-  params.stamp = steps + 1;
+  params.stamp = sc.steps + 1;
   return params;
 }
 
 // For the pair's lightest point, never below 0 (ContactParams::exponent_cap).
 template <class Real>
-Real BasicWorld<Real>::Impl::pair_exponent_cap(std::size_t a, std::size_t b, double h) const {
-  const double lightest = std::min(slots[active[a]].lightest_point, slots[active[b]].lightest_point);
+Real BasicWorld<Real>::Impl::pair_exponent_cap(const Scope& sc, std::size_t a, std::size_t b, double h) const {
+  const double lightest = std::min(slots[sc.active[a]].lightest_point, slots[sc.active[b]].lightest_point);
   return static_cast<Real>(
       std::max(0.0, detail::stiffness_exponent_cap(def.contact_strength, def.contact_xi, lightest, h)));
 }
 
 template <class Real>
-void BasicWorld<Real>::Impl::contact_bounds(double h) {
-  const std::size_t count = active.size();
-  for (std::size_t k = 0; k < count; ++k) at(k).has_contacts = false;
-  contacting = contacts_possible();
-  if (!contacting) {
-    pairs.clear();
+void BasicWorld<Real>::Impl::contact_bounds(Scope& sc, double h) {
+  const std::size_t count = sc.active.size();
+  for (std::size_t k = 0; k < count; ++k) at(sc, k).has_contacts = false;
+  sc.contacting = contacts_possible(sc);
+  if (!sc.contacting) {
+    sc.pairs.clear();
     return;
   }
-  const auto params = contact_params(h);
-  active_bounds(bounds);
-  grown.resize(count);
-  for (std::size_t k = 0; k < count; ++k) grown[k] = bounds[k].inflated(0.5 * double(params.range));
+  const auto params = contact_params(sc, h);
+  active_bounds(sc, sc.bounds);
+  sc.grown.resize(count);
+  for (std::size_t k = 0; k < count; ++k) sc.grown[k] = sc.bounds[k].inflated(0.5 * double(params.range));
 }
 
 // Worlds of whole sheets below this many points in all update on the calling thread
@@ -117,19 +117,19 @@ constexpr std::uint64_t kParallelUpdatePoints = 2048;
 constexpr std::size_t kParallelBoundsPoints = std::size_t(1) << 16;
 
 template <class Real>
-void BasicWorld<Real>::Impl::active_bounds(std::vector<detail::Aabb>& out) const {
-  const std::size_t count = active.size();
+void BasicWorld<Real>::Impl::active_bounds(const Scope& sc, std::vector<detail::Aabb>& out) const {
+  const std::size_t count = sc.active.size();
   out.resize(count);
   std::size_t stale_points = 0;
   for (std::size_t k = 0; k < count; ++k) {
-    const Slot& slot = slots[active[k]];
+    const Slot& slot = slots[sc.active[k]];
     if (slot.bounds_fresh)
       out[k] = slot.bounds;
     else
       stale_points += slot.sheet->size();
   }
   auto stale = [&](std::size_t k) {
-    const Slot& slot = slots[active[k]];
+    const Slot& slot = slots[sc.active[k]];
     if (!slot.bounds_fresh) out[k] = detail::sheet_bounds(*slot.sheet);
   };
   if (stale_points >= kParallelBoundsPoints) return parallel(count, stale);
@@ -138,15 +138,20 @@ void BasicWorld<Real>::Impl::active_bounds(std::vector<detail::Aabb>& out) const
 }
 
 template <class Real>
-void BasicWorld<Real>::Impl::find_pairs() {
-  if (!contacting) return;
-  const std::size_t count = active.size();
-  broad_phase.find_pairs(grown, pairs);
-  for (const auto& pair : pairs) guard_meet(active[pair.first], active[pair.second]);  // they may pass energy
-  if (std::any_of(active.begin(), active.end(), [&](auto i) { return slots[i].sheet->self_collision; })) {
+void BasicWorld<Real>::Impl::find_pairs(Scope& sc) {
+  if (!sc.contacting) return;
+  const std::size_t count = sc.active.size();
+  sc.broad_phase.find_pairs(sc.grown, sc.pairs);
+  for (const auto& pair : sc.pairs) {  // they may pass energy
+    if (sc.keeps_meets)
+      sc.met.emplace_back(sc.active[pair.first], sc.active[pair.second]);
+    else
+      guard_meet(sc.active[pair.first], sc.active[pair.second]);
+  }
+  if (std::any_of(sc.active.begin(), sc.active.end(), [&](auto i) { return slots[i].sheet->self_collision; })) {
     for (std::uint32_t k = 0; k < count; ++k)
-      if (at(k).self_collision) pairs.push_back({k, k});
-    std::sort(pairs.begin(), pairs.end());
+      if (at(sc, k).self_collision) sc.pairs.push_back({k, k});
+    std::sort(sc.pairs.begin(), sc.pairs.end());
   }
 }
 
@@ -158,31 +163,31 @@ void BasicWorld<Real>::Impl::find_pairs() {
 // result is the same on any thread count, and for sheets stepped in groups (frames.cpp,
 // try_frame) as for the whole world at once, down to the order of the work.
 template <class Real>
-void BasicWorld<Real>::Impl::keep_pair_work(std::uint64_t stamp) {
-  auto same = [&](std::size_t q) { return pair_work[q].a == pairs[q].first && pair_work[q].b == pairs[q].second; };
+void BasicWorld<Real>::Impl::keep_pair_work(Scope& sc, std::uint64_t stamp) {
+  auto same = [&](std::size_t q) { return sc.pair_work[q].a == sc.pairs[q].first && sc.pair_work[q].b == sc.pairs[q].second; };
   auto waited = [&](const detail::PairContacts<Real>& w) { return w.present_at + detail::kGoneSubsteps < stamp; };
   std::size_t q = 0;
-  while (q < pairs.size() && q < pair_work.size() && same(q)) ++q;
-  if (q < pairs.size()) {
+  while (q < sc.pairs.size() && q < sc.pair_work.size() && same(q)) ++q;
+  if (q < sc.pairs.size()) {
     auto key = [](std::uint32_t a, std::uint32_t b) { return (std::uint64_t(a) << 32) | b; };
     std::vector<std::uint32_t> order;
-    for (std::uint32_t r = 0; r < pair_work.size(); ++r)
-      if (!waited(pair_work[r])) order.push_back(r);
+    for (std::uint32_t r = 0; r < sc.pair_work.size(); ++r)
+      if (!waited(sc.pair_work[r])) order.push_back(r);
     std::stable_sort(order.begin(), order.end(), [&](std::uint32_t x, std::uint32_t y) {
-      return key(pair_work[x].a, pair_work[x].b) < key(pair_work[y].a, pair_work[y].b);
+      return key(sc.pair_work[x].a, sc.pair_work[x].b) < key(sc.pair_work[y].a, sc.pair_work[y].b);
     });
-    std::vector<char> taken(pair_work.size(), 0);
+    std::vector<char> taken(sc.pair_work.size(), 0);
     std::vector<detail::PairContacts<Real>> next;
-    next.reserve(std::max(pairs.size(), pair_work.size()));
-    for (const detail::BoxPair& pair : pairs) {
+    next.reserve(std::max(sc.pairs.size(), sc.pair_work.size()));
+    for (const detail::BoxPair& pair : sc.pairs) {
       const std::uint64_t want = key(pair.first, pair.second);
       auto it = std::lower_bound(order.begin(), order.end(), want, [&](std::uint32_t r, std::uint64_t k) {
-        return key(pair_work[r].a, pair_work[r].b) < k;
+        return key(sc.pair_work[r].a, sc.pair_work[r].b) < k;
       });
-      while (it != order.end() && key(pair_work[*it].a, pair_work[*it].b) == want && taken[*it]) ++it;
-      if (it != order.end() && key(pair_work[*it].a, pair_work[*it].b) == want) {
+      while (it != order.end() && key(sc.pair_work[*it].a, sc.pair_work[*it].b) == want && taken[*it]) ++it;
+      if (it != order.end() && key(sc.pair_work[*it].a, sc.pair_work[*it].b) == want) {
         taken[*it] = 1;
-        next.push_back(std::move(pair_work[*it]));
+        next.push_back(std::move(sc.pair_work[*it]));
       } else {
         next.emplace_back();
         next.back().a = pair.first;
@@ -190,13 +195,13 @@ void BasicWorld<Real>::Impl::keep_pair_work(std::uint64_t stamp) {
       }
     }
     for (std::uint32_t r : order)
-      if (!taken[r]) next.push_back(std::move(pair_work[r]));
-    pair_work = std::move(next);
+      if (!taken[r]) next.push_back(std::move(sc.pair_work[r]));
+    sc.pair_work = std::move(next);
   } else {
     // the list is the same: only work that waited its time out goes, the rest keeps its order
-    pair_work.erase(std::remove_if(pair_work.begin() + std::ptrdiff_t(q), pair_work.end(), waited), pair_work.end());
+    sc.pair_work.erase(std::remove_if(sc.pair_work.begin() + std::ptrdiff_t(q), sc.pair_work.end(), waited), sc.pair_work.end());
   }
-  for (q = 0; q < pairs.size(); ++q) pair_work[q].present_at = stamp;
+  for (q = 0; q < sc.pairs.size(); ++q) sc.pair_work[q].present_at = stamp;
 }
 
 // Each pair first decides whether its kept contacts serve this substep (contacts.h,
@@ -204,20 +209,20 @@ void BasicWorld<Real>::Impl::keep_pair_work(std::uint64_t stamp) {
 // once here and read by all of its pairs (SheetBoxes). A sheet whose pairs all keep
 // their contact sets, or in no pair, makes none.
 template <class Real>
-void BasicWorld<Real>::Impl::contact_boxes(double h) {
-  if (!contacting) return;
-  const auto params = contact_params(h);
-  const std::size_t count = active.size();
-  keep_pair_work(params.stamp);
+void BasicWorld<Real>::Impl::contact_boxes(Scope& sc, double h) {
+  if (!sc.contacting) return;
+  const auto params = contact_params(sc, h);
+  const std::size_t count = sc.active.size();
+  keep_pair_work(sc, params.stamp);
   // every sheet in a pair: where it is on its travel scale, for all of its pairs' decisions
-  in_pair.assign(count, 0);
-  for (const auto& pair : pairs) in_pair[pair.first] = in_pair[pair.second] = 1;
+  sc.in_pair.assign(count, 0);
+  for (const auto& pair : sc.pairs) sc.in_pair[pair.first] = sc.in_pair[pair.second] = 1;
   parallel(count, [&](std::size_t k) {
-    if (in_pair[k]) detail::measure_travel(at(k), params.stamp);
+    if (sc.in_pair[k]) detail::measure_travel(at(sc, k), params.stamp);
   });
-  parallel(pairs.size(), [&](std::size_t q) {
-    auto& w = pair_work[q];
-    detail::pair_needs_boxes(at(w.a), at(w.b), params, w, contact_scratch.local());
+  parallel(sc.pairs.size(), [&](std::size_t q) {
+    auto& w = sc.pair_work[q];
+    detail::pair_needs_boxes(at(sc, w.a), at(sc, w.b), params, w, contact_scratch.local());
   });
   // in_pair: 1 the sheet needs its boxes; 2 some pair of it searches or walks its kept set
   // this substep, so its travel (Sheet::travel) goes on. A sheet no entry is tested
@@ -225,73 +230,73 @@ void BasicWorld<Real>::Impl::contact_boxes(double h) {
   // sheet far from everything pays nothing).
   // A pair of two sheets with rims walks its rim candidates every substep, so its travel
   // goes on too.
-  in_pair.assign(count, 0);
-  for (std::size_t q = 0; q < pairs.size(); ++q) {
-    const auto& w = pair_work[q];
+  sc.in_pair.assign(count, 0);
+  for (std::size_t q = 0; q < sc.pairs.size(); ++q) {
+    const auto& w = sc.pair_work[q];
     const bool rims = params.rims && w.a != w.b;
     const bool tests = w.decided == 0 || !(w.a_on_b.point.empty() && w.b_on_a.point.empty()) || rims;
     const std::uint8_t mark = (w.decided == 0 || params.exact ? 1 : 0) | (!params.exact && tests ? 2 : 0);
     // the rims' candidates, when due, are made from both sheets' boxes: due by the travel the
     // advance below gives (moved_hi, measured above), as narrow_phase will find it
     auto travel = [&] {
-      const bool measured = detail::measured_in(at(w.a), params.stamp) && detail::measured_in(at(w.b), params.stamp);
-      return params.exact || !measured ? NAN : at(w.a).moved_hi() + at(w.b).moved_hi();
+      const bool measured = detail::measured_in(at(sc, w.a), params.stamp) && detail::measured_in(at(sc, w.b), params.stamp);
+      return params.exact || !measured ? NAN : at(sc, w.a).moved_hi() + at(sc, w.b).moved_hi();
     };
-    const bool rim_boxes = rims && detail::rims_due(w, at(w.a), at(w.b), travel());
-    in_pair[pairs[q].first] |= mark | (rim_boxes ? 1 : 0);
-    in_pair[pairs[q].second] |= mark | (rim_boxes ? 1 : 0);
+    const bool rim_boxes = rims && detail::rims_due(w, at(sc, w.a), at(sc, w.b), travel());
+    sc.in_pair[sc.pairs[q].first] |= mark | (rim_boxes ? 1 : 0);
+    sc.in_pair[sc.pairs[q].second] |= mark | (rim_boxes ? 1 : 0);
   }
-  if (sheet_boxes.size() < count) sheet_boxes.resize(count);
+  if (sc.sheet_boxes.size() < count) sc.sheet_boxes.resize(count);
   parallel(count, [&](std::size_t k) {
-    if (in_pair[k] & 2) detail::advance_travel(at(k), params.stamp);
-    if (in_pair[k] & 1) detail::build_boxes(at(k), sheet_boxes[k]);
+    if (sc.in_pair[k] & 2) detail::advance_travel(at(sc, k), params.stamp);
+    if (sc.in_pair[k] & 1) detail::build_boxes(at(sc, k), sc.sheet_boxes[k]);
   });
 }
 
 template <class Real>
-void BasicWorld<Real>::Impl::narrow_phase(double h) {
-  if (!contacting) return;
-  auto params = contact_params(h);
+void BasicWorld<Real>::Impl::narrow_phase(Scope& sc, double h) {
+  if (!sc.contacting) return;
+  auto params = contact_params(sc, h);
   // Fewer pairs than twice the threads: a pair walks and searches in two parts a direction
   // at once (ContactParams::parts), so that a sheet folding onto itself, or two sheets, use
   // more than one core. The forces are the same either way.
   const int threads = arena->max_concurrency();
-  if (threads > 1 && pairs.size() < 2 * std::size_t(threads)) params.parts = 2;
-  parallel(pairs.size(), [&](std::size_t q) {
-    auto& w = pair_work[q];
+  if (threads > 1 && sc.pairs.size() < 2 * std::size_t(threads)) params.parts = 2;
+  parallel(sc.pairs.size(), [&](std::size_t q) {
+    auto& w = sc.pair_work[q];
     auto& scratch = contact_scratch.local();
     auto pair = params;
-    pair.exponent_cap = pair_exponent_cap(w.a, w.b, h);
-    if (!params.exact) pair.travel = at(w.a).travel + at(w.b).travel;
+    pair.exponent_cap = pair_exponent_cap(sc, w.a, w.b, h);
+    if (!params.exact) pair.travel = at(sc, w.a).travel + at(sc, w.b).travel;
     if (w.a == w.b)
-      detail::self_contacts(at(w.a), sheet_boxes[w.a], pair, w, scratch);
+      detail::self_contacts(at(sc, w.a), sc.sheet_boxes[w.a], pair, w, scratch);
     else
-      detail::pair_contacts(at(w.a), sheet_boxes[w.a], at(w.b), sheet_boxes[w.b], pair, w, scratch);
+      detail::pair_contacts(at(sc, w.a), sc.sheet_boxes[w.a], at(sc, w.b), sc.sheet_boxes[w.b], pair, w, scratch);
   });
 }
 
 // Each sheet's sources in pair order: the gather's order, fixed by the boxes alone.
 template <class Real>
-void BasicWorld<Real>::Impl::plan_gather() {
-  if (!contacting) return;
-  const std::size_t count = active.size();
-  source_start.assign(count + 1, 0);
-  for (std::size_t q = 0; q < pairs.size(); ++q) {
-    const auto& w = pair_work[q];
-    if (w.on_a.size()) ++source_start[w.a + 1];
-    if (w.a != w.b && w.on_b.size()) ++source_start[w.b + 1];
+void BasicWorld<Real>::Impl::plan_gather(Scope& sc) {
+  if (!sc.contacting) return;
+  const std::size_t count = sc.active.size();
+  sc.source_start.assign(count + 1, 0);
+  for (std::size_t q = 0; q < sc.pairs.size(); ++q) {
+    const auto& w = sc.pair_work[q];
+    if (w.on_a.size()) ++sc.source_start[w.a + 1];
+    if (w.a != w.b && w.on_b.size()) ++sc.source_start[w.b + 1];
   }
-  for (std::size_t k = 0; k < count; ++k) source_start[k + 1] += source_start[k];
-  sources.resize(source_start[count]);
-  source_cursor.assign(source_start.begin(), source_start.end() - 1);
-  for (std::size_t q = 0; q < pairs.size(); ++q) {
-    const auto& w = pair_work[q];
-    if (w.on_a.size()) sources[source_cursor[w.a]++] = &w.on_a;
-    if (w.a != w.b && w.on_b.size()) sources[source_cursor[w.b]++] = &w.on_b;
+  for (std::size_t k = 0; k < count; ++k) sc.source_start[k + 1] += sc.source_start[k];
+  sc.sources.resize(sc.source_start[count]);
+  sc.source_cursor.assign(sc.source_start.begin(), sc.source_start.end() - 1);
+  for (std::size_t q = 0; q < sc.pairs.size(); ++q) {
+    const auto& w = sc.pair_work[q];
+    if (w.on_a.size()) sc.sources[sc.source_cursor[w.a]++] = &w.on_a;
+    if (w.a != w.b && w.on_b.size()) sc.sources[sc.source_cursor[w.b]++] = &w.on_b;
   }
   for (std::size_t k = 0; k < count; ++k) {
-    Sheet<Real>& s = at(k);
-    s.has_contacts = source_start[k + 1] > source_start[k];
+    Sheet<Real>& s = at(sc, k);
+    s.has_contacts = sc.source_start[k + 1] > sc.source_start[k];
     if (s.has_contacts && s.contact_force.x.size() != s.size()) s.contact_force.resize(s.size());
   }
 }
@@ -300,40 +305,40 @@ void BasicWorld<Real>::Impl::plan_gather() {
 // block_points points, so one large sheet among small ones keeps every core busy
 // (with one thread there is no core to keep busy: sheets stay whole).
 template <class Real>
-void BasicWorld<Real>::Impl::plan_blocks() {
-  blocks.clear();
+void BasicWorld<Real>::Impl::plan_blocks(Scope& sc) {
+  sc.blocks.clear();
   const bool can_split = detail::updates_per_point(def.integrator) && arena->max_concurrency() > 1;
-  for (std::uint32_t k = 0; k < active.size(); ++k) {
-    Sheet<Real>& s = at(k);
+  for (std::uint32_t k = 0; k < sc.active.size(); ++k) {
+    Sheet<Real>& s = at(sc, k);
     const std::uint32_t rows = s.topology->rows();
     const std::uint64_t points = s.size();
     std::uint32_t count = 1;
     if (can_split && points >= 2 * std::uint64_t(def.block_points))
       count = static_cast<std::uint32_t>(std::min<std::uint64_t>(rows, points / def.block_points));
-    slots[active[k]].bounds_fresh = false;  // set again by the update (integrate_sheets)
+    slots[sc.active[k]].bounds_fresh = false;  // set again by the update (integrate_sheets)
     if (count == 1) {
-      blocks.push_back({k, 0, rows, 0, false});
+      sc.blocks.push_back({k, 0, rows, 0, false});
       continue;
     }
     const std::size_t scratch = std::size_t(count) * s.topology->scratch_cols();
     if (s.row_scratch.x.size() < scratch) s.row_scratch.resize(scratch);
-    push_row_blocks(k, rows, count);
+    push_row_blocks(sc, k, rows, count);
   }
 }
 
 // Sheet k's rows cut into `count` blocks of equal size (± 1 row).
 template <class Real>
-void BasicWorld<Real>::Impl::push_row_blocks(std::uint32_t k, std::uint32_t rows, std::uint64_t count) {
+void BasicWorld<Real>::Impl::push_row_blocks(Scope& sc, std::uint32_t k, std::uint32_t rows, std::uint64_t count) {
   for (std::uint64_t b = 0; b < count; ++b)
-    blocks.push_back({k, std::uint32_t(rows * b / count), std::uint32_t(rows * (b + 1) / count), std::uint32_t(b), true});
+    sc.blocks.push_back({k, std::uint32_t(rows * b / count), std::uint32_t(rows * (b + 1) / count), std::uint32_t(b), true});
 }
 
 template <class Real>
-void BasicWorld<Real>::Impl::gather(std::size_t k, std::size_t begin, std::size_t end) {
-  Sheet<Real>& s = at(k);
+void BasicWorld<Real>::Impl::gather(Scope& sc, std::size_t k, std::size_t begin, std::size_t end) {
+  Sheet<Real>& s = at(sc, k);
   if (!s.has_contacts) return;
-  const std::span<const detail::ContactForces<Real>* const> src(sources.data() + source_start[k],
-                                                                 source_start[k + 1] - source_start[k]);
+  const std::span<const detail::ContactForces<Real>* const> src(sc.sources.data() + sc.source_start[k],
+                                                                 sc.source_start[k + 1] - sc.source_start[k]);
   detail::gather_contacts(src, s.contact_force, begin, end);
 }
 
@@ -341,29 +346,29 @@ void BasicWorld<Real>::Impl::gather(std::size_t k, std::size_t begin, std::size_
 // the contact buffers the host stage finished, so the result does not depend on how TBB
 // schedules them (bit-identical for any thread count).
 template <class Real>
-void BasicWorld<Real>::Impl::integrate_sheets(const detail::StepParams<Real>& params) {
-  plan_blocks();
+void BasicWorld<Real>::Impl::integrate_sheets(Scope& sc, const detail::StepParams<Real>& params) {
+  plan_blocks(sc);
   bool any_split = false;
-  const bool keep_bounds = contacts_possible() || !active_obstacles.empty();  // someone reads the box next substep
+  const bool keep_bounds = contacts_possible(sc) || !active_obstacles.empty();  // someone reads the box next substep
   // A first-order explicit integrator spawns no work of its own: with one block or one thread,
   // or whole sheets too small in all to pay for the other threads, its tasks run here, in
   // order, without entering the arena. A small sheet's substep takes a few microseconds, and a
   // parallel_for in the arena costs a sizeable part of that (tens of microseconds on a
   // virtual machine whose other core sleeps). Row blocks (block_points) always go to the arena.
   std::uint64_t points = 0;
-  for (std::size_t k = 0; k < active.size(); ++k) points += at(k).size();
-  const bool small = points < kParallelUpdatePoints && blocks.size() == active.size();
-  const bool here = detail::updates_per_point(def.integrator) && (blocks.size() == 1 || def.threads == 1 || small);
+  for (std::size_t k = 0; k < sc.active.size(); ++k) points += at(sc, k).size();
+  const bool small = points < kParallelUpdatePoints && sc.blocks.size() == sc.active.size();
+  const bool here = detail::updates_per_point(def.integrator) && (sc.blocks.size() == 1 || def.threads == 1 || small);
   auto tasks = [&](auto body) {
-    if (!here) return parallel(blocks.size(), body);
-    for (std::size_t q = 0; q < blocks.size(); ++q) body(q);
+    if (!here) return parallel(sc.blocks.size(), body);
+    for (std::size_t q = 0; q < sc.blocks.size(); ++q) body(q);
   };
   tasks([&](std::size_t q) {
-    const Block& b = blocks[q];
-    Slot& slot = slots[active[b.sheet]];
+    const Block& b = sc.blocks[q];
+    Slot& slot = slots[sc.active[b.sheet]];
     Sheet<Real>& s = *slot.sheet;
     const std::size_t cols = s.topology->cols();
-    gather(b.sheet, b.row_begin * cols, b.row_end * cols);
+    gather(sc, b.sheet, b.row_begin * cols, b.row_end * cols);
     if (!b.split) {
       // the box for the next host stage, taken as the update moves the points
       detail::integrate(def.integrator, s, params, keep_bounds ? &slot.bounds : nullptr);
@@ -375,35 +380,35 @@ void BasicWorld<Real>::Impl::integrate_sheets(const detail::StepParams<Real>& pa
     detail::sheet_forces_rows(s, detail::cptr(s.position), detail::cptr(s.velocity), detail::ptr(s.force),
                               {row.x + off, row.y + off, row.z + off}, b.row_begin, b.row_end);
   });
-  for (const Block& b : blocks) any_split = any_split || b.split;
+  for (const Block& b : sc.blocks) any_split = any_split || b.split;
   if (!any_split) return;
-  if (keep_bounds) block_box.assign(blocks.size(), detail::simd::Extent<Real>::none());
+  if (keep_bounds) sc.block_box.assign(sc.blocks.size(), detail::simd::Extent<Real>::none());
   // Second pass, after every block's forces: a block's springs read its neighbours' rows.
   tasks([&](std::size_t q) {
-    const Block& b = blocks[q];
+    const Block& b = sc.blocks[q];
     if (!b.split) return;
-    Sheet<Real>& s = at(b.sheet);
+    Sheet<Real>& s = at(sc, b.sheet);
     const std::size_t cols = s.topology->cols();
     detail::update_points(def.integrator, s, params, b.row_begin * cols, b.row_end * cols,
-                          keep_bounds ? &block_box[q] : nullptr);
+                          keep_bounds ? &sc.block_box[q] : nullptr);
   });
   if (!keep_bounds) return;
   // A split sheet's box: its blocks' boxes in block order (min and max are exact anyway).
-  for (std::size_t q = 0; q < blocks.size(); ++q) {
-    const Block& b = blocks[q];
+  for (std::size_t q = 0; q < sc.blocks.size(); ++q) {
+    const Block& b = sc.blocks[q];
     if (!b.split) continue;
-    Slot& slot = slots[active[b.sheet]];
+    Slot& slot = slots[sc.active[b.sheet]];
     if (b.index == 0) slot.bounds = detail::empty_box();
-    detail::include_extent(slot.bounds, block_box[q]);
+    detail::include_extent(slot.bounds, sc.block_box[q]);
     slot.bounds_fresh = true;
   }
 }
 
 // One substep: the stages of substep_stages, in order.
 template <class Real>
-void BasicWorld<Real>::Impl::substep(double h) {
-  for (Stage stage : substep_stages) run_stage(stage, h);
-  count_substeps(h, 1);
+void BasicWorld<Real>::Impl::substep(Scope& sc, double h) {
+  for (Stage stage : substep_stages) run_stage(sc, stage, h);
+  count_substeps(sc, h, 1);
 }
 
 template <class Real>
@@ -414,37 +419,37 @@ detail::StepParams<Real> BasicWorld<Real>::Impl::step_params(double h) const {
 }
 
 template <class Real>
-void BasicWorld<Real>::Impl::count_substeps(double h, std::uint64_t count) {
-  if (h != current_h) {
-    time_base = time();
-    steps_base = steps;
-    current_h = h;
+void BasicWorld<Real>::Impl::count_substeps(Scope& sc, double h, std::uint64_t count) {
+  if (h != sc.current_h) {
+    sc.time_base = sc.time();
+    sc.steps_base = sc.steps;
+    sc.current_h = h;
   }
-  steps += count;
+  sc.steps += count;
 }
 
 // The members defined here, for both precisions (as in frames.cpp).
-#define DRAPE_WORLD_STEP(Real)                                                                        \
-  template void BasicWorld<Real>::Impl::move_rigid_parts();                                           \
-  template void BasicWorld<Real>::Impl::assign_obstacles(double);                                     \
-  template bool BasicWorld<Real>::Impl::contacts_possible() const;                                    \
-  template void BasicWorld<Real>::Impl::run_stage(Stage, double);                                     \
-  template detail::ContactParams<Real> BasicWorld<Real>::Impl::contact_params(double) const;          \
-  template Real BasicWorld<Real>::Impl::pair_exponent_cap(std::size_t, std::size_t, double) const;     \
-  template void BasicWorld<Real>::Impl::contact_bounds(double);                                       \
-  template void BasicWorld<Real>::Impl::active_bounds(std::vector<detail::Aabb>&) const;               \
-  template void BasicWorld<Real>::Impl::find_pairs();                                                 \
-  template void BasicWorld<Real>::Impl::keep_pair_work(std::uint64_t);                                \
-  template void BasicWorld<Real>::Impl::contact_boxes(double);                                        \
-  template void BasicWorld<Real>::Impl::narrow_phase(double);                                         \
-  template void BasicWorld<Real>::Impl::plan_gather();                                                \
-  template void BasicWorld<Real>::Impl::plan_blocks();                                                \
-  template void BasicWorld<Real>::Impl::push_row_blocks(std::uint32_t, std::uint32_t, std::uint64_t); \
-  template void BasicWorld<Real>::Impl::gather(std::size_t, std::size_t, std::size_t);                \
-  template void BasicWorld<Real>::Impl::integrate_sheets(const detail::StepParams<Real>&);            \
-  template void BasicWorld<Real>::Impl::substep(double);                                              \
-  template detail::StepParams<Real> BasicWorld<Real>::Impl::step_params(double) const;                \
-  template void BasicWorld<Real>::Impl::count_substeps(double, std::uint64_t);
+#define DRAPE_WORLD_STEP(Real)                                                                                  \
+  template void BasicWorld<Real>::Impl::move_rigid_parts(const Scope&);                                         \
+  template void BasicWorld<Real>::Impl::assign_obstacles(const Scope&, double);                                 \
+  template bool BasicWorld<Real>::Impl::contacts_possible(const Scope&) const;                                  \
+  template void BasicWorld<Real>::Impl::run_stage(Scope&, Stage, double);                                       \
+  template detail::ContactParams<Real> BasicWorld<Real>::Impl::contact_params(const Scope&, double) const;      \
+  template Real BasicWorld<Real>::Impl::pair_exponent_cap(const Scope&, std::size_t, std::size_t, double) const; \
+  template void BasicWorld<Real>::Impl::contact_bounds(Scope&, double);                                         \
+  template void BasicWorld<Real>::Impl::active_bounds(const Scope&, std::vector<detail::Aabb>&) const;           \
+  template void BasicWorld<Real>::Impl::find_pairs(Scope&);                                                     \
+  template void BasicWorld<Real>::Impl::keep_pair_work(Scope&, std::uint64_t);                                  \
+  template void BasicWorld<Real>::Impl::contact_boxes(Scope&, double);                                          \
+  template void BasicWorld<Real>::Impl::narrow_phase(Scope&, double);                                           \
+  template void BasicWorld<Real>::Impl::plan_gather(Scope&);                                                    \
+  template void BasicWorld<Real>::Impl::plan_blocks(Scope&);                                                    \
+  template void BasicWorld<Real>::Impl::push_row_blocks(Scope&, std::uint32_t, std::uint32_t, std::uint64_t);   \
+  template void BasicWorld<Real>::Impl::gather(Scope&, std::size_t, std::size_t, std::size_t);                  \
+  template void BasicWorld<Real>::Impl::integrate_sheets(Scope&, const detail::StepParams<Real>&);              \
+  template void BasicWorld<Real>::Impl::substep(Scope&, double);                                                \
+  template detail::StepParams<Real> BasicWorld<Real>::Impl::step_params(double) const;                          \
+  template void BasicWorld<Real>::Impl::count_substeps(Scope&, double, std::uint64_t);
 DRAPE_WORLD_STEP(double)
 DRAPE_WORLD_STEP(float)
 #undef DRAPE_WORLD_STEP

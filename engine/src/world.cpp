@@ -590,7 +590,7 @@ double BasicWorld<Real>::contact_energy() const {
   impl_->parallel(pairs.size(), [&](std::size_t q) {
     const auto [a, b] = pairs[q];
     auto pair = params;
-    pair.exponent_cap = impl_->pair_exponent_cap(a, b, impl_->def.dt);
+    pair.exponent_cap = impl_->pair_exponent_cap(impl_->world, a, b, impl_->def.dt);
     share[q] = detail::contact_energy(impl.at(a), boxes[a], impl.at(b), boxes[b], pair);
     if (a != b) share[q] += detail::contact_energy(impl.at(b), boxes[b], impl.at(a), boxes[a], pair);
     if (a != b && pair.rims) share[q] += detail::rim_energy(impl.at(a), boxes[a], impl.at(b), boxes[b], pair);

@@ -66,31 +66,53 @@ struct BasicWorld<Real>::Impl {
     bool split;
   };
 
+  // What a substep's stages (step.cpp) read and write besides the sheets themselves: the
+  // sheets they step, the step count and clock, the pairs found and each pair's work, and
+  // the host stage's scratch, kept between substeps so a settled scene does not allocate.
+  // The world steps with `world`; in a frame of groups each group steps with a scope of its
+  // own (frames.cpp), so that groups step at once on different threads.
+  struct Scope {
+    std::vector<std::uint32_t> active;  // slots of the sheets stepped, in the order they were added
+    std::uint64_t steps = 0;
+    // time = time_base + (steps − steps_base)·current_h: exact for runs of equal substeps
+    double time_base = 0, current_h = 0;
+    std::uint64_t steps_base = 0;
+    std::vector<detail::Aabb> bounds, grown;
+    detail::TrackingBroadPhase broad_phase;  // reset when `active` changes
+    std::vector<detail::BoxPair> pairs;
+    std::vector<std::uint8_t> in_pair;                  // per sheet: needs its boxes (1), in a pair (2)
+    std::vector<detail::SheetBoxes<Real>> sheet_boxes;  // per sheet in a pair, shared by its pairs
+    std::vector<detail::PairContacts<Real>> pair_work;
+    std::vector<std::uint32_t> source_start;                  // per sheet, into sources (CSR)
+    std::vector<const detail::ContactForces<Real>*> sources;  // per sheet, in pair order
+    std::vector<std::uint32_t> source_cursor;                 // while filling sources
+    std::vector<Block> blocks;
+    std::vector<detail::simd::Extent<Real>> block_box;  // a split block's box after its update
+    bool contacting = false;  // this substep's contact stages run (set by contact_bounds)
+    // A group's scope keeps the slots of the pairs it met for the guard (guard_meet), which
+    // the world's takes once the frame is kept; the world's meets them at once.
+    bool keeps_meets = false;
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> met;
+    double time() const { return time_base + static_cast<double>(steps - steps_base) * current_h; }
+  };
+
   WorldDef def;
   std::unique_ptr<tbb::task_arena> arena;
   std::vector<Slot> slots;
   detail::IdPool<SheetTag> sheet_ids;  // handles to `slots`
-  std::vector<std::uint32_t> active;  // live slots in the order sheets were added
+  Scope world;
+  // The world's scope by the names the pools, the guard and frames use.
+  std::vector<std::uint32_t>& active = world.active;  // live slots in the order sheets were added
+  std::uint64_t& steps = world.steps;
+  double& time_base = world.time_base;
+  double& current_h = world.current_h;
+  std::uint64_t& steps_base = world.steps_base;
+  detail::TrackingBroadPhase& broad_phase = world.broad_phase;
+  std::vector<detail::BoxPair>& pairs = world.pairs;
+  std::vector<detail::PairContacts<Real>>& pair_work = world.pair_work;
   std::vector<std::shared_ptr<const Topology<Real>>> topologies;
-  std::uint64_t steps = 0;
-  // time = time_base + (steps − steps_base)·current_h: exact for runs of equal substeps
-  double time_base = 0, current_h = 0;
-  std::uint64_t steps_base = 0;
   std::optional<StabilityReport> failure;  // set when the guard halted the world
-
-  // Host stage scratch, kept between substeps so a settled scene does not allocate.
-  std::vector<detail::Aabb> bounds, grown;
-  detail::TrackingBroadPhase broad_phase;  // reset when `active` changes
-  std::vector<detail::BoxPair> pairs;
-  std::vector<std::uint8_t> in_pair;                  // per sheet: needs its boxes (1), in a pair (2)
-  std::vector<detail::SheetBoxes<Real>> sheet_boxes;  // per sheet in a pair, shared by its pairs
-  std::vector<detail::PairContacts<Real>> pair_work;
   tbb::enumerable_thread_specific<detail::ContactScratch<Real>> contact_scratch;  // narrow phase
-  std::vector<std::uint32_t> source_start;                  // per sheet, into sources (CSR)
-  std::vector<const detail::ContactForces<Real>*> sources;  // per sheet, in pair order
-  std::vector<std::uint32_t> source_cursor;                 // while filling sources
-  std::vector<Block> blocks;
-  std::vector<detail::simd::Extent<Real>> block_box;  // a split block's box after its update
 
   explicit Impl(const WorldDef& d) : def(d) { make_arena(); }
 
@@ -104,8 +126,6 @@ struct BasicWorld<Real>::Impl {
 
   detail::ConstraintPool<Real> constraints;
 
-  bool contacting = false;  // this substep's contact stages run (set by contact_bounds)
-
   // integrate_runs' scratch (frames.cpp)
   tbb::enumerable_thread_specific<detail::WaveScratch<Real>> wave_scratch;  // whole sheets
   std::vector<detail::WaveScratch<Real>> block_scratch;                     // per split block, with its halo
@@ -115,12 +135,9 @@ struct BasicWorld<Real>::Impl {
   // A frame's groups: sheets closed under the pairs at the frame's start, with those near an
   // obstacle; each steps the frame alone, substep by substep, with the world's stages.
   struct Group {
-    std::vector<std::uint32_t> members;  // positions in `active`, ascending
-    std::vector<std::uint32_t> active;   // their slots: the group's `active` while it steps
-    detail::TrackingBroadPhase broad_phase;
-    std::vector<detail::BoxPair> pairs;
-    std::vector<detail::PairContacts<Real>> pair_work;  // its pairs' work, in its positions
-    std::vector<detail::PairMemory<Real>> saved_work;  // as the frame found it
+    std::vector<std::uint32_t> members;  // positions in the world's `active`, ascending
+    Scope scope;                         // its sheets' slots, its pairs and their work (in its positions)
+    std::vector<detail::PairMemory<Real>> saved_work;  // its pairs' work as the frame found it
   };
   std::vector<Group> groups;
   std::size_t group_count = 0;           // groups[0, group_count) serve this frame
@@ -171,7 +188,7 @@ struct BasicWorld<Real>::Impl {
     });
   }
 
-  double time() const { return time_base + static_cast<double>(steps - steps_base) * current_h; }
+  double time() const { return world.time(); }
 
   // ---- The substep's stages, in the order substep() runs them (step.cpp) ------------
   //
@@ -193,8 +210,11 @@ struct BasicWorld<Real>::Impl {
                                              Stage::ContactBoxes, Stage::NarrowPhase, Stage::GatherPlan,
                                              Stage::Obstacles,   Stage::Integrate};
 
-  bool contacts_possible() const;
-  void move_rigid_parts();
+  Sheet<Real>& at(const Scope& sc, std::size_t k) { return *slots[sc.active[k]].sheet; }
+  const Sheet<Real>& at(const Scope& sc, std::size_t k) const { return *slots[sc.active[k]].sheet; }
+  bool contacts_possible(const Scope& sc) const;
+  bool contacts_possible() const { return contacts_possible(world); }
+  void move_rigid_parts(const Scope& sc);
   // A sheet's box now: the one its last integration took (from the update's registers, or
   // a pass while the positions were in cache), unless something moved the points since.
   detail::Aabb current_bounds(const Slot& slot) const {
@@ -204,31 +224,35 @@ struct BasicWorld<Real>::Impl {
   // ones take a pass over their points each, across the threads only when they hold enough
   // points to pay for waking them: a small world's host stage then forks no work for
   // nothing. The boxes are the same either way.
-  void active_bounds(std::vector<detail::Aabb>& out) const;
+  void active_bounds(const Scope& sc, std::vector<detail::Aabb>& out) const;
+  void active_bounds(std::vector<detail::Aabb>& out) const { active_bounds(world, out); }
   // For a search of the sheets now (contact_energy, sheet_crossings): the pairs of active
   // sheets (positions in `active`) whose boxes, grown by `margin`, meet, sorted, then every
   // self-colliding sheet with itself; and the boxes (build_boxes) of each sheet in a pair.
   void pairs_with_boxes(double margin, std::vector<detail::BoxPair>& pairs,
                         std::vector<detail::SheetBoxes<Real>>& boxes) const;
-  void assign_obstacles(double h);
-  void run_stage(Stage stage, double h);
-  detail::ContactParams<Real> contact_params(double h) const;
-  // The exponent cap (contacts.h) of the pair of active sheets a, b at the substep h.
-  Real pair_exponent_cap(std::size_t a, std::size_t b, double h) const;
-  void contact_bounds(double h);
-  void find_pairs();
-  // pair_work in the order of `pairs` (a pair's work kept across changes of the list)
-  void keep_pair_work(std::uint64_t stamp);
-  void contact_boxes(double h);
-  void narrow_phase(double h);
-  void plan_gather();
-  void plan_blocks();
-  void push_row_blocks(std::uint32_t k, std::uint32_t rows, std::uint64_t count);
-  void gather(std::size_t k, std::size_t begin, std::size_t end);
-  void integrate_sheets(const detail::StepParams<Real>& params);
-  void substep(double h);
+  void assign_obstacles(const Scope& sc, double h);
+  void run_stage(Scope& sc, Stage stage, double h);
+  detail::ContactParams<Real> contact_params(const Scope& sc, double h) const;
+  detail::ContactParams<Real> contact_params(double h) const { return contact_params(world, h); }
+  // The exponent cap (contacts.h) of the pair of sheets a, b (positions in sc.active) at the substep h.
+  Real pair_exponent_cap(const Scope& sc, std::size_t a, std::size_t b, double h) const;
+  void contact_bounds(Scope& sc, double h);
+  void find_pairs(Scope& sc);
+  // sc.pair_work in the order of sc.pairs (a pair's work kept across changes of the list)
+  void keep_pair_work(Scope& sc, std::uint64_t stamp);
+  void contact_boxes(Scope& sc, double h);
+  void narrow_phase(Scope& sc, double h);
+  void plan_gather(Scope& sc);
+  void plan_blocks(Scope& sc);
+  void push_row_blocks(Scope& sc, std::uint32_t k, std::uint32_t rows, std::uint64_t count);
+  void gather(Scope& sc, std::size_t k, std::size_t begin, std::size_t end);
+  void integrate_sheets(Scope& sc, const detail::StepParams<Real>& params);
+  void substep(Scope& sc, double h);
+  void substep(double h) { substep(world, h); }
   detail::StepParams<Real> step_params(double h) const;
-  void count_substeps(double h, std::uint64_t count);
+  void count_substeps(Scope& sc, double h, std::uint64_t count);
+  void count_substeps(double h, std::uint64_t count) { count_substeps(world, h, count); }
 
   // ---- Runs of substeps, contact-free frames, waves (frames.cpp) ------------------
 

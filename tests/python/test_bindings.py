@@ -415,6 +415,30 @@ def test_run_frames_calls_back_per_frame_and_stops_on_false():
         world.run_frames(2, 1, broken)
 
 
+def test_frames_in_groups_of_sheets_in_contact_change_no_bit():
+    # two columns of three layers in contact, far apart: each column a group
+    def columns(group_points):
+        world = drape.World(dt=1e-3, threads=1, group_points=group_points)
+        sheets = [world.add_sheet(m=12, n=12, width=0.3, height=0.3, stiffness=50, damping=0.05,
+                                  center=(0.6 * c, 0, 0.008 * k), pins=drape.corner_points(12, 12))
+                  for c in range(2) for k in range(3)]
+        return world, sheets
+
+    framed, sheets = columns(0)
+    for _ in range(5):
+        framed.step(10)
+    assert framed.frame_stats.kept == 5 and framed.frame_stats.undone == 0
+    single, same = columns(0)
+    for _ in range(50):
+        single.step(1)
+    assert single.frame_stats.kept == 0  # a single substep is never tried
+    for a, b in zip(sheets, same):
+        assert np.array_equal(framed.view(a).z.view(np.uint8), single.view(b).z.view(np.uint8))
+    small, _ = columns(drape.WorldDef().group_points)  # too small a world for groups by default
+    small.step(10)
+    assert small.frame_stats.kept + small.frame_stats.undone == 0
+
+
 def test_contact_memory_makes_a_copied_world_in_contact_continue_bit_for_bit():
     def stack():
         world = drape.World(dt=1e-3, threads=1)
