@@ -983,11 +983,15 @@ class Report:
             if apart_f and contact_f:
                 self.used.update({apart_f.name, contact_f.name})
                 frame = int(contact_f.counters.get("per_call") or contact_f.substeps)
+                kept = int(contact_f.counters.get("frames_kept") or 0)
+                undone = int(contact_f.counters.get("frames_undone") or 0)
                 self.out(f"- The same two scenes stepped a frame of {frame} substeps per call: apart, "
                          f"{us(apart_f.step_seconds)} µs per substep (each frame runs as if contact-free and is kept "
                          f"once its swept boxes show no sheet came within range); in contact, "
-                         f"{us(contact_f.step_seconds)} µs per substep (in range at every frame's start, so no frame "
-                         f"is tried).")
+                         f"{us(contact_f.step_seconds)} µs per substep, {contact_f.step_seconds / contact.step_seconds:.2f}× "
+                         f"the substep by substep figure above (each frame tried in groups of sheets in contact, a column "
+                         f"each, each group stepping the frame alone while its state is in the cache: {kept} of "
+                         f"{kept + undone} tries kept in an iteration; docs/architecture.md, frames of groups).")
         self.out("")
         # judged from tools/floor_pair.py's alternating rounds where it ran both (the main run's
         # repetitions of the two are minutes apart, and one slow repetition flipped the verdict)
