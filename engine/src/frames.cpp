@@ -304,11 +304,11 @@ void BasicWorld<Real>::Impl::end_groups(bool kept) {
 }
 
 template <class Real>
-bool BasicWorld<Real>::Impl::try_frame(double h, std::uint64_t count) {
+typename BasicWorld<Real>::Impl::Try BasicWorld<Real>::Impl::try_frame(double h, std::uint64_t count) {
   const std::size_t n = active.size();
   active_bounds(swept);
   plan_groups(swept);
-  if (group_count > 0 && !groups_pay()) return false;
+  if (group_count > 0 && !groups_pay()) return Try::NotTried;
   // Each pair's work to its group, in the group's positions; aside if its two sheets are
   // not in one group (the pair is gone, and stays gone in a frame that is kept).
   std::vector<std::uint32_t> local(n);
@@ -350,7 +350,7 @@ bool BasicWorld<Real>::Impl::try_frame(double h, std::uint64_t count) {
   ++(kept ? frame_stats.kept : frame_stats.undone);
   if (kept && group_count == 0) count_substeps(h, count);  // else each group counted its substeps
   end_groups(kept);
-  return kept;
+  return kept ? Try::Kept : Try::Undone;
 }
 
 // Substeps a try of try_frame takes at most: enough to step a group while its state is in
@@ -374,12 +374,15 @@ void BasicWorld<Real>::Impl::substeps(double h, std::uint64_t count) {
     const std::uint64_t part = std::min(count, kFrameTry);
     count -= part;
     if (may_try && part > 1 && tries_to_skip == 0) {
-      if (try_frame(h, part)) {
+      const Try tried = try_frame(h, part);
+      if (tried == Try::Kept) {
         try_backoff = 0;
         continue;
       }
-      try_backoff = std::min<std::uint32_t>(8, std::max<std::uint32_t>(1, 2 * try_backoff));
-      tries_to_skip = try_backoff;
+      if (tried == Try::Undone) {
+        try_backoff = std::min<std::uint32_t>(8, std::max<std::uint32_t>(1, 2 * try_backoff));
+        tries_to_skip = try_backoff;
+      }
     } else if (may_try && part > 1) {
       --tries_to_skip;
     }
@@ -436,7 +439,7 @@ void BasicWorld<Real>::Impl::advance(double seconds) {
   template void BasicWorld<Real>::Impl::step_group(Group&, double, std::uint64_t);                            \
   template bool BasicWorld<Real>::Impl::groups_stayed_apart();                                                \
   template void BasicWorld<Real>::Impl::end_groups(bool);                                                     \
-  template bool BasicWorld<Real>::Impl::try_frame(double, std::uint64_t);                                     \
+  template typename BasicWorld<Real>::Impl::Try BasicWorld<Real>::Impl::try_frame(double, std::uint64_t);                                     \
   template void BasicWorld<Real>::Impl::substeps(double, std::uint64_t);                                      \
   template double BasicWorld<Real>::Impl::omega_max() const;                                                  \
   template double BasicWorld<Real>::Impl::contact_omega(double) const;                                        \

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <limits>
 #include <tbb/parallel_invoke.h>
+#include <tbb/task_arena.h>
 #include <type_traits>
 
 namespace drape::detail {
@@ -238,7 +239,9 @@ bool SupernodalFactor<Scalar>::factor() {
     for (int s : group_[g])
       if (!(made[g] = factor_supernode(std::size_t(s), g == 0 ? update_.data() : second_update_.data(), g == 1))) return;
   };
-  tbb::parallel_invoke([&] { run(0); }, [&] { run(1); });
+  // isolated: this thread, waiting with subnormals flushed, takes no other task meanwhile
+  // (another sheet's step would then run in this thread's mode, not its own)
+  tbb::this_task_arena::isolate([&] { tbb::parallel_invoke([&] { run(0); }, [&] { run(1); }); });
   if (!made[0] || !made[1]) return false;
   for (int t : top_) {
     Scalar* into = value_.data() + value_start_[std::size_t(t)];

@@ -271,7 +271,10 @@ struct BasicWorld<Real>::Impl {
   void step_group(Group& g, double h, std::uint64_t count);
   bool groups_stayed_apart();
   void end_groups(bool kept);
-  bool try_frame(double h, std::uint64_t count);
+  // A frame tried: kept, undone (then the caller steps it substep by substep), or not tried
+  // (sheets in groups that do not pay, groups_pay).
+  enum class Try { Kept, Undone, NotTried };
+  Try try_frame(double h, std::uint64_t count);
   void substeps(double h, std::uint64_t count);
   double omega_max() const;
   // ω of the sheet–sheet contact for a point of mass `lightest`: √(c/m)/ξ (0 when c = 0),
