@@ -991,7 +991,8 @@ class Report:
                          f"{us(contact_f.step_seconds)} µs per substep, {contact_f.step_seconds / contact.step_seconds:.2f}× "
                          f"the substep by substep figure above (each frame tried in groups of sheets in contact, a column "
                          f"each, each group stepping the frame alone while its state is in the cache: {kept} of "
-                         f"{kept + undone} tries kept in an iteration; docs/architecture.md, frames of groups).")
+                         f"{kept + undone} tries kept in an iteration, its untimed warm-up's included; "
+                         f"docs/architecture.md, frames of groups).")
         self.out("")
         # judged from tools/floor_pair.py's alternating rounds where it ran both (the main run's
         # repetitions of the two are minutes apart, and one slow repetition flipped the verdict)
