@@ -385,4 +385,28 @@ TEST_F(Cli, RunReportsItsRatesFromItsPointsStepsAndTime) {
   EXPECT_NEAR(realtime, simulated / seconds, 0.011 * realtime) << r.err;
 }
 
+// A frame of substeps is tried ahead and kept only if no sheet came near anything it was
+// not near at the frame's start (docs/architecture.md, frames of groups); a sheet dropped
+// onto a floor comes within its reach during some frame, which is then stepped again
+// substep by substep, and the last line says how many: the same scene without the floor
+// (nothing to come near) says nothing.
+TEST_F(Cli, RunSaysHowManyFramesTriedAheadItSteppedAgain) {
+  const std::string sheet = R"("sheets": [{"grid": [10, 10], "size": [0.5, 0.5], "stiffness": 100, "mass": 0.3}])";
+  const fs::path floor = write("floor.json", R"({"frames": 40, "dt": 0.001, "substeps": 25, )" + sheet +
+                                                 R"(, "obstacles": [{"type": "plane", "center": [0, 0, -1]}]})");
+  Result r = drape("run " + floor.string() + " --out " + (dir / "floor").string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto at = r.err.find("frames tried ahead: ");
+  ASSERT_NE(at, std::string::npos) << r.err;
+  unsigned kept = 0, again = 0;
+  ASSERT_EQ(std::sscanf(r.err.c_str() + at, "frames tried ahead: %u kept, %u stepped again", &kept, &again), 2)
+      << r.err;
+  EXPECT_GE(kept, 1u) << r.err;   // the frames of the fall before it comes within reach
+  EXPECT_GE(again, 1u) << r.err;  // the frame in which it does
+  const fs::path free = write("free.json", R"({"frames": 40, "dt": 0.001, "substeps": 25, )" + sheet + "}");
+  r = drape("run " + free.string() + " --out " + (dir / "free").string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.err.find("stepped again"), std::string::npos) << r.err;
+}
+
 }  // namespace

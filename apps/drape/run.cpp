@@ -414,6 +414,10 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
   if (seconds > 0 && point_steps > 0)
     log << " (" << point_steps / seconds / 1e6 << " M point-steps/s, " << (world.time() - first_time) / seconds
         << " simulated s per wall s)";
+  // frames tried ahead and kept if nothing came near (docs/architecture.md, frames of groups):
+  // how many had to be stepped again
+  const auto tries = world.frame_stats();
+  if (tries.undone > 0) log << "; frames tried ahead: " << tries.kept << " kept, " << tries.undone << " stepped again";
   log << '\n';
   return exit_ok;
 }

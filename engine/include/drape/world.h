@@ -358,10 +358,12 @@ class BasicWorld {
   // that no contact coupled).
   std::size_t contact_pair_count() const;
   std::uint64_t step_count() const;   // substeps taken
-  // How step() ran its frames (calls of more than one substep) on sheets that contacts or
-  // obstacles could couple: frames stepped in groups of sheets that stayed apart over the
-  // frame (kept), and frames undone and stepped substep by substep because two groups met
-  // (each computed twice). docs/architecture.md, "Frames of groups".
+  // How step() ran its frames (calls of more than one substep, in tries of up to 32) on
+  // sheets that contacts or obstacles could couple: each try steps the sheets ahead in
+  // groups of sheets in contact (a sheet near nothing on its own), kept if no two groups came
+  // within range of each other, nor a lone sheet within an obstacle's reach; undone ones
+  // were stepped again substep by substep (computed twice). docs/architecture.md, "Frames
+  // of groups".
   struct FrameStats {
     std::uint64_t kept = 0, undone = 0;
   };
