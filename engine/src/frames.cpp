@@ -342,7 +342,10 @@ typename BasicWorld<Real>::Impl::Try BasicWorld<Real>::Impl::try_frame(double h,
     for (std::size_t i = 0; i < free_sheets.size(); ++i) swept[free_sheets[i]] = free_swept[i];
   }
   // The groups at once, each a task; a thread waiting inside one group's stages takes only
-  // that group's work meanwhile (isolate), never a whole other group.
+  // that group's work meanwhile (isolate), never a whole other group. With a group for every
+  // thread, each group's stages run in order on its own thread (Scope::serial).
+  const bool serial = group_count >= std::size_t(arena->max_concurrency());
+  for (std::size_t g = 0; g < group_count; ++g) groups[g].scope.serial = serial;
   parallel(group_count, [&](std::size_t g) {
     tbb::this_task_arena::isolate([&] { step_group(groups[g], h, count); });
   });

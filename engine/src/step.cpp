@@ -132,7 +132,7 @@ void BasicWorld<Real>::Impl::active_bounds(const Scope& sc, std::vector<detail::
     const Slot& slot = slots[sc.active[k]];
     if (!slot.bounds_fresh) out[k] = detail::sheet_bounds(*slot.sheet);
   };
-  if (stale_points >= kParallelBoundsPoints) return parallel(count, stale);
+  if (stale_points >= kParallelBoundsPoints) return each(sc, count, stale);
   if (stale_points > 0)
     for (std::size_t k = 0; k < count; ++k) stale(k);
 }
@@ -217,10 +217,10 @@ void BasicWorld<Real>::Impl::contact_boxes(Scope& sc, double h) {
   // every sheet in a pair: where it is on its travel scale, for all of its pairs' decisions
   sc.in_pair.assign(count, 0);
   for (const auto& pair : sc.pairs) sc.in_pair[pair.first] = sc.in_pair[pair.second] = 1;
-  parallel(count, [&](std::size_t k) {
+  each(sc, count, [&](std::size_t k) {
     if (sc.in_pair[k]) detail::measure_travel(at(sc, k), params.stamp);
   });
-  parallel(sc.pairs.size(), [&](std::size_t q) {
+  each(sc, sc.pairs.size(), [&](std::size_t q) {
     auto& w = sc.pair_work[q];
     detail::pair_needs_boxes(at(sc, w.a), at(sc, w.b), params, w, contact_scratch.local());
   });
@@ -247,7 +247,7 @@ void BasicWorld<Real>::Impl::contact_boxes(Scope& sc, double h) {
     sc.in_pair[sc.pairs[q].second] |= mark | (rim_boxes ? 1 : 0);
   }
   if (sc.sheet_boxes.size() < count) sc.sheet_boxes.resize(count);
-  parallel(count, [&](std::size_t k) {
+  each(sc, count, [&](std::size_t k) {
     if (sc.in_pair[k] & 2) detail::advance_travel(at(sc, k), params.stamp);
     if (sc.in_pair[k] & 1) detail::build_boxes(at(sc, k), sc.sheet_boxes[k]);
   });
@@ -261,8 +261,8 @@ void BasicWorld<Real>::Impl::narrow_phase(Scope& sc, double h) {
   // at once (ContactParams::parts), so that a sheet folding onto itself, or two sheets, use
   // more than one core. The forces are the same either way.
   const int threads = arena->max_concurrency();
-  if (threads > 1 && sc.pairs.size() < 2 * std::size_t(threads)) params.parts = 2;
-  parallel(sc.pairs.size(), [&](std::size_t q) {
+  if (threads > 1 && !sc.serial && sc.pairs.size() < 2 * std::size_t(threads)) params.parts = 2;
+  each(sc, sc.pairs.size(), [&](std::size_t q) {
     auto& w = sc.pair_work[q];
     auto& scratch = contact_scratch.local();
     auto pair = params;
@@ -307,7 +307,7 @@ void BasicWorld<Real>::Impl::plan_gather(Scope& sc) {
 template <class Real>
 void BasicWorld<Real>::Impl::plan_blocks(Scope& sc) {
   sc.blocks.clear();
-  const bool can_split = detail::updates_per_point(def.integrator) && arena->max_concurrency() > 1;
+  const bool can_split = detail::updates_per_point(def.integrator) && arena->max_concurrency() > 1 && !sc.serial;
   for (std::uint32_t k = 0; k < sc.active.size(); ++k) {
     Sheet<Real>& s = at(sc, k);
     const std::uint32_t rows = s.topology->rows();
@@ -358,7 +358,8 @@ void BasicWorld<Real>::Impl::integrate_sheets(Scope& sc, const detail::StepParam
   std::uint64_t points = 0;
   for (std::size_t k = 0; k < sc.active.size(); ++k) points += at(sc, k).size();
   const bool small = points < kParallelUpdatePoints && sc.blocks.size() == sc.active.size();
-  const bool here = detail::updates_per_point(def.integrator) && (sc.blocks.size() == 1 || def.threads == 1 || small);
+  const bool here =
+      sc.serial || (detail::updates_per_point(def.integrator) && (sc.blocks.size() == 1 || def.threads == 1 || small));
   auto tasks = [&](auto body) {
     if (!here) return parallel(sc.blocks.size(), body);
     for (std::size_t q = 0; q < sc.blocks.size(); ++q) body(q);

@@ -89,6 +89,9 @@ struct BasicWorld<Real>::Impl {
     std::vector<Block> blocks;
     std::vector<detail::simd::Extent<Real>> block_box;  // a split block's box after its update
     bool contacting = false;  // this substep's contact stages run (set by contact_bounds)
+    // A group stepping beside at least as many others as there are threads: its stages'
+    // loops run in order on the thread that steps it (each), without forking.
+    bool serial = false;
     // A group's scope keeps the slots of the pairs it met for the guard (guard_meet), which
     // the world's takes once the frame is kept; the world's meets them at once.
     bool keeps_meets = false;
@@ -189,6 +192,12 @@ struct BasicWorld<Real>::Impl {
   }
 
   double time() const { return world.time(); }
+  // A stage's loop over count items: across the threads (parallel), or in order in a serial scope.
+  template <class Body>
+  void each(const Scope& sc, std::size_t count, Body body) const {
+    if (!sc.serial) return parallel(count, body);
+    for (std::size_t k = 0; k < count; ++k) body(k);
+  }
 
   // ---- The substep's stages, in the order substep() runs them (step.cpp) ------------
   //
