@@ -1,5 +1,6 @@
 // Many substeps at once: runs of substeps on independent sheets (whole, or as waves in row
-// blocks), contact-free frames that are kept only if nothing came near, and advance().
+// blocks), frames tried ahead and kept only if nothing came near (contact-free, or in groups
+// of sheets in contact each stepping the frame alone), and advance().
 
 #include <algorithm>
 #include <cmath>

@@ -263,7 +263,7 @@ struct BasicWorld<Real>::Impl {
   void count_substeps(Scope& sc, double h, std::uint64_t count);
   void count_substeps(double h, std::uint64_t count) { count_substeps(world, h, count); }
 
-  // ---- Runs of substeps, contact-free frames, waves (frames.cpp) ------------------
+  // ---- Runs of substeps, frames tried ahead (contact-free, in groups), waves (frames.cpp)
 
   // Several substeps with nothing between them: no contacts (their forces come from every
   // sheet's positions at each substep) and no obstacles (each substep picks the ones near
