@@ -341,6 +341,7 @@ inline constexpr std::uint64_t kGoneSubsteps = 64;
 // lists for the next 16 substeps (making them costs more than it saves while the sheets
 // move that fast), then start again at R/4. A kept contact set's skin (below) doubles up
 // to 2R and never halves below R/2.
+//
 // What a pair carries from one substep to the next: its sheets, kept lists and sets, the
 // positions and clearances they were made at, its counters, decisions and guesses. Written
 // as words by write_contact_memory; copied as it is for a frame's saved state (frames.cpp).
@@ -480,8 +481,8 @@ void gather_contacts(std::span<const ContactForces<Real>* const> sources, Vec3Ar
 // by default) packs indices, flags and floats two to a word as layouts 2 and 3 do, and
 // holds each pair's last substep in the list; layout 3 lacks that (its pairs read as
 // present at `present_at`, the world's last substep), layouts 2 and 1 (one word per entry)
-// also skips and travel, and are still read (for older checkpoints): their entries walk
-// every substep until the next search.
+// lack skips and travel too; all are still read (for older checkpoints), the entries of
+// layouts 2 and 1 walking every substep until the next search.
 template <class Real>
 struct SheetTravel {
   double travel = 0;
