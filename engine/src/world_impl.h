@@ -61,7 +61,7 @@ struct BasicWorld<Real>::Impl {
   // compute forces in the first pass and update in the second; a whole sheet does both
   // in its one task.
   struct Block {
-    std::uint32_t sheet;  // position in `active`
+    std::uint32_t sheet;  // position in its scope's `active`
     std::uint32_t row_begin, row_end, index;
     bool split;
   };
