@@ -487,7 +487,9 @@ ConstraintDef read_constraint(const Node& node, const Scene& scene) {
     node.expect_object({"type", "sheet", "points", "stiffness", "rail"});
     c.kind = ConstraintKind::Rail;
   } else {
-    static constexpr std::string_view kinds[] = {"point_to_point", "path", "frame", "rail"};
+    std::vector<std::string_view> kinds;  // the kinds the engine names, in the enum's order
+    for (int k = 0; constraint_kind_name(ConstraintKind(k)) != "unknown"; ++k)
+      kinds.push_back(constraint_kind_name(ConstraintKind(k)));
     node.child("type").fail("unknown constraint type \"" + type + "\" (" + known_words(type, kinds, "known") + ")");
   }
   auto points_of = [&](const char* key, SheetId sheet) {

@@ -117,9 +117,7 @@ void BasicWorld<Real>::Impl::plan_groups(const std::vector<detail::Aabb>& boxes)
   const auto n = static_cast<std::uint32_t>(active.size());
   frame_pairs.clear();
   if (contacts_possible()) {
-    const auto params = contact_params(def.dt);  // only its range is used here
-    swept_grown.resize(n);
-    for (std::uint32_t k = 0; k < n; ++k) swept_grown[k] = boxes[k].inflated(0.5 * double(params.range));
+    grow_for_contact(boxes, swept_grown);
     broad_phase.find_pairs(swept_grown, frame_pairs);
     for (std::uint32_t k = 0; k < n; ++k)
       if (at(k).self_collision) frame_pairs.push_back({k, k});
@@ -247,9 +245,7 @@ void BasicWorld<Real>::Impl::step_group(Group& g, double h, std::uint64_t count)
 template <class Real>
 bool BasicWorld<Real>::Impl::groups_stayed_apart() {
   if (contacts_possible()) {
-    const auto params = contact_params(def.dt);  // only its range is used here
-    swept_grown.resize(swept.size());
-    for (std::size_t k = 0; k < swept.size(); ++k) swept_grown[k] = swept[k].inflated(0.5 * double(params.range));
+    grow_for_contact(swept, swept_grown);
     swept_broad_phase.find_pairs(swept_grown, frame_pairs);
     for (const detail::BoxPair& pair : frame_pairs)
       if (group_of[pair.first] == kFree || group_of[pair.first] != group_of[pair.second]) return false;

@@ -58,7 +58,7 @@ template <class Real>
 void BasicWorld<Real>::Impl::run_stage(Scope& sc, Stage stage, double h) {
   switch (stage) {
     case Stage::RigidParts: return move_rigid_parts(sc);
-    case Stage::Bounds: return contact_bounds(sc, h);
+    case Stage::Bounds: return contact_bounds(sc);
     case Stage::BroadPhase: return find_pairs(sc);
     case Stage::ContactBoxes: return contact_boxes(sc, h);
     case Stage::NarrowPhase: return narrow_phase(sc, h);
@@ -90,7 +90,7 @@ Real BasicWorld<Real>::Impl::pair_exponent_cap(const Scope& sc, std::size_t a, s
 }
 
 template <class Real>
-void BasicWorld<Real>::Impl::contact_bounds(Scope& sc, double h) {
+void BasicWorld<Real>::Impl::contact_bounds(Scope& sc) {
   const std::size_t count = sc.active.size();
   for (std::size_t k = 0; k < count; ++k) at(sc, k).has_contacts = false;
   sc.contacting = contacts_possible(sc);
@@ -98,10 +98,16 @@ void BasicWorld<Real>::Impl::contact_bounds(Scope& sc, double h) {
     sc.pairs.clear();
     return;
   }
-  const auto params = contact_params(sc, h);
   active_bounds(sc, sc.bounds);
-  sc.grown.resize(count);
-  for (std::size_t k = 0; k < count; ++k) sc.grown[k] = sc.bounds[k].inflated(0.5 * double(params.range));
+  grow_for_contact(sc.bounds, sc.grown);
+}
+
+template <class Real>
+void BasicWorld<Real>::Impl::grow_for_contact(const std::vector<detail::Aabb>& boxes,
+                                              std::vector<detail::Aabb>& out) const {
+  const double half = 0.5 * double(contact_params(def.dt).range);  // only its range is used here
+  out.resize(boxes.size());
+  for (std::size_t k = 0; k < boxes.size(); ++k) out[k] = boxes[k].inflated(half);
 }
 
 // Worlds of whole sheets below this many points in all update on the calling thread
@@ -437,7 +443,9 @@ void BasicWorld<Real>::Impl::count_substeps(Scope& sc, double h, std::uint64_t c
   template void BasicWorld<Real>::Impl::run_stage(Scope&, Stage, double);                                       \
   template detail::ContactParams<Real> BasicWorld<Real>::Impl::contact_params(const Scope&, double) const;      \
   template Real BasicWorld<Real>::Impl::pair_exponent_cap(const Scope&, std::size_t, std::size_t, double) const; \
-  template void BasicWorld<Real>::Impl::contact_bounds(Scope&, double);                                         \
+  template void BasicWorld<Real>::Impl::contact_bounds(Scope&);                                                 \
+  template void BasicWorld<Real>::Impl::grow_for_contact(const std::vector<detail::Aabb>&,                     \
+                                                         std::vector<detail::Aabb>&) const;                   \
   template void BasicWorld<Real>::Impl::active_bounds(const Scope&, std::vector<detail::Aabb>&) const;           \
   template void BasicWorld<Real>::Impl::find_pairs(Scope&);                                                     \
   template void BasicWorld<Real>::Impl::keep_pair_work(Scope&, std::uint64_t);                                  \

@@ -246,7 +246,10 @@ struct BasicWorld<Real>::Impl {
   detail::ContactParams<Real> contact_params(double h) const { return contact_params(world, h); }
   // The exponent cap (contacts.h) of the pair of sheets a, b (positions in sc.active) at the substep h.
   Real pair_exponent_cap(const Scope& sc, std::size_t a, std::size_t b, double h) const;
-  void contact_bounds(Scope& sc, double h);
+  void contact_bounds(Scope& sc);
+  // `boxes` grown by half the contact range each, into `out`: two of them meet where the
+  // broad phase pairs their sheets.
+  void grow_for_contact(const std::vector<detail::Aabb>& boxes, std::vector<detail::Aabb>& out) const;
   void find_pairs(Scope& sc);
   // sc.pair_work in the order of sc.pairs (a pair's work kept across changes of the list)
   void keep_pair_work(Scope& sc, std::uint64_t stamp);
