@@ -172,15 +172,18 @@ template <class Real>
 void BasicWorld<Real>::Impl::keep_pair_work(Scope& sc, std::uint64_t stamp) {
   auto same = [&](std::size_t q) { return sc.pair_work[q].a == sc.pairs[q].first && sc.pair_work[q].b == sc.pairs[q].second; };
   auto waited = [&](const detail::PairContacts<Real>& w) { return w.present_at + detail::kGoneSubsteps < stamp; };
+  auto key = [](std::uint32_t a, std::uint32_t b) { return (std::uint64_t(a) << 32) | b; };
+  auto by_key = [&](const detail::PairContacts<Real>& x, const detail::PairContacts<Real>& y) {
+    return key(x.a, x.b) < key(y.a, y.b);
+  };
   std::size_t q = 0;
   while (q < sc.pairs.size() && q < sc.pair_work.size() && same(q)) ++q;
   if (q < sc.pairs.size()) {
-    auto key = [](std::uint32_t a, std::uint32_t b) { return (std::uint64_t(a) << 32) | b; };
     std::vector<std::uint32_t> order;
     for (std::uint32_t r = 0; r < sc.pair_work.size(); ++r)
       if (!waited(sc.pair_work[r])) order.push_back(r);
     std::stable_sort(order.begin(), order.end(), [&](std::uint32_t x, std::uint32_t y) {
-      return key(sc.pair_work[x].a, sc.pair_work[x].b) < key(sc.pair_work[y].a, sc.pair_work[y].b);
+      return by_key(sc.pair_work[x], sc.pair_work[y]);
     });
     std::vector<char> taken(sc.pair_work.size(), 0);
     std::vector<detail::PairContacts<Real>> next;
@@ -204,8 +207,12 @@ void BasicWorld<Real>::Impl::keep_pair_work(Scope& sc, std::uint64_t stamp) {
       if (!taken[r]) next.push_back(std::move(sc.pair_work[r]));
     sc.pair_work = std::move(next);
   } else {
-    // the list is the same: only work that waited its time out goes, the rest keeps its order
-    sc.pair_work.erase(std::remove_if(sc.pair_work.begin() + std::ptrdiff_t(q), sc.pair_work.end(), waited), sc.pair_work.end());
+    // the list is the same, or lost pairs only at its end: only work that waited its time
+    // out goes, and the gone work stays in the order of its sheets (a pair that left from
+    // the list's end joins it where it belongs, as it would after any other change)
+    const auto gone = sc.pair_work.begin() + std::ptrdiff_t(q);
+    sc.pair_work.erase(std::remove_if(gone, sc.pair_work.end(), waited), sc.pair_work.end());
+    if (!std::is_sorted(gone, sc.pair_work.end(), by_key)) std::stable_sort(gone, sc.pair_work.end(), by_key);
   }
   for (q = 0; q < sc.pairs.size(); ++q) sc.pair_work[q].present_at = stamp;
 }
