@@ -6,10 +6,12 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "newton_equilibrium.h"
@@ -539,6 +541,43 @@ TEST(Motions, ACallbackDrivesAPathAsTheMotionItComputes) {
   }
   EXPECT_EQ(states[0], states[1]);
   EXPECT_NE(states[0][0], -0.5) << "the corner moved";
+}
+
+// Constrained sheets step frames in groups (frames.cpp), each group's task on any thread;
+// a callback motion is the caller's code, so a world with one steps substep by substep
+// and calls it on the stepping thread only. Two sheets far apart, each on a callback path,
+// would otherwise be two groups stepping at once on two threads.
+TEST(Motions, ACallbackIsCalledOnTheSteppingThreadOnly) {
+  WorldDef wd;
+  wd.threads = 2;
+  wd.group_points = 0;  // groups in a world this small too
+  World w(wd);
+  const std::thread::id stepping = std::this_thread::get_id();
+  std::atomic<int> elsewhere{0}, calls{0};
+  Motion callback;
+  callback.kind = Motion::Kind::Callback;
+  callback.callback = [&](double t) {
+    ++calls;
+    if (std::this_thread::get_id() != stepping) ++elsewhere;
+    Pose pose;
+    pose.translation = {0.1 * t, 0, 0};
+    return pose;
+  };
+  for (int k = 0; k < 2; ++k) {
+    SheetDef d;
+    d.m = d.n = 30;
+    d.center = {5.0 * k, 0, 0};
+    ConstraintDef drag;
+    drag.kind = ConstraintKind::Path;
+    drag.sheet = w.add_sheet(d);
+    drag.points = {0, 30};
+    drag.motion = callback;
+    w.add_constraint(drag);
+  }
+  for (int frame = 0; frame < 20; ++frame) w.step(10);
+  EXPECT_GT(calls.load(), 200);
+  EXPECT_EQ(elsewhere.load(), 0);
+  EXPECT_EQ(w.frame_stats().kept + w.frame_stats().undone, 0u);
 }
 
 TEST(Constraints, RowAndColumnPointsAreTheGridsEdgesInOrder) {

@@ -739,8 +739,10 @@ TEST(Worlds, ContactFreeFramesChangeNoBit) {
 // forces may not show): columns of layers in contact, far apart (every frame kept); two
 // such columns and a self-colliding sheet (a group of its own) falling onto one of them
 // (kept while it falls, undone when it comes within range, and kept again); a self-colliding fold, a sheet resting on a floor
-// and a sheet far from both falling freely (a group each and a free sheet).
-enum class Groups { Columns, Falling, FoldFloorFree };
+// and a sheet far from both falling freely (a group each and a free sheet); and, with
+// contacts off, two rows of sheets joined edge to edge, one sheet on a path and one free
+// (a group per row and one for the path; such groups cannot meet, so nothing is saved).
+enum class Groups { Columns, Falling, FoldFloorFree, Constrained };
 
 template <class W>
 struct GroupsRun {
@@ -759,6 +761,7 @@ GroupsRun<W> run_groups(Groups scene, int threads, std::uint32_t block_points, i
   wd.block_points = block_points;
   wd.group_points = group_points;  // 0: groups in a world this small too
   wd.guard = false;
+  if (scene == Groups::Constrained) wd.contact_strength = 0;
   W w(wd);
   SheetDef d;
   d.m = 24;  // 25 × 13 points: split into blocks at block_points 150
@@ -768,7 +771,31 @@ GroupsRun<W> run_groups(Groups scene, int threads, std::uint32_t block_points, i
   d.stiffness = 100;
   d.damping = 0.001;
   d.friction = 0.3;
-  if (scene == Groups::FoldFloorFree) {
+  if (scene == Groups::Constrained) {
+    std::vector<SheetId> ids;  // rows of three and two sheets, one more, and a free one
+    for (Vec3 at : {Vec3{0, 0, 0}, Vec3{0.5, 0, 0}, Vec3{1, 0, 0}, Vec3{0, 1, 0}, Vec3{0.5, 1, 0}, Vec3{2, 2, 0},
+                    Vec3{3, 3, 0}}) {
+      d.center = at;
+      ids.push_back(w.add_sheet(d));
+    }
+    for (auto [left, right] : {std::pair{0, 1}, std::pair{1, 2}, std::pair{3, 4}}) {  // right edge to left edge
+      ConstraintDef join;
+      join.kind = ConstraintKind::PointToPoint;
+      join.sheet = ids[left];
+      join.points = column_points(d.m, d.n, d.n);
+      join.other_sheet = ids[right];
+      join.other_points = column_points(d.m, d.n, 0);
+      join.rest_length = 0.2;
+      w.add_constraint(join);
+    }
+    ConstraintDef path;  // two corners of the sixth round a circle
+    path.kind = ConstraintKind::Path;
+    path.sheet = ids[5];
+    path.points = {0, d.n};
+    path.motion.kind = Motion::Kind::Circle;
+    path.motion.circle = {{0, 0, 0}, {0, 0, 1}, {0.05, 0, 0}, 0.2};
+    w.add_constraint(path);
+  } else if (scene == Groups::FoldFloorFree) {
     ObstacleDef floor;
     floor.shape = ObstacleShape::Plane;
     floor.center = {0, 0, -0.02};  // the first sheet within its reach from the start, and after
@@ -813,7 +840,7 @@ GroupsRun<W> run_groups(Groups scene, int threads, std::uint32_t block_points, i
 
 template <class W>
 void expect_groups_change_no_bit() {
-  for (Groups scene : {Groups::Columns, Groups::Falling, Groups::FoldFloorFree})
+  for (Groups scene : {Groups::Columns, Groups::Falling, Groups::FoldFloorFree, Groups::Constrained})
     for (auto [threads, block_points] : {std::pair{1, 1u << 30}, std::pair{2, 150u}}) {
       const GroupsRun<W> one_by_one = run_groups<W>(scene, threads, block_points, 300, 1);
       EXPECT_EQ(one_by_one.stats.kept + one_by_one.stats.undone, 0u);
@@ -842,11 +869,12 @@ TEST(Worlds, FramesOfGroupsChangeNoBitInFloat) { expect_groups_change_no_bit<Wor
 
 // The same claim over scenes no one chose: a few sheets of random sizes, stiffnesses,
 // pins, friction and self-collision thrown about three places where they meet and part,
-// over random floors and spheres, with the guard, rims and contact damping on or off, on
-// one or two threads; frames of random lengths (tries cut at 32 substeps, groups meeting
-// and undone) against one substep per call. The seeds include scenes in which a pair left
-// from the end of the pair list while older gone work waited behind it, which once left
-// the gone work in another order after frames than after single substeps.
+// over random floors and spheres, held by random constraints (joins, paths, frames and
+// rails), with the guard, rims and contact damping on or off, on one or two threads;
+// frames of random lengths (tries cut at 32 substeps, groups meeting and undone) against
+// one substep per call. The seeds include scenes in which a pair left from the end of the
+// pair list while older gone work waited behind it, which once left the gone work in
+// another order after frames than after single substeps.
 template <class W>
 GroupsRun<W> run_random_groups(unsigned seed, bool framed) {
   std::mt19937 rng(seed);
@@ -870,6 +898,7 @@ GroupsRun<W> run_random_groups(unsigned seed, bool framed) {
     od.friction = integer(0, 1) ? 0.5 : 0.0;
     w.add_obstacle(od);
   }
+  std::vector<SheetDef> sheets;
   for (int k = integer(2, 9); k > 0; --k) {
     SheetDef d;
     d.m = integer(3, 20);
@@ -885,6 +914,44 @@ GroupsRun<W> run_random_groups(unsigned seed, bool framed) {
     d.center = {place * 0.6 + real(-0.05, 0.05), real(-0.05, 0.05), real(0, 0.15)};
     d.initial_velocity = {real(-0.5, 0.5), real(-0.2, 0.2), real(-0.8, 0.3)};
     w.add_sheet(d);
+    sheets.push_back(d);
+  }
+  // up to three constraints of each kind on random points: a join (of two sheets, or of a
+  // sheet with itself) puts both sheets in one group, the others hold their sheet in one
+  const std::vector<SheetId> ids = w.sheets();
+  auto any_point = [&](std::size_t k) {
+    return std::uint32_t(integer(0, int((sheets[k].m + 1) * (sheets[k].n + 1)) - 1));
+  };
+  for (int c = integer(0, 3); c > 0; --c) {
+    ConstraintDef cd;
+    const auto k = std::size_t(integer(0, int(ids.size()) - 1));
+    cd.sheet = ids[k];
+    cd.points = {any_point(k)};
+    cd.stiffness = real(100, 2000);
+    switch (integer(0, 3)) {
+      case 0: {
+        const auto other = std::size_t(integer(0, int(ids.size()) - 1));
+        cd.kind = ConstraintKind::PointToPoint;
+        cd.other_sheet = ids[other];
+        cd.other_points = {any_point(other)};
+        cd.rest_length = integer(0, 1) ? 0.0 : real(0.01, 0.5);
+        if (other == k && cd.other_points == cd.points) continue;
+        break;
+      }
+      case 1:
+        cd.kind = ConstraintKind::Path;
+        cd.motion.kind = Motion::Kind::Circle;
+        cd.motion.circle = {{0, 0, 0}, {0, 0, 1}, {0.1, 0, 0}, 0.5};
+        break;
+      case 2:
+        cd.kind = ConstraintKind::Frame;
+        cd.motion.keyframes = {{0, {}, {}}, {0.2, {0, 0, 0.05}, {}}};
+        break;
+      default:
+        cd.kind = ConstraintKind::Rail;
+        cd.rail = {{-1, 0, 0}, {1, 0, 0.1}};
+    }
+    w.add_constraint(cd);
   }
   constexpr int kSubsteps = 300;
   for (int done = 0; done < kSubsteps;) {

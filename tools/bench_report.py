@@ -1049,7 +1049,7 @@ class Report:
             "rails": "+ the top row (64 points) of every sheet on a straight rail",
             "moving_obstacle": "+ a floor under every sheet that moves (keyframes), acting on all points",
             "none_frames": "the base, a frame of substeps per `step()` call (runs in cache)",
-            "joins_frames": "+ joins, a frame per call: a world with constraints steps substep by substep",
+            "joins_frames": "+ joins, a frame per call: each row of joined sheets steps the frame as a group",
         }
         base_of = {"joins_frames": "none_frames"}
         found = self.family("BM_Constraint_")

@@ -486,9 +486,10 @@ void describe_world(const Scene& scene, std::ostream& out) {
     }
     out << ", stiffness " << c.stiffness << " N/m\n";
   }
-  if (!scene.constraints.empty() ||
-      std::any_of(scene.obstacles.begin(), scene.obstacles.end(), [](const ObstacleDef& o) { return o.motion.has_value(); }))
-    out << "constraints or moving obstacles: stepped substep by substep (targets and poses set at every substep)\n";
+  if (std::any_of(scene.obstacles.begin(), scene.obstacles.end(), [](const ObstacleDef& o) { return o.motion.has_value(); }))
+    out << "moving obstacles: stepped substep by substep (poses and targets set at every substep)\n";
+  else if (!scene.constraints.empty())
+    out << "constraints: targets set at every substep (a join's sheets step a frame together)\n";
   out << "total: " << points << " points, " << springs << " springs, about " << estimated_bytes(scene) / 1024.0
       << " KiB\n";
 }

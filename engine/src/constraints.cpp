@@ -307,10 +307,11 @@ void ConstraintPool<Real>::rebuild(const Access& world) {
 }
 
 template <class Real>
-void ConstraintPool<Real>::set_targets(double time, const Access& world) {
+void ConstraintPool<Real>::set_targets(double time, const Access& world, std::span<const std::uint32_t> holds) {
   for (std::uint32_t index : active_) {
     const Entry& e = *slots_[index];
     const ConstraintDef& d = e.def;
+    if (!holds.empty() && std::find(holds.begin(), holds.end(), d.sheet.index) == holds.end()) continue;
     Sheet<Real>& s = *world.sheet(d.sheet);
     switch (d.kind) {
       case ConstraintKind::PointToPoint: {
@@ -405,6 +406,22 @@ std::vector<std::pair<SheetId, SheetId>> ConstraintPool<Real>::joined_sheets() c
     if (d.kind == ConstraintKind::PointToPoint && d.other_sheet != d.sheet) joined.emplace_back(d.sheet, d.other_sheet);
   }
   return joined;
+}
+
+template <class Real>
+std::vector<std::pair<SheetId, SheetId>> ConstraintPool<Real>::held_sheets() const {
+  std::vector<std::pair<SheetId, SheetId>> held;
+  for (std::uint32_t index : active_) {
+    const ConstraintDef& d = slots_[index]->def;
+    held.emplace_back(d.sheet, d.kind == ConstraintKind::PointToPoint ? d.other_sheet : d.sheet);
+  }
+  return held;
+}
+
+template <class Real>
+bool ConstraintPool<Real>::calls_back() const {
+  return std::any_of(active_.begin(), active_.end(),
+                     [&](std::uint32_t index) { return slots_[index]->def.motion.kind == Motion::Kind::Callback; });
 }
 
 template class ConstraintPool<double>;

@@ -10,6 +10,7 @@
 
 #include <functional>
 #include <optional>
+#include <span>
 #include <utility>
 #include <vector>
 
@@ -54,7 +55,11 @@ class ConstraintPool {
   // The host stage: every constrained point's anchor target for a substep that starts at
   // `time`, from the positions at its start. Serial, constraint by constraint in the order
   // they were added, so the targets do not depend on threads or on how sheets are split.
-  void set_targets(double time, const Access& world);
+  // With `holds`, only the constraints on the sheets it holds (the index of each SheetId):
+  // a group of sheets stepping a frame alone (frames.cpp), which holds both sheets of
+  // every join on one of its sheets. Each constraint writes its own anchors from its own
+  // sheets' positions, so the targets are the same either way.
+  void set_targets(double time, const Access& world, std::span<const std::uint32_t> holds = {});
 
   // A join's spring is two anchors, one at each end, each of energy ½k(|d| − ℓ)² at the
   // substep's start: the sheet's anchor energy counts it twice. This is the half to take
@@ -68,6 +73,11 @@ class ConstraintPool {
 
   // The two sheets of every point-to-point join between different sheets, in order added.
   std::vector<std::pair<SheetId, SheetId>> joined_sheets() const;
+  // The sheets each constraint holds, in order added: a join's two, or its one sheet twice.
+  std::vector<std::pair<SheetId, SheetId>> held_sheets() const;
+  // Whether a path or frame follows a motion of the caller's (Motion::Kind::Callback),
+  // which set_targets calls: the world then calls it on the stepping thread only.
+  bool calls_back() const;
 
  private:
   struct Entry {

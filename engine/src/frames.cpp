@@ -88,11 +88,13 @@ void BasicWorld<Real>::Impl::integrate_runs(double h, std::uint64_t count, std::
   }
 }
 
-// A frame of substeps on sheets that contacts or obstacles couple, tried in groups: the
-// sheets closed under the pairs the frame's first substep would find (self-colliding
-// sheets with themselves), and the sheets within an obstacle's reach, each step the whole
+// A frame of substeps on sheets that contacts, obstacles or constraints couple, tried in
+// groups: the sheets closed under the pairs the frame's first substep would find
+// (self-colliding sheets with themselves) and under the constraints' joins, the sheets
+// within an obstacle's reach and the sheets a constraint holds, each step the whole
 // frame alone, group after group, with every stage of the substep (their pairs, kept
-// contact sets, obstacles), while the group's state stays in cache. The sheets in no group
+// contact sets, obstacles, their constraints' targets), while the group's state stays in
+// cache. The sheets in no group
 // run as independent runs (integrate_runs). The frame is kept only if no two groups, and no
 // free sheet with anything, came within contact range over it (their boxes swept over the
 // frame, grown by half the range each), and no free sheet within an obstacle's reach: then
@@ -104,10 +106,12 @@ void BasicWorld<Real>::Impl::integrate_runs(double h, std::uint64_t count, std::
 // steps substep by substep: only a frame in which two groups meet is computed twice.
 // Not tried where one group holds every sheet (that is the world's own substep), nor for
 // integrators with memory between substeps beyond x and v (forward and semi-implicit Euler
-// have none).
+// have none), nor while obstacles move (each substep puts them where they are then, for
+// every sheet), nor with a constraint following a motion of the caller's (a callback, which
+// is called on the thread that steps, never from two groups at once).
 template <class Real>
 bool BasicWorld<Real>::Impl::frame_may_be_tried() const {
-  return detail::updates_per_point(def.integrator);
+  return detail::updates_per_point(def.integrator) && !obstacles_move() && !constraints.calls_back();
 }
 
 // groups[0, group_count), group_of and free_sheets for sheets with these boxes, from the
@@ -129,10 +133,18 @@ void BasicWorld<Real>::Impl::plan_groups(const std::vector<detail::Aabb>& boxes)
     return k;
   };
   std::vector<char> grouped(n, 0);
-  for (const detail::BoxPair& pair : frame_pairs) {
-    const std::uint32_t a = find(pair.first), b = find(pair.second);
+  auto join = [&](std::uint32_t first, std::uint32_t second) {
+    const std::uint32_t a = find(first), b = find(second);
     root[std::max(a, b)] = std::min(a, b);
-    grouped[pair.first] = grouped[pair.second] = 1;
+    grouped[first] = grouped[second] = 1;
+  };
+  for (const detail::BoxPair& pair : frame_pairs) join(pair.first, pair.second);
+  // a constrained sheet takes its targets in its group's host stage, and a join's two
+  // sheets step in one group, wherever they are
+  if (!constraints.empty()) {
+    std::vector<std::uint32_t> position(slots.size(), kFree);
+    for (std::uint32_t k = 0; k < n; ++k) position[active[k]] = k;
+    for (const auto& [a, b] : constraints.held_sheets()) join(position[a.index], position[b.index]);
   }
   for (std::uint32_t k = 0; k < n; ++k)
     for (std::uint32_t o : active_obstacles)
@@ -218,24 +230,27 @@ void BasicWorld<Real>::Impl::restore_sheet(std::size_t k) {
 }
 
 // `count` substeps of group g alone, with its own scope, from the world's step count and
-// clock; first its sheets' state and its pairs' memory are saved, in case the frame is
-// undone. Its sheets' boxes after each substep go into swept. Groups step at once: each
+// clock; first, if the frame may be undone, its sheets' state and its pairs' memory are
+// saved and its sheets' boxes after each substep go into swept. Groups step at once: each
 // writes only its own sheets, scope and entries of swept and saved.
 template <class Real>
-void BasicWorld<Real>::Impl::step_group(Group& g, double h, std::uint64_t count) {
+void BasicWorld<Real>::Impl::step_group(Group& g, double h, std::uint64_t count, bool may_undo) {
   Scope& sc = g.scope;
-  for (std::uint32_t k : g.members) save_sheet(k);
-  // the positions kept lists were made at are shared, not copied
-  g.saved_work.resize(sc.pair_work.size());
-  for (std::size_t q = 0; q < sc.pair_work.size(); ++q) g.saved_work[q] = sc.pair_work[q];
+  if (may_undo) {
+    for (std::uint32_t k : g.members) save_sheet(k);
+    // the positions kept lists were made at are shared, not copied
+    g.saved_work.resize(sc.pair_work.size());
+    for (std::size_t q = 0; q < sc.pair_work.size(); ++q) g.saved_work[q] = sc.pair_work[q];
+  }
   sc.steps = steps;
   sc.steps_base = steps_base;
   sc.time_base = time_base;
   sc.current_h = current_h;
   for (std::uint64_t j = 0; j < count; ++j) {
     substep(sc, h);
-    for (std::size_t i = 0; i < sc.active.size(); ++i)
-      detail::include_box(swept[g.members[i]], current_bounds(slots[sc.active[i]]));
+    if (may_undo)
+      for (std::size_t i = 0; i < sc.active.size(); ++i)
+        detail::include_box(swept[g.members[i]], current_bounds(slots[sc.active[i]]));
   }
 }
 
@@ -323,10 +338,13 @@ typename BasicWorld<Real>::Impl::Try BasicWorld<Real>::Impl::try_frame(double h,
     groups[g].scope.pair_work.push_back(std::move(w));
   }
   pair_work.clear();
-  saved.resize(n);
+  // Without contacts and obstacles (groups of constrained sheets only), no two groups can
+  // meet: nothing is saved or swept, and the frame is kept.
+  const bool may_undo = contacts_possible() || !active_obstacles.empty();
+  if (may_undo) saved.resize(n);
   // The free sheets as independent runs, with the world's list of sheets theirs meanwhile.
   if (!free_sheets.empty()) {
-    parallel(free_sheets.size(), [&](std::size_t i) { save_sheet(free_sheets[i]); });
+    if (may_undo) parallel(free_sheets.size(), [&](std::size_t i) { save_sheet(free_sheets[i]); });
     std::vector<std::uint32_t> slots_of(free_sheets.size());
     free_swept.resize(free_sheets.size());
     for (std::size_t i = 0; i < free_sheets.size(); ++i) {
@@ -334,7 +352,7 @@ typename BasicWorld<Real>::Impl::Try BasicWorld<Real>::Impl::try_frame(double h,
       free_swept[i] = swept[free_sheets[i]];
     }
     std::swap(active, slots_of);
-    integrate_runs(h, count, &free_swept);
+    integrate_runs(h, count, may_undo ? &free_swept : nullptr);
     std::swap(active, slots_of);
     for (std::size_t i = 0; i < free_sheets.size(); ++i) swept[free_sheets[i]] = free_swept[i];
   }
@@ -344,9 +362,9 @@ typename BasicWorld<Real>::Impl::Try BasicWorld<Real>::Impl::try_frame(double h,
   const bool serial = group_count >= std::size_t(arena->max_concurrency());
   for (std::size_t g = 0; g < group_count; ++g) groups[g].scope.serial = serial;
   parallel(group_count, [&](std::size_t g) {
-    tbb::this_task_arena::isolate([&] { step_group(groups[g], h, count); });
+    tbb::this_task_arena::isolate([&] { step_group(groups[g], h, count, may_undo); });
   });
-  const bool kept = groups_stayed_apart();
+  const bool kept = !may_undo || groups_stayed_apart();
   ++(kept ? frame_stats.kept : frame_stats.undone);
   if (kept && group_count == 0) count_substeps(h, count);  // else each group counted its substeps
   end_groups(kept);
@@ -369,7 +387,7 @@ void BasicWorld<Real>::Impl::substeps(double h, std::uint64_t count) {
     count_substeps(h, count);
     return;
   }
-  const bool may_try = count > 1 && !driven() && frame_may_be_tried();
+  const bool may_try = count > 1 && frame_may_be_tried();
   while (count > 0) {
     const std::uint64_t part = std::min(count, kFrameTry);
     count -= part;
@@ -436,7 +454,7 @@ void BasicWorld<Real>::Impl::advance(double seconds) {
   template bool BasicWorld<Real>::Impl::groups_pay() const;                                                   \
   template void BasicWorld<Real>::Impl::save_sheet(std::size_t);                                              \
   template void BasicWorld<Real>::Impl::restore_sheet(std::size_t);                                           \
-  template void BasicWorld<Real>::Impl::step_group(Group&, double, std::uint64_t);                            \
+  template void BasicWorld<Real>::Impl::step_group(Group&, double, std::uint64_t, bool);                            \
   template bool BasicWorld<Real>::Impl::groups_stayed_apart();                                                \
   template void BasicWorld<Real>::Impl::end_groups(bool);                                                     \
   template typename BasicWorld<Real>::Impl::Try BasicWorld<Real>::Impl::try_frame(double, std::uint64_t);                                     \

@@ -13,13 +13,15 @@
 namespace drape {
 
 // Host stage, first: moving obstacles to their pose at the substep's start, and every
-// constrained point's target from the positions at that start.
+// constrained point's target from the positions at that start (in a group's scope, the
+// targets of the constraints on its sheets; groups are not tried while obstacles move).
 template <class Real>
 void BasicWorld<Real>::Impl::move_rigid_parts(const Scope& sc) {
   const double t = sc.time();
   for (std::uint32_t o : active_obstacles)
     if (obstacle_slots[o].def.motion) detail::place_obstacle(*obstacle_slots[o].obstacle, obstacle_slots[o].def, t);
-  if (!constraints.empty()) constraints.set_targets(t, access());
+  if (!constraints.empty())
+    constraints.set_targets(t, access(), &sc == &world ? std::span<const std::uint32_t>{} : std::span(sc.active));
 }
 
 // Host stage: each sheet's list of obstacles whose reach its bounding box overlaps, so a

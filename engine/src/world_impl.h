@@ -280,7 +280,7 @@ struct BasicWorld<Real>::Impl {
   bool groups_pay() const;
   void save_sheet(std::size_t k);
   void restore_sheet(std::size_t k);
-  void step_group(Group& g, double h, std::uint64_t count);
+  void step_group(Group& g, double h, std::uint64_t count, bool may_undo);
   bool groups_stayed_apart();
   void end_groups(bool kept);
   // A frame tried: kept, undone (then the caller steps it substep by substep), or not tried

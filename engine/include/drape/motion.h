@@ -52,7 +52,9 @@ struct Motion {
   std::vector<Keyframe> keyframes;   // at least two, times increasing
   bool repeat = false;               // keyframes loop with period last.time − first.time
   CirclePath circle;
-  std::function<Pose(double)> callback;  // time (s) → pose; must be pure: the same t, the same pose
+  // time (s) → pose; must be pure: the same t, the same pose. step() calls it on the thread
+  // that steps, one call at a time.
+  std::function<Pose(double)> callback;
 };
 
 // The pose at time t (s). Keyframes: x ↦ R(t)·(x − pivot) + pivot + T(t).
