@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -750,17 +751,18 @@ struct GroupsRun {
   std::uint64_t steps;
   std::vector<std::uint64_t> memory;
   typename W::FrameStats stats;
+  StabilityReport guard{};  // the guard's check at the end
 };
 
 template <class W>
 GroupsRun<W> run_groups(Groups scene, int threads, std::uint32_t block_points, int frames, int substeps,
-                        std::uint32_t group_points = 0) {
+                        std::uint32_t group_points = 0, bool guard = false) {
   WorldDef wd;
   wd.dt = 1e-3;
   wd.threads = threads;
   wd.block_points = block_points;
   wd.group_points = group_points;  // 0: groups in a world this small too
-  wd.guard = false;
+  wd.guard = guard;
   if (scene == Groups::Constrained) wd.contact_strength = 0;
   W w(wd);
   SheetDef d;
@@ -835,7 +837,7 @@ GroupsRun<W> run_groups(Groups scene, int threads, std::uint32_t block_points, i
     }
   }
   for (int k = 0; k < frames; ++k) w.step(substeps);
-  return {state_bytes(w), w.step_count(), w.contact_memory(), w.frame_stats()};
+  return {state_bytes(w), w.step_count(), w.contact_memory(), w.frame_stats(), w.check()};
 }
 
 template <class W>
@@ -861,6 +863,14 @@ void expect_groups_change_no_bit() {
       const GroupsRun<W> small = run_groups<W>(scene, threads, block_points, 10, 30, WorldDef{}.group_points);
       EXPECT_TRUE(small.state == one_by_one.state);
       EXPECT_EQ(small.stats.kept + small.stats.undone, 0u);
+      // The guard checks once per call and sums the energy of sheets that met: the same
+      // frames with the guard on, in groups and not, end with the same check (a kept frame
+      // hands the world the pairs its groups met; the columns meet only in kept frames).
+      const GroupsRun<W> guarded = run_groups<W>(scene, threads, block_points, 30, 10, 0, true);
+      const GroupsRun<W> guarded_whole = run_groups<W>(scene, threads, block_points, 30, 10, ~0u, true);
+      EXPECT_TRUE(guarded.state == guarded_whole.state);
+      EXPECT_EQ(guarded.guard.status, guarded_whole.guard.status);
+      EXPECT_EQ(guarded.guard.energy_growth, guarded_whole.guard.energy_growth);
     }
 }
 
@@ -876,7 +886,7 @@ TEST(Worlds, FramesOfGroupsChangeNoBitInFloat) { expect_groups_change_no_bit<Wor
 // pair list while older gone work waited behind it, which once left the gone work in
 // another order after frames than after single substeps.
 template <class W>
-GroupsRun<W> run_random_groups(unsigned seed, bool framed) {
+GroupsRun<W> run_random_groups(unsigned seed, bool framed, bool groups = true) {
   std::mt19937 rng(seed);
   auto real = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
   auto integer = [&](int a, int b) { return std::uniform_int_distribution<int>(a, b)(rng); };
@@ -884,7 +894,7 @@ GroupsRun<W> run_random_groups(unsigned seed, bool framed) {
   wd.dt = 1e-3;
   wd.threads = integer(1, 2);
   wd.block_points = integer(0, 1) ? 150 : (1u << 30);
-  wd.group_points = 0;
+  wd.group_points = groups ? 0 : std::numeric_limits<std::uint32_t>::max();
   wd.guard = integer(0, 1);
   wd.contact_rims = integer(0, 3) == 0;
   wd.contact_damping = integer(0, 1) ? 0.0 : 2.0;
@@ -959,7 +969,7 @@ GroupsRun<W> run_random_groups(unsigned seed, bool framed) {
     w.step(frame);
     done += frame;
   }
-  return {state_bytes(w), w.step_count(), w.contact_memory(), w.frame_stats()};
+  return {state_bytes(w), w.step_count(), w.contact_memory(), w.frame_stats(), w.check()};
 }
 
 template <class W>
@@ -973,6 +983,13 @@ void expect_random_groups_change_no_bit() {
     EXPECT_TRUE(framed.memory == one_by_one.memory) << "seed " << seed;
     kept += framed.stats.kept;
     undone += framed.stats.undone;
+    // The guard checks once per call, so its groups (the sheets that met, whose energy it
+    // sums) are compared with the same frames stepped without groups: a kept frame hands
+    // the world the pairs its groups met.
+    const GroupsRun<W> whole = run_random_groups<W>(seed, true, false);
+    EXPECT_TRUE(whole.state == framed.state) << "seed " << seed;
+    EXPECT_EQ(whole.guard.status, framed.guard.status) << "seed " << seed;
+    EXPECT_EQ(whole.guard.energy_growth, framed.guard.energy_growth) << "seed " << seed;
   }
   EXPECT_GT(kept, 0u);  // the scenes did try frames in groups, and some were undone
   EXPECT_GT(undone, 0u);
