@@ -94,14 +94,13 @@ void BasicWorld<Real>::Impl::integrate_runs(double h, std::uint64_t count, std::
 // within an obstacle's reach and the sheets a constraint holds, each step the whole
 // frame alone, group after group, with every stage of the substep (their pairs, kept
 // contact sets, obstacles, their constraints' targets), while the group's state stays in
-// cache. The sheets in no group
-// run as independent runs (integrate_runs). The frame is kept only if no two groups, and no
-// free sheet with anything, came within contact range over it (their boxes swept over the
-// frame, grown by half the range each), and no free sheet within an obstacle's reach: then
-// every substep's host stage would have found, for each group, the pairs and obstacles the
-// group's own did, and the frame is bit-identical to substep-by-substep (a sheet's
-// contacts are gathered in pair order, which a group keeps; a pair's work is kept and
-// dropped by a rule of its own, step.cpp). Otherwise the state the frame found (each
+// cache. The sheets in no group run as independent runs (integrate_runs). The frame is
+// kept only if no two groups, and no free sheet with anything, came within contact range
+// over it (their boxes swept over the frame, grown by half the range each), and no free
+// sheet within an obstacle's reach: then every substep's host stage would have found, for
+// each group, the pairs and obstacles the group's own did, and the frame is bit-identical
+// to substep-by-substep (a sheet's contacts are gathered in pair order, which a group
+// keeps; a pair's work is kept and dropped by a rule of its own, step.cpp). Otherwise the state the frame found (each
 // sheet's positions, velocities and travel, each pair's work) is restored and the caller
 // steps substep by substep: only a frame in which two groups meet is computed twice.
 // Not tried where one group holds every sheet (that is the world's own substep), nor for
@@ -454,7 +453,7 @@ void BasicWorld<Real>::Impl::advance(double seconds) {
   template bool BasicWorld<Real>::Impl::groups_pay() const;                                                   \
   template void BasicWorld<Real>::Impl::save_sheet(std::size_t);                                              \
   template void BasicWorld<Real>::Impl::restore_sheet(std::size_t);                                           \
-  template void BasicWorld<Real>::Impl::step_group(Group&, double, std::uint64_t, bool);                            \
+  template void BasicWorld<Real>::Impl::step_group(Group&, double, std::uint64_t, bool);                      \
   template bool BasicWorld<Real>::Impl::groups_stayed_apart();                                                \
   template void BasicWorld<Real>::Impl::end_groups(bool);                                                     \
   template typename BasicWorld<Real>::Impl::Try BasicWorld<Real>::Impl::try_frame(double, std::uint64_t);                                     \
