@@ -280,8 +280,9 @@ class BasicWorld {
   // the motion's pose at time() when it is added. Removing a sheet removes the constraints on
   // it; removing an obstacle removes the frame constraints it carries. Every constrained
   // point's target is written at the start of each substep; in a frame of several substeps
-  // (step(n)), the sheets a join holds step it together and a constrained sheet in a group
-  // of its own, or with the sheets it touches (frames of groups, below). A world with a
+  // (step(n)) of a world of at least def().group_points points, the sheets a join holds
+  // step it together and a constrained sheet in a group of its own, or with the sheets it
+  // touches (frames of groups, below). A world with a
   // moving obstacle, or a constraint following a callback motion, steps substep by substep.
   // Either way the result does not depend on the thread count, and step(n) equals n calls
   // of step(1).
