@@ -874,6 +874,40 @@ void expect_groups_change_no_bit() {
     }
 }
 
+// The gate of groups_pay: groups that may meet (contacts on) must hold an eighth of
+// group_points each on average, groups that cannot (contacts off, sheets held by paths) a
+// thirty-second. 32 sheets of 17×17 points far apart, each on a path, in a world of 9,248
+// points with group_points 8,192: 289 points a group is between the two.
+TEST(Worlds, GroupsThatCannotMeetAreTriedFromAThirtySecondOfGroupPoints) {
+  auto run = [](bool contacts, int substeps) {
+    WorldDef wd;
+    wd.group_points = 8192;
+    wd.guard = false;
+    if (!contacts) wd.contact_strength = 0;
+    World w(wd);
+    for (int k = 0; k < 32; ++k) {
+      SheetDef d;
+      d.m = d.n = 16;
+      d.center = {2.0 * (k % 8), 2.0 * (k / 8), 0};
+      ConstraintDef path;
+      path.kind = ConstraintKind::Path;
+      path.sheet = w.add_sheet(d);
+      path.points = corner_points(d.m, d.n);
+      path.motion.kind = Motion::Kind::Circle;
+      path.motion.circle = {{0, 0, 0}, {0, 0, 1}, {0.05, 0, 0}, 0.2};
+      w.add_constraint(path);
+    }
+    for (int done = 0; done < 40; done += substeps) w.step(substeps);
+    return std::pair{state_bytes(w), w.frame_stats()};
+  };
+  const auto [apart, apart_stats] = run(false, 10);
+  EXPECT_EQ(apart_stats.kept, 4u);  // every frame tried, and none can be undone
+  EXPECT_EQ(apart_stats.undone, 0u);
+  EXPECT_TRUE(apart == run(false, 1).first);
+  const auto [near, near_stats] = run(true, 10);
+  EXPECT_EQ(near_stats.kept + near_stats.undone, 0u);
+}
+
 TEST(Worlds, FramesOfGroupsChangeNoBit) { expect_groups_change_no_bit<World>(); }
 TEST(Worlds, FramesOfGroupsChangeNoBitInFloat) { expect_groups_change_no_bit<WorldF>(); }
 

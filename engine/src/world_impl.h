@@ -277,7 +277,7 @@ struct BasicWorld<Real>::Impl {
   void integrate_runs(double h, std::uint64_t count, std::vector<detail::Aabb>* swept = nullptr);
   bool frame_may_be_tried() const;
   void plan_groups(const std::vector<detail::Aabb>& boxes);
-  bool groups_pay() const;
+  bool groups_pay(bool may_undo) const;
   void save_sheet(std::size_t k);
   void restore_sheet(std::size_t k);
   void step_group(Group& g, double h, std::uint64_t count, bool may_undo);

@@ -95,10 +95,12 @@ struct WorldDef {
   // points, so one large sheet keeps every core busy; the result is the same bit for bit.
   std::uint32_t block_points = 8192;
 
-  // A step() of several substeps on sheets that contacts or obstacles couple tries them in
-  // groups (the sheets in contact with each other, each group stepping the frame alone while
-  // its state is in cache, kept only if no two groups met) in worlds of at least this many
-  // points whose groups hold at least an eighth of it each on average; 0: in every world.
+  // A step() of several substeps on sheets that contacts, obstacles or constraints couple
+  // tries them in groups (the sheets in contact with each other or joined, each group
+  // stepping the frame alone while its state is in cache, kept only if no two groups met)
+  // in worlds of at least this many points whose groups hold at least an eighth of it each
+  // on average (a thirty-second where groups cannot meet: no contacts, no obstacles); 0: in
+  // every world.
   // The result is the same bit for bit either way (frame_stats() counts the tries).
   std::uint32_t group_points = 65536;
 };
