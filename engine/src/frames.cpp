@@ -327,7 +327,7 @@ typename BasicWorld<Real>::Impl::Try BasicWorld<Real>::Impl::try_frame(double h,
   plan_groups(swept);
   // Without contacts and obstacles (groups of constrained sheets only), no two groups can
   // meet: nothing is saved or swept, and the frame is kept.
-  const bool may_undo = contacts_possible() || !active_obstacles.empty();
+  const bool may_undo = !sheets_independent();
   if (group_count > 0 && !groups_pay(may_undo)) return Try::NotTried;
   // Each pair's work to its group, in the group's positions; aside if its two sheets are
   // not in one group (the pair is gone, and stays gone in a frame that is kept).

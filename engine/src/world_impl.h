@@ -135,8 +135,9 @@ struct BasicWorld<Real>::Impl {
   // try_frame's scratch (frames.cpp)
   std::vector<detail::Aabb> swept, swept_grown, block_swept;
   detail::TrackingBroadPhase swept_broad_phase;  // over the frames' swept boxes; reset with broad_phase
-  // A frame's groups: sheets closed under the pairs at the frame's start, with those near an
-  // obstacle; each steps the frame alone, substep by substep, with the world's stages.
+  // A frame's groups: sheets closed under the pairs at the frame's start and the
+  // constraints' joins, with those near an obstacle or held by a constraint; each steps the
+  // frame alone, substep by substep, with the world's stages.
   struct Group {
     std::vector<std::uint32_t> members;  // positions in the world's `active`, ascending
     Scope scope;                         // its sheets' slots, its pairs and their work (in its positions)
