@@ -332,6 +332,19 @@ bool edges_passing(V3<Real> p0, V3<Real> p1, V3<Real> q0, V3<Real> q1, EdgePair<
   return true;
 }
 
+// The force F between edge uv of q and edge pw of s, at its closest points' weights s and t
+// along them, shared by each edge's ends: + on uv's, − on pw's.
+template <class Real>
+void push_edges(std::uint32_t u, std::uint32_t v, std::uint32_t p, std::uint32_t w, Real s, Real t, V3<Real> F,
+                ContactForces<Real>& on_q, ContactForces<Real>& on_s) {
+  const Real wq[2] = {1 - s, s}, ws[2] = {1 - t, t};
+  const std::uint32_t iq[2] = {u, v}, is[2] = {p, w};
+  for (int k = 0; k < 2; ++k)
+    if (wq[k] != 0) on_q.push(iq[k], wq[k] * F.x, wq[k] * F.y, wq[k] * F.z);
+  for (int k = 0; k < 2; ++k)
+    if (ws[k] != 0) on_s.push(is[k], -ws[k] * F.x, -ws[k] * F.y, -ws[k] * F.z);
+}
+
 // Edge uv of q and edge pw of s at their closest points c (within R): the repulsion of the
 // points' law at that distance along their difference, with damping and friction of the
 // edges' motion there, shared by each edge's ends in the weights of the closest points.
@@ -357,10 +370,7 @@ void repel_edges(const Sheet<Real>& qs, std::uint32_t u, std::uint32_t v, const 
     const V3<Real> t = dissipate_motion(rel, inv_mass, d, f, prm);
     F = {F.x + t.x, F.y + t.y, F.z + t.z};
   }
-  for (int k = 0; k < 2; ++k)
-    if (wq[k] != 0) on_q.push(iq[k], wq[k] * F.x, wq[k] * F.y, wq[k] * F.z);
-  for (int k = 0; k < 2; ++k)
-    if (ws[k] != 0) on_s.push(is[k], -ws[k] * F.x, -ws[k] * F.y, -ws[k] * F.z);
+  push_edges(u, v, p, w, c.s, c.t, F, on_q, on_s);
 }
 
 // The squared distance between edges p0p1 and q0q1 (their nearest points, ends included;
@@ -458,6 +468,10 @@ void rim_candidates(const Sheet<Real>& q, const SheetBoxes<Real>& bq, const Shee
                  });
 }
 
+template <class Real>
+void rim_side(const Sheet<Real>& q, const Sheet<Real>& o, const std::vector<std::array<std::uint32_t, 4>>& candidates,
+              const ContactParams<Real>& prm, ContactForces<Real>& on_q, ContactForces<Real>& on_o);
+
 // A pair's rims this substep (contacts.h, PairContacts::rims_ab): its candidates (edge pairs
 // within R + R/2) made again when due (both sheets' boxes then current), then each candidate
 // pair passing within R repelled, a's rim edges first.
@@ -474,17 +488,8 @@ void rims_of_pair(const Sheet<Real>& a, const SheetBoxes<Real>& ba, const Sheet<
     work.rims_topology_b = b.topology.get();
     ++work.rim_searches;
   }
-  const Real R2 = prm.range * prm.range;
-  for (const auto& [u, v, p, w] : work.rims_ab) {
-    EdgePair<Real> c;
-    if (edges_passing(at(a, u), at(a, v), at(b, p), at(b, w), c) && c.dist2 < R2)
-      repel_edges(a, u, v, b, p, w, c, prm, work.on_a, work.on_b);
-  }
-  for (const auto& [u, v, p, w] : work.rims_ba) {
-    EdgePair<Real> c;
-    if (edges_passing(at(b, u), at(b, v), at(a, p), at(a, w), c) && c.dist2 < R2)
-      repel_edges(b, u, v, a, p, w, c, prm, work.on_b, work.on_a);
-  }
+  rim_side(a, b, work.rims_ab, prm, work.on_a, work.on_b);
+  rim_side(b, a, work.rims_ba, prm, work.on_b, work.on_a);
 }
 
 // The potential of the same edge pairs (contact_potential at their distance), summed in
@@ -1221,6 +1226,68 @@ HWY_INLINE void push_lanes(const ContactParams<Real>& prm, std::size_t count, bo
   }
 }
 
+// dissipate_motion in lanes, for each lane's relative velocity rel, Σ w²/m, unit direction n
+// and force: each lane does dissipate_motion's operations in their order, both sides of each
+// choice taken and the lane's one kept, so every lane gets the bits dissipate_motion gives.
+template <class D, class V = hn::Vec<D>, class Real = hn::TFromD<D>>
+HWY_INLINE V3s<Real, V> dissipate_motion_lanes(D d, const V3s<Real, V>& rel, V inv_mass, const V3s<Real, V>& n, V force,
+                                               const ContactParams<Real>& prm) {
+  const V zero = hn::Zero(d), dt = hn::Set(d, prm.dt);
+  const V damping = hn::Set(d, prm.damping), friction = hn::Set(d, prm.friction);
+  const V share = hn::Set(d, Real(kDampingShare)), one = hn::Set(d, Real(1));
+  const V normal = dot_lanes(rel, n);
+  V3s<Real, V> damped{zero, zero, zero};
+  if (prm.damping > 0) {
+    const V alpha_f = hn::Mul(damping, force);
+    const auto capped = hn::Gt(hn::Mul(hn::Mul(alpha_f, inv_mass), dt), share);
+    const V b = hn::IfThenElse(capped, hn::Div(share, hn::Mul(inv_mass, dt)), alpha_f);
+    const V pushed = hn::Mul(hn::Neg(b), normal), floor = hn::Neg(force);
+    const V change = lanes::first_max(pushed, floor);
+    damped = {hn::Mul(change, n.x), hn::Mul(change, n.y), hn::Mul(change, n.z)};
+    force = hn::Add(force, change);
+  }
+  V3s<Real, V> out = damped;
+  if (prm.friction > 0) {
+    const V3s<Real, V> slip{hn::Sub(rel.x, hn::Mul(normal, n.x)), hn::Sub(rel.y, hn::Mul(normal, n.y)),
+                            hn::Sub(rel.z, hn::Mul(normal, n.z))};
+    const V slip2 = dot_lanes(slip, slip);
+    const V mu_f = hn::Mul(friction, force);
+    const V held = hn::Mul(hn::Mul(mu_f, inv_mass), dt);
+    const V stop = hn::Div(one, hn::Mul(inv_mass, dt)), slide = hn::Div(mu_f, hn::Sqrt(slip2));
+    const V kf = hn::IfThenElse(hn::Lt(slip2, hn::Mul(held, held)), stop, slide), neg_k = hn::Neg(kf);
+    // damped − k·slip with damping, (−k)·slip without: dissipate_motion's two returns
+    const V3s<Real, V> sum =
+        prm.damping > 0
+            ? V3s<Real, V>{hn::Sub(damped.x, hn::Mul(kf, slip.x)), hn::Sub(damped.y, hn::Mul(kf, slip.y)),
+                           hn::Sub(damped.z, hn::Mul(kf, slip.z))}
+            : V3s<Real, V>{hn::Mul(neg_k, slip.x), hn::Mul(neg_k, slip.y), hn::Mul(neg_k, slip.z)};
+    const auto slides = hn::Gt(slip2, zero);
+    out = {hn::IfThenElse(slides, sum.x, damped.x), hn::IfThenElse(slides, sum.y, damped.y),
+           hn::IfThenElse(slides, sum.z, damped.z)};
+  }
+  const auto moves = hn::Gt(inv_mass, zero);
+  return {hn::IfThenElseZero(moves, out.x), hn::IfThenElseZero(moves, out.y), hn::IfThenElseZero(moves, out.z)};
+}
+
+// dissipate_motion_lanes for the vector of entries from k of `t` (force_lanes' unit direction
+// and force) into t.extra.
+template <class D, class V = hn::Vec<D>, class Real = hn::TFromD<D>>
+HWY_INLINE void dissipate_into(D d, const V3s<Real, V>& rel, V inv_mass, const ContactParams<Real>& prm,
+                               FirstTests<Real>& t, std::size_t k) {
+  const V3s<Real, V> n{hn::Load(d, t.unit[0] + k), hn::Load(d, t.unit[1] + k), hn::Load(d, t.unit[2] + k)};
+  const V3s<Real, V> out = dissipate_motion_lanes(d, rel, inv_mass, n, hn::Load(d, t.force + k), prm);
+  hn::Store(out.x, d, t.extra[0] + k);
+  hn::Store(out.y, d, t.extra[1] + k);
+  hn::Store(out.z, d, t.extra[2] + k);
+}
+
+// The velocities of a sheet's points at the indices of di's lanes.
+template <class D, class I, class Real = hn::TFromD<D>>
+HWY_INLINE V3s<Real, hn::Vec<D>> velocity_lanes(D d, const Sheet<Real>& sheet, I at) {
+  return {hn::GatherIndex(d, sheet.velocity.x.data(), at), hn::GatherIndex(d, sheet.velocity.y.data(), at),
+          hn::GatherIndex(d, sheet.velocity.z.data(), at)};
+}
+
 // dissipate's force (damping and friction, dissipate_motion) for entries [0, count) of `t`
 // (first_tests' triangle and weights, force_lanes' unit direction and force), count a
 // multiple of the lanes, into t.extra: each lane does dissipate's operations in their order,
@@ -1237,14 +1304,9 @@ HWY_INLINE void dissipate_lanes(const Sheet<Real>& q, const Sheet<Real>& s, cons
   using Index = hn::TFromD<decltype(di)>;
   const std::size_t N = hn::Lanes(d);
   auto indices = [&](const std::uint32_t* from) { return lane_indices(di, from); };
-  auto velocity_at = [&](const Sheet<Real>& sheet, auto at) {
-    return V3s<Real, V>{hn::GatherIndex(d, sheet.velocity.x.data(), at), hn::GatherIndex(d, sheet.velocity.y.data(), at),
-                        hn::GatherIndex(d, sheet.velocity.z.data(), at)};
-  };
+  auto velocity_at = [&](const Sheet<Real>& sheet, auto at) { return velocity_lanes(d, sheet, at); };
   const auto cols = hn::Set(di, Index(s.topology->cols())), one_i = hn::Set(di, Index(1));
-  const V zero = hn::Zero(d), R2 = hn::Set(d, prm.range * prm.range), dt = hn::Set(d, prm.dt);
-  const V damping = hn::Set(d, prm.damping), friction = hn::Set(d, prm.friction);
-  const V share = hn::Set(d, Real(kDampingShare)), one = hn::Set(d, Real(1));
+  const V zero = hn::Zero(d), R2 = hn::Set(d, prm.range * prm.range);
   for (std::size_t k = 0; k < count; k += N) {
     if (hn::AllFalse(d, hn::Lt(hn::Load(d, t.dist2 + k), R2))) continue;
     // dissipate: the point's velocity less the triangle's at the weights, and Σ w²/m
@@ -1260,44 +1322,110 @@ HWY_INLINE void dissipate_lanes(const Sheet<Real>& q, const Sheet<Real>& s, cons
       rel = {hn::Sub(rel.x, hn::Mul(w, u.x)), hn::Sub(rel.y, hn::Mul(w, u.y)), hn::Sub(rel.z, hn::Mul(w, u.z))};
       inv_mass = hn::Add(inv_mass, hn::Mul(hn::Mul(w, w), hn::GatherIndex(d, s.inv_mass.data(), tri[c])));
     }
-    // dissipate_motion
-    const V3s<Real, V> n{hn::Load(d, t.unit[0] + k), hn::Load(d, t.unit[1] + k), hn::Load(d, t.unit[2] + k)};
-    V force = hn::Load(d, t.force + k);
-    const V normal = dot_lanes(rel, n);
-    V3s<Real, V> damped{zero, zero, zero};
-    if (prm.damping > 0) {
-      const V alpha_f = hn::Mul(damping, force);
-      const auto capped = hn::Gt(hn::Mul(hn::Mul(alpha_f, inv_mass), dt), share);
-      const V b = hn::IfThenElse(capped, hn::Div(share, hn::Mul(inv_mass, dt)), alpha_f);
-      const V pushed = hn::Mul(hn::Neg(b), normal), floor = hn::Neg(force);
-      const V change = lanes::first_max(pushed, floor);
-      damped = {hn::Mul(change, n.x), hn::Mul(change, n.y), hn::Mul(change, n.z)};
-      force = hn::Add(force, change);
-    }
-    V3s<Real, V> out = damped;
-    if (prm.friction > 0) {
-      const V3s<Real, V> slip{hn::Sub(rel.x, hn::Mul(normal, n.x)), hn::Sub(rel.y, hn::Mul(normal, n.y)),
-                              hn::Sub(rel.z, hn::Mul(normal, n.z))};
-      const V slip2 = dot_lanes(slip, slip);
-      const V mu_f = hn::Mul(friction, force);
-      const V held = hn::Mul(hn::Mul(mu_f, inv_mass), dt);
-      const V stop = hn::Div(one, hn::Mul(inv_mass, dt)), slide = hn::Div(mu_f, hn::Sqrt(slip2));
-      const V kf = hn::IfThenElse(hn::Lt(slip2, hn::Mul(held, held)), stop, slide), neg_k = hn::Neg(kf);
-      // damped − k·slip with damping, (−k)·slip without: dissipate_motion's two returns
-      const V3s<Real, V> sum =
-          prm.damping > 0
-              ? V3s<Real, V>{hn::Sub(damped.x, hn::Mul(kf, slip.x)), hn::Sub(damped.y, hn::Mul(kf, slip.y)),
-                             hn::Sub(damped.z, hn::Mul(kf, slip.z))}
-              : V3s<Real, V>{hn::Mul(neg_k, slip.x), hn::Mul(neg_k, slip.y), hn::Mul(neg_k, slip.z)};
-      const auto slides = hn::Gt(slip2, zero);
-      out = {hn::IfThenElse(slides, sum.x, damped.x), hn::IfThenElse(slides, sum.y, damped.y),
-             hn::IfThenElse(slides, sum.z, damped.z)};
-    }
-    const auto moves = hn::Gt(inv_mass, zero);
-    hn::Store(hn::IfThenElseZero(moves, out.x), d, t.extra[0] + k);
-    hn::Store(hn::IfThenElseZero(moves, out.y), d, t.extra[1] + k);
-    hn::Store(hn::IfThenElseZero(moves, out.z), d, t.extra[2] + k);
+    dissipate_into(d, rel, inv_mass, prm, t, k);
   }
+}
+
+// A side of a pair's rims: the candidates (u, v of q's rim, p, w of o) passing within R,
+// with their closest points' weights s, t (the perpendicular and its squared length in the
+// FirstTests beside them: unit, dist2).
+template <class Real>
+struct RimTests {
+  std::uint32_t edge[4][FirstTests<Real>::kSize];
+  alignas(64) Real s[FirstTests<Real>::kSize], t[FirstTests<Real>::kSize];
+};
+
+// repel_edges' damping and friction (dissipate_motion of the edges' relative motion at their
+// closest points) for entries [0, count) of `r` and `t` (force_lanes' unit and force), count a
+// multiple of the lanes, into t.extra: each lane does repel_edges' operations in their order,
+// so every entry gets the bits it gives one at a time.
+template <class Real>
+HWY_INLINE void rim_dissipate_lanes(const Sheet<Real>& q, const Sheet<Real>& o, const RimTests<Real>& r,
+                                    std::size_t count, const ContactParams<Real>& prm, FirstTests<Real>& t) {
+  const hn::ScalableTag<Real> d;
+  using V = hn::Vec<decltype(d)>;
+  const hn::RebindToSigned<decltype(d)> di;
+  const std::size_t N = hn::Lanes(d);
+  auto velocity_at = [&](const Sheet<Real>& sheet, auto at) { return velocity_lanes(d, sheet, at); };
+  const V zero = hn::Zero(d), one = hn::Set(d, Real(1));
+  for (std::size_t k = 0; k < count; k += N) {
+    const V s = hn::Load(d, r.s + k), tt = hn::Load(d, r.t + k);
+    const V wq[2] = {hn::Sub(one, s), s}, ws[2] = {hn::Sub(one, tt), tt};
+    V3s<Real, V> rel{zero, zero, zero};
+    V inv_mass = zero;
+    for (int e = 0; e < 2; ++e) {
+      const auto iq = lane_indices(di, r.edge[e] + k), is = lane_indices(di, r.edge[2 + e] + k);
+      const V3s<Real, V> a = velocity_at(q, iq), b = velocity_at(o, is);
+      rel = {hn::Sub(hn::Add(rel.x, hn::Mul(wq[e], a.x)), hn::Mul(ws[e], b.x)),
+             hn::Sub(hn::Add(rel.y, hn::Mul(wq[e], a.y)), hn::Mul(ws[e], b.y)),
+             hn::Sub(hn::Add(rel.z, hn::Mul(wq[e], a.z)), hn::Mul(ws[e], b.z))};
+      inv_mass = hn::Add(inv_mass, hn::Add(hn::Mul(hn::Mul(wq[e], wq[e]), hn::GatherIndex(d, q.inv_mass.data(), iq)),
+                                           hn::Mul(hn::Mul(ws[e], ws[e]), hn::GatherIndex(d, o.inv_mass.data(), is))));
+    }
+    dissipate_into(d, rel, inv_mass, prm, t, k);
+  }
+}
+
+// A side of rims_of_pair: each of q's rim candidates against o that passes within R repels
+// (repel_edges), in order. The passing ones are gathered a chunk at a time and their forces,
+// damping and friction computed in lanes where the CPU gathers in hardware (AVX2 and
+// AVX-512, as points_walking's first tests), the chunk's last entries short of a whole vector
+// and every entry elsewhere one by one; either way each entry gets repel_edges' bits, pushed
+// in the same order.
+template <class Real>
+void rim_side(const Sheet<Real>& q, const Sheet<Real>& o, const std::vector<std::array<std::uint32_t, 4>>& candidates,
+              const ContactParams<Real>& prm, ContactForces<Real>& on_q, ContactForces<Real>& on_o) {
+#if HWY_ARCH_X86 && HWY_TARGET <= HWY_AVX2
+  constexpr bool vectors = true;
+#else
+  constexpr bool vectors = false;
+#endif
+  constexpr std::size_t kChunk = FirstTests<Real>::kSize;
+  const std::size_t lanes = vectors ? hn::Lanes(hn::ScalableTag<Real>()) : kChunk + 1;
+  const bool dissipative = prm.friction > 0 || prm.damping > 0;
+  const Real R2 = prm.range * prm.range;
+  FirstTests<Real> t;
+  RimTests<Real> r;
+  std::size_t count = 0;
+  auto flush = [&] {
+    const std::size_t tested_end = count / lanes * lanes;
+    if constexpr (vectors) {
+      if (tested_end > 0) {
+        force_lanes(prm, tested_end, t);
+        if (dissipative) rim_dissipate_lanes(q, o, r, tested_end, prm, t);
+      }
+    }
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::uint32_t u = r.edge[0][k], v = r.edge[1][k], p = r.edge[2][k], w = r.edge[3][k];
+      if (k >= tested_end) {
+        const EdgePair<Real> c{r.s[k], r.t[k], t.dist2[k], {t.unit[0][k], t.unit[1][k], t.unit[2][k]}};
+        repel_edges(q, u, v, o, p, w, c, prm, on_q, on_o);
+        continue;
+      }
+      if (!(t.dist2[k] > 0)) continue;  // the edges cross: no direction (repel_edges)
+      const Real f = t.force[k];
+      V3<Real> F{f * t.unit[0][k], f * t.unit[1][k], f * t.unit[2][k]};
+      if (dissipative) F = {F.x + t.extra[0][k], F.y + t.extra[1][k], F.z + t.extra[2][k]};
+      push_edges(u, v, p, w, r.s[k], r.t[k], F, on_q, on_o);
+    }
+    count = 0;
+  };
+  for (const auto& [u, v, p, w] : candidates) {
+    EdgePair<Real> c;
+    if (!(edges_passing(at(q, u), at(q, v), at(o, p), at(o, w), c) && c.dist2 < R2)) continue;
+    r.edge[0][count] = u;
+    r.edge[1][count] = v;
+    r.edge[2][count] = p;
+    r.edge[3][count] = w;
+    r.s[count] = c.s;
+    r.t[count] = c.t;
+    t.dist2[count] = c.dist2;
+    t.unit[0][count] = c.diff.x;
+    t.unit[1][count] = c.diff.y;
+    t.unit[2][count] = c.diff.z;
+    if (++count == kChunk) flush();
+  }
+  flush();
 }
 
 // The entries [e0, e1) of `kept` (points of q against cells of s), in order: each walks
