@@ -91,23 +91,23 @@ void BasicWorld<Real>::Impl::integrate_runs(double h, std::uint64_t count, std::
 // A frame of substeps on sheets that contacts, obstacles or constraints couple, tried in
 // groups: the sheets closed under the pairs the frame's first substep would find
 // (self-colliding sheets with themselves) and under the constraints' joins, the sheets
-// within an obstacle's reach and the sheets a constraint holds, each step the whole
-// frame alone, group after group, with every stage of the substep (their pairs, kept
-// contact sets, obstacles, their constraints' targets), while the group's state stays in
-// cache. The sheets in no group run as independent runs (integrate_runs). The frame is
-// kept only if no two groups, and no free sheet with anything, came within contact range
-// over it (their boxes swept over the frame, grown by half the range each), and no free
-// sheet within an obstacle's reach: then every substep's host stage would have found, for
-// each group, the pairs and obstacles the group's own did, and the frame is bit-identical
-// to substep-by-substep (a sheet's contacts are gathered in pair order, which a group
-// keeps; a pair's work is kept and dropped by a rule of its own, step.cpp). Otherwise the state the frame found (each
-// sheet's positions, velocities and travel, each pair's work) is restored and the caller
-// steps substep by substep: only a frame in which two groups meet is computed twice.
-// Not tried where one group holds every sheet (that is the world's own substep), nor for
-// integrators with memory between substeps beyond x and v (forward and semi-implicit Euler
-// have none), nor while obstacles move (each substep puts them where they are then, for
-// every sheet), nor with a constraint following a motion of the caller's (a callback, which
-// is called on the thread that steps, never from two groups at once).
+// within an obstacle's reach and the sheets a constraint holds, each step the whole frame
+// alone, group after group, with every stage of the substep (their pairs, kept contact
+// sets, obstacles, their constraints' targets), while the group's state stays in cache. The
+// sheets in no group run as independent runs (integrate_runs). The frame is kept only if no
+// two groups, and no free sheet with anything, came within contact range over it (their
+// boxes swept over the frame, grown by half the range each), and no free sheet within an
+// obstacle's reach: then every substep's host stage would have found, for each group, the
+// pairs and obstacles the group's own did, and the frame is bit-identical to
+// substep-by-substep (a sheet's contacts are gathered in pair order, which a group keeps; a
+// pair's work is kept and dropped by a rule of its own, step.cpp). Otherwise the state the
+// frame found (each sheet's positions, velocities and travel, each pair's work) is restored
+// and the caller steps substep by substep: only a frame in which two groups meet is
+// computed twice. Not tried where one group holds every sheet (that is the world's own
+// substep), nor for integrators with memory between substeps beyond x and v (forward and
+// semi-implicit Euler have none), nor while obstacles move (each substep puts them where
+// they are then, for every sheet), nor with a constraint following a motion of the caller's
+// (a callback, which is called on the thread that steps, never from two groups at once).
 template <class Real>
 bool BasicWorld<Real>::Impl::frame_may_be_tried() const {
   return detail::updates_per_point(def.integrator) && !obstacles_move() && !constraints.calls_back();

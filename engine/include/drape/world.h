@@ -279,15 +279,14 @@ class BasicWorld {
 
   // Constraints (paper §5.2, constraint.h). Throws std::invalid_argument with validate()'s
   // message for a bad definition. A path or frame constraint keeps its points' offsets from
-  // the motion's pose at time() when it is added. Removing a sheet removes the constraints on
-  // it; removing an obstacle removes the frame constraints it carries. Every constrained
+  // the motion's pose at time() when it is added. Removing a sheet removes the constraints
+  // on it; removing an obstacle removes the frame constraints it carries. Every constrained
   // point's target is written at the start of each substep; in a frame of several substeps
-  // (step(n)) of a world of at least def().group_points points, the sheets a join holds
-  // step it together and a constrained sheet in a group of its own, or with the sheets it
-  // touches (frames of groups, below). A world with a
-  // moving obstacle, or a constraint following a callback motion, steps substep by substep.
-  // Either way the result does not depend on the thread count, and step(n) equals n calls
-  // of step(1).
+  // (step(n)) of a world of at least def().group_points points, the sheets a join holds step
+  // it together and a constrained sheet in a group of its own, or with the sheets it touches
+  // (frames of groups, below). A world with a moving obstacle, or a constraint following a
+  // callback motion, steps substep by substep. Either way the result does not depend on the
+  // thread count, and step(n) equals n calls of step(1).
   ConstraintId add_constraint(const ConstraintDef& def);
   void remove_constraint(ConstraintId id);
   bool contains(ConstraintId id) const;
