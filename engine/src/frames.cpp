@@ -104,13 +104,15 @@ void BasicWorld<Real>::Impl::integrate_runs(double h, std::uint64_t count, std::
 // frame found (each sheet's positions, velocities and travel, each pair's work) is restored
 // and the caller steps substep by substep: only a frame in which two groups meet is
 // computed twice. Not tried where one group holds every sheet (that is the world's own
-// substep), nor for integrators with memory between substeps beyond x and v (forward and
-// semi-implicit Euler have none), nor while obstacles move (each substep puts them where
-// they are then, for every sheet), nor with a constraint following a motion of the caller's
-// (a callback, which is called on the thread that steps, never from two groups at once).
+// substep), nor for integrators that keep anything between substeps beyond x and v (the
+// implicit ones: a kept factor and guess, solver counts, which putting x and v back would
+// not undo; detail::remembers_nothing), nor while obstacles move (each substep puts them
+// where they are then, for every sheet), nor with a constraint following a motion of the
+// caller's (a callback, which is called on the thread that steps, never from two groups at
+// once).
 template <class Real>
 bool BasicWorld<Real>::Impl::frame_may_be_tried() const {
-  return detail::updates_per_point(def.integrator) && !obstacles_move() && !constraints.calls_back();
+  return detail::remembers_nothing(def.integrator) && !obstacles_move() && !constraints.calls_back();
 }
 
 // groups[0, group_count), group_of and free_sheets for sheets with these boxes, from the

@@ -180,6 +180,7 @@ double unconditional(double) { return std::numeric_limits<double>::infinity(); }
 struct IntegratorRow {
   IntegratorInfo info;
   bool per_point;                        // updates_per_point(): forces once, then each point alone
+  bool memoryless;                       // remembers_nothing(): a substep reads x and v only
   double (*critical_step)(double omega);  // integrator_critical_step() for ω_max > 0
   StepFunction<double> step_double;
   StepFunction<float> step_float;
@@ -188,19 +189,19 @@ struct IntegratorRow {
 #define DRAPE_STEP(f) &f<double>, &f<float>
 constexpr IntegratorRow table[] = {
     {{Integrator::ForwardEuler, "forward_euler", 1, true, "no step without damping (amplification √(1 + ω²dt²))", ""},
-     true, forward_euler_limit, DRAPE_STEP(forward_euler_step)},
+     true, true, forward_euler_limit, DRAPE_STEP(forward_euler_step)},
     {{Integrator::SemiImplicitEuler, "semi_implicit_euler", 1, true, "ω·dt < 2", ""},
-     true, interval_two, DRAPE_STEP(semi_implicit_euler_step)},
+     true, true, interval_two, DRAPE_STEP(semi_implicit_euler_step)},
     {{Integrator::VelocityVerlet, "velocity_verlet", 2, true, "ω·dt < 2", ""},
-     false, interval_two, DRAPE_STEP(velocity_verlet_step)},
-    {{Integrator::RK4, "rk4", 4, true, "ω·dt < 2√2", ""}, false, rk4_limit, DRAPE_STEP(rk4_step)},
+     false, true, interval_two, DRAPE_STEP(velocity_verlet_step)},
+    {{Integrator::RK4, "rk4", 4, true, "ω·dt < 2√2", ""}, false, true, rk4_limit, DRAPE_STEP(rk4_step)},
     {{Integrator::ImplicitEuler, "implicit_euler", 1, false, "any step", "cg_tolerance, cg_max_iterations, cg_preconditioner"},
-     false, unconditional, DRAPE_STEP(implicit_euler_step)},
+     false, false, unconditional, DRAPE_STEP(implicit_euler_step)},
     {{Integrator::LocalGlobal, "local_global", 1, false, "any step", "local_global_iterations (cg_tolerance: converged)"},
-     false, unconditional, DRAPE_STEP(local_global_step)},
+     false, false, unconditional, DRAPE_STEP(local_global_step)},
     {{Integrator::VertexBlockDescent, "vertex_block_descent", 1, false, "any step",
       "vertex_block_iterations (cg_tolerance: converged)"},
-     false, unconditional, DRAPE_STEP(vertex_block_step)},
+     false, false, unconditional, DRAPE_STEP(vertex_block_step)},
 };
 #undef DRAPE_STEP
 
@@ -255,6 +256,7 @@ void integrate(Integrator integrator, Sheet<Real>& s, const StepParams<Real>& p,
 }
 
 bool updates_per_point(Integrator integrator) { return row_of(integrator).per_point; }
+bool remembers_nothing(Integrator integrator) { return row_of(integrator).memoryless; }
 
 void record_solve(SolveStats& stats, int iterations, double relative_residual, bool converged) {
   stats.iterations = iterations;

@@ -40,6 +40,12 @@ void record_solve(SolveStats& stats, int iterations, double relative_residual, b
 // large sheet into row blocks: forces of every block first, then update_points per block.
 bool updates_per_point(Integrator integrator);
 
+// Integrators whose substep reads nothing of a sheet but its positions and velocities (the
+// table's memoryless column): no factor, guess or solver count kept from one substep to the
+// next, so a substep undone by putting x and v back is undone whole. Only these let the world
+// try a frame in groups (frames.cpp, frame_may_be_tried), which it may undo that way.
+bool remembers_nothing(Integrator integrator);
+
 // Points [begin, end) of such an integrator's update from sheet.force, then the pins among
 // them; integrate() is sheet_forces followed by update_points over all points. `box`, when
 // given, grows to contain those points after the update and the pins (as integrate's bounds).
