@@ -100,6 +100,11 @@ TEST(SceneFile, EveryBadInputNamesFilePathAndProblem) {
        "test.json: sheets[0].stiffness: must be positive (got -3)"},
       {R"({"frames": 1, "dt": 0, "sheets": [{)" + sheet + "}]}", "test.json: dt: must be positive (got 0)"},
       {R"({"frames": 1, "dt": 1e999, "sheets": [{)" + sheet + "}]}", "test.json:1:21: number 1e999 is not finite"},
+      // frames so long that their substeps do not fit the count (they once wrapped negative)
+      {R"({"frames": 1, "fps": 1e-300, "sheets": [{)" + sheet + "}]}",
+       "test.json: fps: fps = 1e-300 with dt = 0.001 s makes frames of"},
+      {R"({"frames": 1, "fps": 1e-5, "dt": 1e-6, "sheets": [{)" + sheet + "}]}",
+       "test.json: fps: fps = 1e-05 with dt = 1e-06 s makes frames of 1e+11 substeps, more than 100000000"},
       {R"({"frames": 1, "sheets": [{)" + sheet + R"(, "center": [0, NaN, 0]}]})", "test.json:1:90: syntax error"},
       {R"({"frames": 1, "sheets": [{"grid": [3000000000, 3000000000], "size": [1, 1], "stiffness": 5}]})",
        "test.json: sheets[0].grid: grid of 9e+18 points needs about"},

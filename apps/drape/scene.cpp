@@ -723,11 +723,20 @@ Scene parse_scene(std::string_view text, const std::string& file, std::span<cons
   // the engine's own check last: a range this reader does not know yet is still named
   if (const std::string problem = validate(scene.world); !problem.empty()) top.fail(problem);
   if (top.has("fps")) scene.fps = top.child("fps").positive();
+  constexpr int kMostSubsteps = 100000000;  // per frame, given or derived
   if (top.has("substeps")) {
-    scene.substeps = int(top.child("substeps").whole(1, 100000000));
+    scene.substeps = int(top.child("substeps").whole(1, kMostSubsteps));
   } else {
-    // one output frame every 1/fps s, rounded to whole substeps
-    scene.substeps = int(std::max(1.0, std::round(1.0 / (scene.fps * scene.world.dt))));
+    // one output frame every 1/fps s, rounded to whole substeps (a frame too long for an
+    // int of substeps is named here, not wrapped into a negative count)
+    const double per_frame = std::max(1.0, std::round(1.0 / (scene.fps * scene.world.dt)));
+    if (!(per_frame <= kMostSubsteps)) {
+      std::ostringstream out;
+      out << "fps = " << scene.fps << " with dt = " << scene.world.dt << " s makes frames of " << per_frame
+          << " substeps, more than " << kMostSubsteps << ": raise fps or dt, or give substeps";
+      (top.has("fps") ? top.child("fps") : top.child("dt")).fail(out.str());
+    }
+    scene.substeps = int(per_frame);
   }
   if (top.has("frames") && top.has("duration")) top.child("duration").fail("give either frames or duration, not both");
   if (top.has("frames")) {
