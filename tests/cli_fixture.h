@@ -47,8 +47,9 @@ class Cli : public ::testing::Test {
     for (std::size_t at = text.find(needle); at != std::string::npos; at = text.find(needle, at + 1)) ++count;
     return count;
   }
-  Result drape(const std::string& args) {
-    const std::string cmd = std::string(DRAPE_BIN) + " " + args + " > " + (dir / "stdout").string() + " 2> " +
+  // `shell` runs first in the same shell (e.g. a ulimit the program then runs under)
+  Result drape(const std::string& args, const std::string& shell = "") {
+    const std::string cmd = shell + std::string(DRAPE_BIN) + " " + args + " > " + (dir / "stdout").string() + " 2> " +
                             (dir / "stderr").string();
     const int status = std::system(cmd.c_str());
     return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(dir / "stdout"), slurp(dir / "stderr")};

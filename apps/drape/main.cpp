@@ -8,6 +8,7 @@
 #include <iostream>
 #include <memory>
 #include <sstream>
+#include <string_view>
 
 #include <render/surface.h>
 
@@ -50,10 +51,10 @@ std::unique_ptr<Cluster> join_cluster(const char* command) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int drape_main(int argc, char** argv) {
   CLI::App app{"drape: elastic sheets as mass-spring grids (Gudukbay, Ozguc, Tokad 1997).\n"
                "Exit codes: 0 ok, 1 simulation became unstable, 2 bad command line, 3 bad scene file, "
-               "4 output could not be written, 5 checkpoint cannot be resumed, 6 some runs of a sweep or batch failed."};
+               "4 output could not be written, 5 checkpoint cannot be resumed, 6 some runs of a sweep or batch failed, 7 any other failure (out of memory, an error of drape's own)."};
   app.require_subcommand(1);
 
   std::string scene_file;
@@ -216,4 +217,20 @@ int main(int argc, char** argv) {
     return exit_ok;
   }
   return run_scene(scene, options, std::cerr);
+}
+
+// What the subcommands do not catch themselves (running out of memory, an argument the
+// engine refuses that no reader checked) still ends in one line and an exit code, not an
+// abort; frames written before stay intact.
+int main(int argc, char** argv) {
+  try {
+    return drape_main(argc, argv);
+  } catch (const std::bad_alloc&) {
+    std::cerr << "drape: out of memory\n";
+  } catch (const std::exception& e) {
+    std::string_view what = e.what();
+    if (what.starts_with("drape: ")) what.remove_prefix(7);  // the engine's messages name it already
+    std::cerr << "drape: " << what << '\n';
+  }
+  return exit_failed;
 }

@@ -22,6 +22,7 @@ enum ExitCode : int {
   exit_write_failed = 4,  // an output file could not be written
   exit_bad_checkpoint = 5,  // --resume: no usable checkpoint (missing, damaged, other version or scene)
   exit_cases_failed = 6,    // sweep, batch: some runs failed; every other result is written
+  exit_failed = 7,          // anything else that stopped the program (out of memory, an engine error)
 };
 
 // The checkpoint `drape run --checkpoint-every N` keeps in its output folder (replaced
