@@ -272,6 +272,43 @@ TEST(Guard, ReportedStableStepIsStable) {
   EXPECT_LT(later.energy_growth, 1.5);
 }
 
+// Damping limits an explicit step too: semi-implicit Euler takes eq (4)'s −C ẋ from the
+// step's velocity, v ← v·(1 − γ·dt) with γ = c/m where the springs are negligible, which
+// grows once dt > 2m/c. The estimate is the bound by hand, (γ + √(γ² + 4ω²))/2 in place of
+// ω; a sheet set moving at 0.95 of it comes to rest, at 1.05 of it the guard stops it and
+// reports a stable step below the one in use.
+TEST(Guard, DampingBoundsTheStableStep) {
+  drape::WorldDef wd;
+  wd.gravity = {0, 0, 0};
+  drape::SheetDef d;
+  d.m = d.n = 4;         // 25 points of 0.01 kg
+  d.mass = 0.25;
+  d.stiffness = 1e-6;    // N/m: ω² = 4 springs · 2k / m = 8e-4 /s² at an inner point
+  d.damping = 2.0;       // N·s/m per point: γ = 200 /s, so dt < 10 ms
+  const double gamma = 200.0, omega2 = 8e-4;
+  const double by_hand = 2.0 / (0.5 * (gamma + std::sqrt(gamma * gamma + 4.0 * omega2)));
+  auto run = [&](double fraction, int steps) {
+    drape::World world(wd);
+    const auto id = world.add_sheet(d);
+    EXPECT_NEAR(world.stable_step_estimate(id), by_hand, 1e-12 * by_hand);
+    world.set_dt(fraction * world.stable_step_estimate(id));
+    auto state = world.state(id);
+    for (std::size_t p = 0; p < state.size(); ++p) state.vz[p] = p % 2 == 0 ? 1.0 : -1.0;
+    drape::StabilityReport report;
+    for (int k = 0; k < steps && report.ok(); ++k) report = world.step(1);
+    double fastest = 0;
+    for (double v : world.view(id).vz) fastest = std::max(fastest, std::abs(v));
+    return std::pair{report, fastest};
+  };
+  EXPECT_NEAR(by_hand, 0.01, 1e-7);  // 2m/c, the springs a few parts in 10⁸ of it
+  const auto [calm, slow] = run(0.95, 400);
+  EXPECT_TRUE(calm.ok()) << drape::describe(calm);
+  EXPECT_LT(slow, 1e-6);  // from 1 m/s: the damped mode falls as |1 − 1.9|ⁿ (the springs' creep is slower still)
+  const auto [wild, fast] = run(1.05, 4000);
+  ASSERT_FALSE(wild.ok()) << "1.05 of 2m/c must blow up (fastest point " << fast << " m/s)";
+  EXPECT_LT(wild.stable_dt, wild.dt);
+}
+
 // No false alarms: every integrator at half its critical step on the damped Fig 5 sheet
 // for one simulated second (forward Euler at half its bounded-growth step).
 TEST(Guard, StableRunsAreNotFlagged) {

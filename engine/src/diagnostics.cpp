@@ -107,10 +107,10 @@ SheetDiagnostics sheet_diagnostics(const Sheet<Real>& s, Vec3 g) {
   return d;
 }
 
+// Σ over the springs and anchors at each point of the stiffness matrix's row bound: 2k per
+// spring (Gershgorin), the terms' own bounds, k per anchor; 0 at pins (they do not move).
 template <class Real>
-double sheet_stable_step(const Sheet<Real>& s) {
-  // Gershgorin: the stiffness matrix's row i is bounded by 2·Σ k over the springs at i
-  // (plus anchors), so ω_max² ≤ max_i 2Σk_i / m_i and explicit steps need dt < 2/ω_max.
+static std::vector<double> row_stiffness_bounds(const Sheet<Real>& s) {
   const auto& t = *s.topology;
   std::vector<double> k_sum(s.size(), 0.0);
   for (std::uint32_t e = 0; e < t.springs(); ++e) {
@@ -119,10 +119,37 @@ double sheet_stable_step(const Sheet<Real>& s) {
   }
   add_term_stiffness_bounds(s, k_sum.data());
   for (std::size_t k = 0; k < s.anchors.point.size(); ++k) k_sum[s.anchors.point[k]] += s.anchors.stiffness[k];
-  for (std::uint32_t p : s.pins.point) k_sum[p] = 0.0;  // pinned points do not move
+  for (std::uint32_t p : s.pins.point) k_sum[p] = 0.0;
+  return k_sum;
+}
+
+template <class Real>
+double sheet_spring_frequency(const Sheet<Real>& s) {
+  // Gershgorin: ω_max² ≤ max_i 2Σk_i / m_i
+  const std::vector<double> k_sum = row_stiffness_bounds(s);
   double omega2 = 0.0;
   for (std::size_t i = 0; i < s.size(); ++i) omega2 = std::max(omega2, k_sum[i] / double(s.mass[i]));
-  return omega2 > 0 ? 2.0 / std::sqrt(omega2) : std::numeric_limits<double>::infinity();
+  return std::sqrt(omega2);
+}
+
+template <class Real>
+double sheet_stable_step(const Sheet<Real>& s) {
+  // Per point, the bound ω_i² = 2Σk_i/m_i and the damping rate γ_i = c_i/m_i of eq (4)'s
+  // −C ẋ. Semi-implicit Euler on x'' = −ω²x − γx' (the damping from the step's velocity, as
+  // every explicit integrator here takes it) is stable while ω²dt² + 2γdt < 4 (Jury's
+  // conditions on its 2×2 step), i.e. dt < 2/ω_eff with ω_eff = (γ + √(γ² + 4ω²))/2: 2/ω
+  // undamped, 2/γ (= 2m/c) for damping alone, which the springs' bound missed.
+  const std::vector<double> k_sum = row_stiffness_bounds(s);
+  std::vector<double> gamma(s.size(), 0.0);
+  if (!s.damping.empty())
+    for (std::size_t i = 0; i < s.size(); ++i) gamma[i] = double(s.damping[i]) / double(s.mass[i]);
+  for (std::uint32_t p : s.pins.point) gamma[p] = 0.0;  // a pin's damping moves nothing
+  double omega = 0.0;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    const double omega2 = k_sum[i] / double(s.mass[i]), g = gamma[i];
+    omega = std::max(omega, g > 0 ? 0.5 * (g + std::sqrt(g * g + 4.0 * omega2)) : std::sqrt(omega2));
+  }
+  return omega > 0 ? 2.0 / omega : std::numeric_limits<double>::infinity();
 }
 
 template Energies sheet_energies<double>(const Sheet<double>&, Vec3);
@@ -132,6 +159,8 @@ template SheetDiagnostics sheet_diagnostics<float>(const Sheet<float>&, Vec3);
 template bool sheet_finite<double>(const Sheet<double>&);
 template bool sheet_finite<float>(const Sheet<float>&);
 template double sheet_stable_step<double>(const Sheet<double>&);
+template double sheet_spring_frequency<double>(const Sheet<double>&);
 template double sheet_stable_step<float>(const Sheet<float>&);
+template double sheet_spring_frequency<float>(const Sheet<float>&);
 
 }  // namespace drape::detail

@@ -89,7 +89,7 @@ void build_pattern(ImplicitScratch<Real>& sc, const Sheet<Real>& s) {
   sc.dv.setZero(n3);
   sc.topology = s.topology.get();
   sc.pin_count = s.pins.point.size();
-  sc.omega_max = 2.0 / sheet_stable_step(s);
+  sc.omega_max = sheet_spring_frequency(s);
   sc.structure = nullptr;  // the Cholesky blocks' offsets into the old pattern are stale
 }
 

@@ -54,7 +54,7 @@ struct ImplicitScratch {
   Vector best;  // the iterate of smallest residual so far: what a solve that diverged returns
   std::vector<Real> block_inverse;  // per point: the inverse of its 3×3 diagonal block, row-major
 
-  // Auto's rule reads the sheet's stiffest mode, ω_max = 2/sheet_stable_step (Gershgorin).
+  // Auto's rule reads the sheet's stiffest spring mode, sheet_spring_frequency (Gershgorin).
   double omega_max = 0;
   // The Cholesky preconditioner: L on the pattern of local/global's point factor, by
   // supernodes (`factor`); `source`: per 3×3 block of that pattern that is in `system`

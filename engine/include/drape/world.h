@@ -421,8 +421,11 @@ class BasicWorld {
   bool all_finite() const;
 
   // Largest step at which the explicit integrators stay stable on this sheet, from a
-  // Gershgorin bound on the highest spring frequency: 2/ω_max, ω_max² ≤ max_i Σk_i·2/m_i.
-  // (The interval of semi-implicit Euler and Verlet; integrator_critical_step() scales it.)
+  // Gershgorin bound on the highest spring frequency, ω_i² = Σk_i·2/m_i at point i, and the
+  // damping rate of eq (4) there, γ_i = c_i/m_i: 2/ω_max with ω_max the largest
+  // (γ_i + √(γ_i² + 4ω_i²))/2, which is ω_i undamped and γ_i for damping alone (semi-implicit
+  // Euler on such a point is stable while ω²dt² + 2γdt < 4). (The interval of semi-implicit
+  // Euler and Verlet; integrator_critical_step() scales it.)
   double stable_step_estimate(SheetId id) const;
   double stable_step_estimate() const;  // minimum over sheets; +inf for an empty world
   // integrator_critical_step(integrator, ω_max) of the stiffest sheet; +inf for an empty world.
