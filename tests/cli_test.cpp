@@ -66,6 +66,12 @@ TEST_F(Cli, BadCommandLineExitsTwoAndHelpExitsZero) {
   EXPECT_EQ(f.code, 2);
   EXPECT_NE(f.err.find("unknown format \"stl\""), std::string::npos) << f.err;
   EXPECT_FALSE(fs::exists(dir / "o"));
+  for (const char* command : {"run", "sweep", "batch"}) {  // more threads than a world takes (drape::max_threads)
+    const Result t = drape(std::string(command) + " " + scene.string() + " --threads 100000 --out " + (dir / "o").string());
+    EXPECT_EQ(t.code, 2) << command << ": " << t.err;
+    EXPECT_NE(t.err.find("--threads"), std::string::npos) << t.err;
+  }
+  EXPECT_FALSE(fs::exists(dir / "o"));
   for (const char* h : {"--help", "run --help", "info --help"}) {
     const Result r = drape(h);
     EXPECT_EQ(r.code, 0) << h;

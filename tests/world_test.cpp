@@ -491,6 +491,34 @@ TEST(Worlds, SetThreadsKeepsTheResult) {
   w.step(40);
   EXPECT_EQ(state_bytes(w), run_contact_scene(1, 256, 80));
   EXPECT_THROW(w.set_threads(-1), std::invalid_argument);
+  // a count oneTBB's arena cannot hold is refused, not left to crash it (70,000 did)
+  EXPECT_THROW(w.set_threads(drape::max_threads + 1), std::invalid_argument);
+  WorldDef huge;
+  huge.threads = 70000;
+  EXPECT_NE(validate(huge).find("threads must be 0 (all cores) or positive, at most"), std::string::npos) << validate(huge);
+  w.set_threads(drape::max_threads);  // the largest allowed is taken
+  w.step(1);
+  EXPECT_EQ(w.def().threads, drape::max_threads);
+}
+
+// advance() takes any time a run could step; one needing more substeps than a double counts
+// exactly (2^53, here 1e300 s at 1 ms) is refused with the count, the world untouched (the
+// count's cast to an integer was undefined, and the run would never have ended).
+TEST(Worlds, AdvanceRefusesTimesNoRunCouldStep) {
+  World w;
+  w.add_sheet(SheetDef{});
+  EXPECT_THROW(w.advance(-1.0), std::invalid_argument);
+  EXPECT_THROW(w.advance(std::numeric_limits<double>::quiet_NaN()), std::invalid_argument);
+  try {
+    w.advance(1e300);
+    ADD_FAILURE() << "advance(1e300) at dt = 1 ms was taken";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("needs 1e+303 substeps of at most 0.001 s, more than 2^53"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(w.step_count(), 0u);
+  EXPECT_TRUE(w.advance(0.0025).ok());
+  EXPECT_EQ(w.step_count(), 3u);  // ceil(2.5 ms / 1 ms) equal substeps
 }
 
 // The reference: the sheet built and integrated directly, without world, host stage,

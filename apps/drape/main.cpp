@@ -67,7 +67,7 @@ int drape_main(int argc, char** argv) {
   run->add_option("--out", out_dir, "Output folder (default: the scene's output.dir)");
   run->add_option("--frames", frames, "Frames to write after the initial one (default: the scene's)")
       ->check(CLI::PositiveNumber);
-  run->add_option("--threads", threads, "Worker threads (default 0: all cores)")->check(CLI::NonNegativeNumber);
+  run->add_option("--threads", threads, "Worker threads (default 0: all cores)")->check(CLI::Range(0, drape::max_threads));
   run->add_option("--format", formats, "Comma-separated mesh formats: obj, ply, vtk (per frame), glb (the whole run in OUT/run.glb) "
                   "(default: the scene's)")
       ->delimiter(',');
@@ -103,7 +103,7 @@ int drape_main(int argc, char** argv) {
   sweep->add_option("--frames", sweep_frames, "Frames per run (default: each scene's)")->check(CLI::PositiveNumber);
   sweep->add_option("--threads", sweep_threads, "Runs in parallel per process (default 0: all cores, shared by the "
                                                 "MPI ranks on a machine)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::Range(0, drape::max_threads));
 
   std::vector<std::string> batch_scenes, batch_formats;
   std::string batch_out;
@@ -115,7 +115,7 @@ int drape_main(int argc, char** argv) {
   batch->add_option("--frames", batch_frames, "Frames per scene (default: each scene's)")->check(CLI::PositiveNumber);
   batch->add_option("--threads", batch_threads, "Scenes in parallel per process (default 0: all cores, shared by the "
                                                 "MPI ranks on a machine)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::Range(0, drape::max_threads));
   batch->add_option("--format", batch_formats,
                     "Comma-separated mesh formats: obj, ply, vtk (per frame), glb (each scene's whole run in "
                     "OUT/<scene>/run.glb) (default: each scene's)")

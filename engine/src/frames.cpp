@@ -6,6 +6,8 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <sstream>
+#include <stdexcept>
 #include <vector>
 
 #include "terms/terms.h"
@@ -448,6 +450,14 @@ template <class Real>
 void BasicWorld<Real>::Impl::advance(double seconds) {
   const double h_max = max_substep();
   const double count = std::isfinite(h_max) ? std::max(1.0, std::ceil(seconds / h_max * (1 - 1e-12))) : 1.0;
+  // a count past 2^53 is not even a whole number in double (nor, past 2^64, a uint64_t: the
+  // cast would be undefined); no run could take that many substeps anyway
+  if (!(count <= 0x1p53)) {
+    std::ostringstream out;
+    out << "drape: advance(" << seconds << ") needs " << count << " substeps of at most " << h_max
+        << " s, more than 2^53: advance a shorter time";
+    throw std::invalid_argument(out.str());
+  }
   substeps(seconds / count, static_cast<std::uint64_t>(count));
 }
 

@@ -32,7 +32,9 @@ std::string validate(const WorldDef& d) {
   if (!(d.wind.density >= 0) || !finite(d.wind.density))
     return problem("wind.density", "must be non-negative and finite", d.wind.density);
   if (!integrator_from_name(integrator_name(d.integrator))) return problem("integrator", "is not an integrator", double(d.integrator));
-  if (d.threads < 0) return problem("threads", "must be 0 (all cores) or positive", d.threads);
+  static_assert(max_threads == 4096, "the message below names it");
+  if (d.threads < 0 || d.threads > max_threads)
+    return problem("threads", "must be 0 (all cores) or positive, at most drape::max_threads = 4096", d.threads);
   if (!(d.cg_tolerance > 0) || !finite(d.cg_tolerance)) return problem("cg_tolerance", "must be positive and finite", d.cg_tolerance);
   if (d.cg_max_iterations < 1) return problem("cg_max_iterations", "must be at least 1", d.cg_max_iterations);
   if (!preconditioner_from_name(preconditioner_name(d.cg_preconditioner)))
@@ -437,7 +439,6 @@ double BasicWorld<Real>::time() const { return impl_->time(); }
 
 template <class Real>
 void BasicWorld<Real>::set_threads(int threads) {
-  if (threads < 0) throw std::invalid_argument("drape: threads must be >= 0 (0: all cores)");
   WorldDef d = impl_->def;
   d.threads = threads;
   impl_->set_def(d);

@@ -19,12 +19,16 @@
 
 namespace drape {
 
+// The most worker threads a world takes (WorldDef::threads): far beyond any core count, and
+// below where oneTBB 2021's arena failed (a world of 70,000 crashed when destroyed).
+inline constexpr int max_threads = 4096;
+
 struct WorldDef {
   double dt = 1e-3;                    // s, one substep (with `adaptive`: the frame unit of step())
   Vec3 gravity{0.0, 0.0, -9.81};       // m/s²; z is up
   Integrator integrator = Integrator::SemiImplicitEuler;
   Wind wind{};                         // for sheets with SheetDef::air only
-  int threads = 0;                     // worker threads for step(); 0: all cores
+  int threads = 0;                     // worker threads for step(); 0: all cores; at most max_threads
 
   // Implicit Euler's conjugate-gradient solve: stop at relative residual |r|/|b| below
   // cg_tolerance or after cg_max_iterations iterations, whichever comes first. A solve
@@ -306,6 +310,8 @@ class BasicWorld {
   StabilityReport step(int substeps = 1);
   // Advances by `seconds` in equal substeps no longer than the step in use (def().dt, or the
   // adaptive step), landing exactly on time() + seconds; then the guard as in step().
+  // std::invalid_argument for a negative or non-finite time, or one needing more than 2^53
+  // substeps.
   StabilityReport advance(double seconds);
 
   // The guard's check of the present state, without stepping; cost O(points + springs).
