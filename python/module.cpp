@@ -776,6 +776,8 @@ PYBIND11_MODULE(drape, m) {
 
   m.def("validate", py::overload_cast<const SheetDef&>(&validate), py::arg("definition"),
         "'' when usable, else one message naming the field.");
+  m.def("validate_float", &validate_float, py::arg("definition"),
+        "validate() for a WorldF: also whether float32 coordinates resolve the sheet's cells.");
   m.def("validate", py::overload_cast<const WorldDef&>(&validate), py::arg("definition"));
   m.def("validate", py::overload_cast<const ObstacleDef&>(&validate), py::arg("definition"));
   m.def("validate", py::overload_cast<const Motion&>(&validate), py::arg("definition"));

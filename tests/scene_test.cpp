@@ -96,6 +96,8 @@ TEST(SceneFile, EveryBadInputNamesFilePathAndProblem) {
       {R"({"frames": 1, "sheets": [{"grid": [0, 4], "size": [1, 1], "stiffness": 50}]})",
        "test.json: sheets[0].grid[0]: must be between 1 and"},
       {R"({"frames": 1, "sheets": [{)" + sheet + R"(, "mass": 0}]})", "test.json: sheets[0].mass: must be positive (got 0)"},
+      {R"({"frames": 1, "precision": "float32", "sheets": [{"grid": [4, 4], "size": [0.004, 1], "center": [0, 1000, 0], "stiffness": 5}]})",
+       "test.json: sheets[0]: width/n = 0.001 m is under 0.0019"},
       {R"({"frames": 1, "sheets": [{"grid": [4, 4], "size": [1, 1], "stiffness": -3}]})",
        "test.json: sheets[0].stiffness: must be positive (got -3)"},
       {R"({"frames": 1, "dt": 0, "sheets": [{)" + sheet + "}]}", "test.json: dt: must be positive (got 0)"},

@@ -86,6 +86,43 @@ TEST(Sheet, ValidationNamesTheFieldAndTheProblem) {
   EXPECT_EQ(world.sheet_count(), 0u);
 }
 
+// A sheet whose cells its coordinates cannot resolve is refused, in the precision of the
+// world that would hold it: a cell edge under 16 machine epsilons times the sheet's largest
+// coordinate. By hand: 1 mm cells 1 km from the origin, 16ε·1000 m = 1.9 mm in float: a float
+// coordinate there is a multiple of 2^-14 m = 61 µm, so a spring's length is off by up to one
+// of them, 6 % of 1 mm; in double 16ε·1000 m is 3.6e-12 m.
+TEST(Sheet, CellsTheCoordinatesCannotResolveAreRefused) {
+  drape::SheetDef d;
+  d.m = d.n = 10;
+  d.width = d.height = 0.01;  // 1 mm cells
+  d.center = {1000, 0, 0};
+  const float ulp = std::nextafter(1000.0f, 2000.0f) - 1000.0f;
+  ASSERT_EQ(ulp, std::ldexp(1.0f, -14));
+  EXPECT_EQ(drape::validate(d), "");
+  EXPECT_EQ(drape::validate_float(d).rfind("width/n = 0.001 m is under 0.0019", 0), 0u)
+      << drape::validate_float(d);
+  drape::WorldF wf;
+  EXPECT_THROW(wf.add_sheet(d), std::invalid_argument);
+  drape::World w;
+  EXPECT_NO_THROW(w.add_sheet(d));
+  d.width = d.height = 0.02;  // 2 mm cells: over 1.9 mm, taken
+  EXPECT_EQ(drape::validate_float(d), "");
+  EXPECT_NO_THROW(wf.add_sheet(d));
+  // double: at 1e12 m, 16ε is 3.6 mm
+  d.width = d.height = 0.01;
+  d.center = {0, 1e12, 0};
+  EXPECT_EQ(drape::validate(d).rfind("width/n = 0.001 m is under 0.0035", 0), 0u)
+      << drape::validate(d);
+  // squares: an edge of 1e-160 m squares below double's smallest normal (2.2e-308); a
+  // sheet 1e160 m out squares above its largest (1.8e308)
+  d.center = {0, 0, 0};
+  d.width = d.height = 1e-159;
+  EXPECT_NE(drape::validate(d).find("smallest normal double"), std::string::npos) << drape::validate(d);
+  d.width = d.height = 1;
+  d.center = {1e160, 0, 0};
+  EXPECT_NE(drape::validate(d).find("overflow double"), std::string::npos) << drape::validate(d);
+}
+
 // The arrays' allocator (aligned.h): every array on a cache line, and one of 2 MiB or more
 // on a 2 MiB boundary, where a huge page can back it from its first byte; a sheet that
 // large gets its arrays that way.

@@ -372,7 +372,8 @@ SheetDef read_sheet(const Node& node, Precision precision, std::string& name, st
     if (a.has("friction")) s.air->friction = a.child("friction").non_negative();
   }
   if (node.has("friction")) s.friction = node.child("friction").non_negative();
-  if (const std::string problem = validate(s); !problem.empty()) node.fail(problem);
+  if (const std::string problem = precision == Precision::Float32 ? validate_float(s) : validate(s); !problem.empty())
+    node.fail(problem);
   return s;
 }
 

@@ -6,6 +6,7 @@
 #include <limits>
 #include <numbers>
 #include <sstream>
+#include <string_view>
 
 namespace drape {
 
@@ -60,7 +61,49 @@ std::string indexed(const char* field, std::size_t i, const char* member = nullp
   return s;
 }
 
+// The grid's cells resolved where the sheet lies, in a precision of machine epsilon `eps`
+// whose normal numbers span [tiny, huge]: its smallest cell edge at least 16·eps times its
+// largest coordinate, 8 to 16 units in the last place there (each end of a spring is rounded
+// by up to half a unit, so its length by up to one: 6 to 12 %, and eq (6)'s forces become
+// rounding noise), and the squares of edges and coordinates that eq (6) and the contacts
+// take neither underflow nor overflow.
+std::string resolution_problem(const SheetDef& d, double eps, double tiny, double huge, const char* precision) {
+  double edge = std::numeric_limits<double>::infinity();
+  const char* field = nullptr;
+  if (d.n > 0 && d.width / d.n < edge) {
+    edge = d.width / d.n;
+    field = "width/n";
+  }
+  if (d.m > 0 && d.height / d.m < edge) {
+    edge = d.height / d.m;
+    field = "height/m";
+  }
+  if (!field) return {};  // one point: no spring
+  const double reach = std::max({std::abs(d.center.x), std::abs(d.center.y), std::abs(d.center.z)}) +
+                       0.5 * std::hypot(d.n > 0 ? d.width : 0.0, d.m > 0 ? d.height : 0.0);
+  std::ostringstream out;
+  if (edge < 1e3 * std::sqrt(tiny)) {
+    out << field << " = " << edge << " m: cells this small have squared lengths near the smallest normal " << precision
+        << " (" << tiny << "); use larger cells (lengths in metres)";
+  } else if (reach > 1e-3 * std::sqrt(huge)) {
+    out << "the sheet reaches " << reach << " m from the origin, where squared distances overflow " << precision
+        << "; move the scene nearer the origin";
+  } else if (edge < 16 * eps * reach) {
+    out << field << " = " << edge << " m is under " << 16 * eps * reach << " m, 16 machine epsilons of " << precision
+        << " times the sheet's largest coordinate (" << reach
+        << " m): its springs' lengths would be rounding noise; move the scene nearer the origin, use larger cells"
+        << (std::string_view(precision) == "float" ? ", or float64" : "");
+  }
+  return out.str();
+}
+
 }  // namespace
+
+std::string validate_float(const SheetDef& d) {
+  if (std::string p = validate(d); !p.empty()) return p;
+  using F = std::numeric_limits<float>;
+  return resolution_problem(d, F::epsilon(), F::min(), F::max(), "float");
+}
 
 std::string validate(const SheetDef& d) {
   constexpr std::uint64_t max_points = std::uint64_t(1) << 31;
@@ -122,7 +165,8 @@ std::string validate(const SheetDef& d) {
     if (!non_negative(d.air->drag)) return problem("air.drag", "must be non-negative and finite", d.air->drag);
     if (!non_negative(d.air->friction)) return problem("air.friction", "must be non-negative and finite", d.air->friction);
   }
-  return {};
+  using D = std::numeric_limits<double>;
+  return resolution_problem(d, D::epsilon(), D::min(), D::max(), "double");
 }
 
 namespace detail {

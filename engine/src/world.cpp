@@ -181,7 +181,8 @@ BasicWorld<Real>& BasicWorld<Real>::operator=(BasicWorld&&) noexcept = default;
 
 template <class Real>
 SheetId BasicWorld<Real>::add_sheet(const SheetDef& def) {
-  if (std::string problem = validate(def); !problem.empty()) throw std::invalid_argument("drape: sheet " + problem);
+  const std::string problem = std::is_same_v<Real, float> ? validate_float(def) : validate(def);
+  if (!problem.empty()) throw std::invalid_argument("drape: sheet " + problem);
   Sheet<Real> sheet = detail::build_sheet<Real>(def);
   detail::set_wind(sheet, impl_->def.wind);
   impl_->share_topology(sheet);

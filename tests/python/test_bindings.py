@@ -315,6 +315,9 @@ def test_errors_arrive_as_python_exceptions_with_the_engine_message(tmp_path):
         drape.load_scene(bad, overrides={"sheets[*].stiffness": -1})
     assert drape.validate(drape.SheetDef(mass=0)) != ""
     assert drape.validate(drape.SheetDef()) == ""
+    far = drape.SheetDef(m=10, n=10, width=0.01, height=0.01, center=(1000, 0, 0))  # 1 mm cells 1 km out
+    assert drape.validate(far) == ""
+    assert "float" in drape.validate_float(far)
 
 
 def test_unstable_world_reports_instead_of_raising():

@@ -117,7 +117,11 @@ std::uint32_t center_point(std::uint32_t m, std::uint32_t n);
 std::vector<AnchorDef> anchors_at(std::span<const std::uint32_t> points, double stiffness);
 
 // An empty string when the definition can be simulated; otherwise one message naming the
-// field and the problem, e.g. "stiffness must be positive and finite (got -3)".
+// field and the problem, e.g. "stiffness must be positive and finite (got -3)". In double, as
+// a World stores a sheet; validate_float adds what a WorldF's float coordinates need: cells
+// of at least 16 machine epsilons times the sheet's largest coordinate, 8 to 16 units in the
+// last place there (a 1 mm cell 1 km from the origin is not: float rounds to 61 µm there).
 std::string validate(const SheetDef& def);
+std::string validate_float(const SheetDef& def);
 
 }  // namespace drape
