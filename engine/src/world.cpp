@@ -86,7 +86,8 @@ std::string describe(const StabilityReport& r) {
     // neither the springs nor the contact explain it: say so rather than advise a step in use
     out << "dt is within its stable-step estimate";
     if (std::isfinite(r.stable_dt)) out << " (~" << r.stable_dt << " s)";
-    out << ", so its stiffness and damping do not explain this: look for state set between steps, or try a smaller dt";
+    out << ", so its stiffness and damping do not explain this: look for a load too large for the sheet (gravity, wind, "
+           "a prescribed motion), state set between steps, or try a smaller dt";
   }
   if (r.unconverged_solves > 0) out << " (" << r.unconverged_solves << " implicit solves stopped before their tolerance)";
   return out.str();
