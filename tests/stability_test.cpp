@@ -307,6 +307,16 @@ TEST(Guard, DampingBoundsTheStableStep) {
   const auto [wild, fast] = run(1.05, 4000);
   ASSERT_FALSE(wild.ok()) << "1.05 of 2m/c must blow up (fastest point " << fast << " m/s)";
   EXPECT_LT(wild.stable_dt, wild.dt);
+  // adaptive steps read the same estimate: dt = 50 ms (five times 2m/c) is cut to stable substeps
+  drape::WorldDef adaptive = wd;
+  adaptive.dt = 0.05;
+  adaptive.adaptive = true;
+  adaptive.gravity = {0, 0, -9.81};  // something to damp
+  drape::World world(adaptive);
+  world.add_sheet(d);
+  const auto report = world.step(20);
+  EXPECT_TRUE(report.ok()) << drape::describe(report);
+  EXPECT_LT(world.substep_dt(), by_hand);
 }
 
 // No false alarms: every integrator at half its critical step on the damped Fig 5 sheet
@@ -553,6 +563,7 @@ TEST(Guard, AContactTooStiffForTheStepIsNamedWithAStepThatHoldsIt) {
   // sheet alone would take the springs'), and holds the same throw.
   drape::WorldDef adaptive = wd;
   adaptive.adaptive = true;
+  adaptive.gravity = {0, 0, -9.81};  // something to damp
   drape::World alone(adaptive);
   const auto first = alone.add_sheet(d);
   EXPECT_NEAR(alone.contact_step_estimate(first), contact_step, 1e-12 * contact_step);
