@@ -75,18 +75,29 @@ void expect_resume_writes_the_same_frames(Cli& cli, const fs::path& scene, int e
   expect_same_frames(full, part);
 }
 
-pid_t spawn(const std::vector<std::string>& args) {
+pid_t spawn(const std::vector<std::string>& args, const std::string& err = "/dev/null") {
   const pid_t pid = ::fork();
   if (pid == 0) {
     std::vector<char*> argv;
     for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
     argv.push_back(nullptr);
     std::freopen("/dev/null", "w", stdout);
-    std::freopen("/dev/null", "w", stderr);
+    std::freopen(err.c_str(), "w", stderr);
     ::execv(argv[0], argv.data());
     std::_Exit(127);
   }
   return pid;
+}
+
+// Waits (up to a minute) for `file` to appear, sends `signal` to `pid` and returns its wait status.
+int status_after_signal(pid_t pid, const fs::path& file, int signal) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (!fs::exists(file) && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  EXPECT_EQ(::kill(pid, signal), 0);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  return status;
 }
 
 TEST_F(Cli, KilledRunResumedFromItsCheckpointWritesBitIdenticalFrames) {
@@ -99,12 +110,7 @@ TEST_F(Cli, KilledRunResumedFromItsCheckpointWritesBitIdenticalFrames) {
   const pid_t pid = spawn({DRAPE_BIN, "run", scene.string(), "--out", part.string(), "--threads", "1",
                            "--checkpoint-every", "5"});
   ASSERT_GT(pid, 0);
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-  while (!fs::exists(part / "checkpoint.drape") && std::chrono::steady_clock::now() < deadline)
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  ASSERT_EQ(::kill(pid, SIGKILL), 0);
-  int status = 0;
-  ::waitpid(pid, &status, 0);
+  const int status = status_after_signal(pid, part / "checkpoint.drape", SIGKILL);
   ASSERT_TRUE(WIFSIGNALED(status)) << "the run ended before it could be killed";
   const auto last = full / "frame_00030.obj";
   ASSERT_TRUE(fs::exists(last));
@@ -116,6 +122,47 @@ TEST_F(Cli, KilledRunResumedFromItsCheckpointWritesBitIdenticalFrames) {
   EXPECT_NE(resumed.err.find("resuming"), std::string::npos) << resumed.err;
 
   EXPECT_GT(frame_files(part).size(), before);
+  expect_same_frames(full, part);
+}
+
+// SIGTERM (or Ctrl-C's SIGINT) asks a run to stop after the frame it is stepping: it exits
+// 128 + 15 saying where it stopped, its folder holds frames 0..K of the uninterrupted run
+// (no temporaries, the .pvd series listing them all) and, as it keeps checkpoints, one of
+// frame K, from which a resume writes the rest of the uninterrupted run byte for byte.
+TEST_F(Cli, SignalledRunStopsAfterItsFrameAndResumesBitIdentically) {
+  std::string text = scene_text();
+  text.replace(text.find("\"frames\": ") + 10, 2, "200");  // far more frames than it takes to signal
+  const fs::path scene = write("s.json", text);
+  const fs::path full = dir / "full", part = dir / "part", err = dir / "signalled.err";
+  ASSERT_EQ(drape("run " + scene.string() + " --out " + full.string()).code, 0);
+  const pid_t pid = spawn({DRAPE_BIN, "run", scene.string(), "--out", part.string(), "--threads", "1",
+                           "--checkpoint-every", "1000"},
+                          err.string());
+  ASSERT_GT(pid, 0);
+  const int status = status_after_signal(pid, part / "frame_00001.obj", SIGTERM);
+  ASSERT_TRUE(WIFEXITED(status)) << "ended by the signal itself, not after its frame";
+  const std::string said = slurp(err);
+  ASSERT_EQ(WEXITSTATUS(status), 128 + SIGTERM) << said;
+  const auto at = said.find("stopped by a signal after frame ");
+  ASSERT_NE(at, std::string::npos) << said;
+  const int last = std::atoi(said.c_str() + at + 32);
+  EXPECT_NE(said.find("frames 0–" + std::to_string(last) + " are written"), std::string::npos) << said;
+  EXPECT_NE(said.find("--resume " + part.string() + " continues"), std::string::npos) << said;
+  const auto written = frame_files(part), expected = frame_files(full);
+  for (const auto& e : fs::directory_iterator(part)) EXPECT_NE(e.path().extension(), ".tmp") << e.path();
+  ASSERT_LT(last, 200) << said;
+  for (int f = 0; f <= 200; ++f) {
+    char name[32];
+    std::snprintf(name, sizeof name, "frame_%05d.obj", f);
+    const auto it = written.find(name);
+    ASSERT_EQ(it != written.end(), f <= last) << name;
+    if (it != written.end()) {
+      EXPECT_TRUE(it->second == expected.at(name)) << name << " differs from the uninterrupted run";
+    }
+  }
+  EXPECT_EQ(occurrences(written.at("frames.pvd"), "<DataSet "), std::size_t(last) + 1);
+  const Result resumed = drape("run " + scene.string() + " --resume " + part.string());
+  ASSERT_EQ(resumed.code, 0) << resumed.err;
   expect_same_frames(full, part);
 }
 

@@ -4,6 +4,7 @@
 #include <CLI/CLI.hpp>
 #include <unistd.h>
 
+#include <csignal>
 #include <cstdio>
 #include <iostream>
 #include <memory>
@@ -49,12 +50,33 @@ std::unique_ptr<Cluster> join_cluster(const char* command) {
   }
 }
 
+// Ctrl-C (SIGINT) or SIGTERM during drape run: the first asks the run to stop after the
+// frame it is stepping (RunOptions::stop), so its output folder holds a whole run, and puts
+// the signals back to their default, so a second one stops the program at once.
+volatile std::sig_atomic_t stop_signal = 0;
+
+extern "C" void on_stop_signal(int signal_number) {
+  stop_signal = signal_number;
+  std::signal(SIGINT, SIG_DFL);
+  std::signal(SIGTERM, SIG_DFL);
+  static const char message[] = "\ndrape: stopping after this frame (again to stop at once)\n";
+  [[maybe_unused]] const auto written = ::write(STDERR_FILENO, message, sizeof message - 1);
+}
+
+void stop_after_frame_on_signals() {
+  struct sigaction action {};
+  action.sa_handler = on_stop_signal;
+  sigemptyset(&action.sa_mask);
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+}
+
 }  // namespace
 
 int drape_main(int argc, char** argv) {
   CLI::App app{"drape: elastic sheets as mass-spring grids (Gudukbay, Ozguc, Tokad 1997).\n"
                "Exit codes: 0 ok, 1 simulation became unstable, 2 bad command line, 3 bad scene file, "
-               "4 output could not be written, 5 checkpoint cannot be resumed, 6 some runs of a sweep or batch failed, 7 any other failure (out of memory, an error of drape's own)."};
+               "4 output could not be written, 5 checkpoint cannot be resumed, 6 some runs of a sweep or batch failed, 7 any other failure (out of memory, an error of drape's own), 130/143 run stopped by Ctrl-C/SIGTERM after a whole frame."};
   app.require_subcommand(1);
 
   std::string scene_file;
@@ -156,6 +178,8 @@ int drape_main(int argc, char** argv) {
     options.surface_samples = surface_samples > 0 ? surface_samples : (surface == "grid" ? 1 : 4);
     options.checkpoint_every = checkpoint_every;
     if (!resume_dir.empty()) options.resume_dir = resume_dir;
+    options.stop = &stop_signal;
+    stop_after_frame_on_signals();
   }
 
   if (sweep->parsed()) {

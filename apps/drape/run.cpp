@@ -374,6 +374,17 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
   try {
     if (!opt.resume_dir) write_frame(0);
     for (int frame = first_frame; frame <= frames; ++frame) {
+      if (opt.stop && *opt.stop != 0) {  // asked to stop: what is written stays a whole run up to frame − 1
+        progress.finish();
+        finish_files();
+        const bool keeps = opt.checkpoint_every > 0 && frame - 1 > 0;
+        if (keeps) save_checkpoint(world, dir / checkpoint_file_name, scene.fingerprint);
+        log << "drape: " << scene.file << ": stopped by a signal after frame " << frame - 1 << " (t = " << world.time()
+            << " s): frames 0–" << frame - 1 << " are written to " << dir.string();
+        if (keeps) log << "; drape run " << scene.file << " --resume " << dir.string() << " continues";
+        log << '\n';
+        return 128 + int(*opt.stop);
+      }
       const std::uint64_t first = world.step_count() + 1;
       // the engine's stability guard: non-finite state, or energy growing without bound
       drape::StabilityReport report = world.step(scene.substeps);

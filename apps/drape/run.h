@@ -2,6 +2,7 @@
 // Both are generic over the scene's precision (BasicWorld<double> or BasicWorld<float>).
 #pragma once
 
+#include <csignal>
 #include <filesystem>
 #include <optional>
 #include <ostream>
@@ -38,6 +39,10 @@ struct RunOptions {
   int threads = 0;                                   // 0: all cores
   bool progress_bar = false;                         // true on a terminal: one redrawn line
   int checkpoint_every = 0;                          // frames between checkpoints; 0: none
+  // Set (to a signal's number) when the program is asked to stop, e.g. by main's handler of
+  // Ctrl-C: the run then ends after the frame it is stepping, as at the end of the scene,
+  // with a checkpoint of that frame when it keeps them, and returns 128 + the number.
+  const volatile std::sig_atomic_t* stop = nullptr;
   // Continue from DIR/checkpoint.drape, writing the remaining frames into DIR (which
   // replaces out_dir). The checkpoint must come from the same scene (its fingerprint).
   std::optional<std::filesystem::path> resume_dir;
@@ -53,7 +58,8 @@ struct RunOptions {
 template <class Real>
 BasicWorld<Real> build_world(const Scene& scene, int threads, std::vector<SheetId>& ids);
 
-// Steps the scene and writes frames 0..frames (0 is the initial state). Messages (warnings,
+// Steps the scene and writes frames 0..frames (0 is the initial state), or up to the frame
+// it was stepping when options.stop was set. Messages (warnings,
 // progress, errors) go to `log`. Returns an ExitCode.
 int run_scene(const Scene& scene, const RunOptions& options, std::ostream& log);
 
