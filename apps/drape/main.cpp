@@ -66,6 +66,7 @@ extern "C" void on_stop_signal(int signal_number) {
 void stop_after_frame_on_signals() {
   struct sigaction action {};
   action.sa_handler = on_stop_signal;
+  action.sa_flags = SA_RESTART;  // a write or fsync the signal lands in goes on, not EINTR
   sigemptyset(&action.sa_mask);
   sigaction(SIGINT, &action, nullptr);
   sigaction(SIGTERM, &action, nullptr);
