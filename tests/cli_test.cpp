@@ -331,6 +331,34 @@ TEST_F(Cli, UnstableRunWarnsThenStopsWithoutWritingNaN) {
   EXPECT_FALSE(fs::exists(out / "frame_00200.obj"));
 }
 
+// The dt the warning suggests is one that runs: for each explicit integrator, on a sheet
+// stiff enough (and once damped enough) that the scene's dt blows it up, the run at the
+// suggested dt passes the guard and warns no more, and the suggestion is not above the
+// step the guard names when the first run blows up.
+TEST_F(Cli, TheSuggestedStableStepRunsAndAgreesWithTheGuard) {
+  for (const char* integrator : {"semi_implicit_euler", "velocity_verlet", "rk4"}) {
+    for (const char* damping : {"0", "0.5"}) {
+      auto scene_with = [&](const std::string& dt) {
+        return write("s.json", std::string(R"({"frames": 30, "dt": )") + dt + R"(, "substeps": 1, "integrator": ")" +
+                                   integrator + R"(", "sheets": [{"grid": [8, 8], "size": [1, 1], "stiffness": 2000,
+          "mass": 0.05, "damping": )" + damping + R"(, "pins": "corners", "velocity": [0, 0, 1]}]})");
+      };
+      const std::string label = std::string(integrator) + ", damping " + damping;
+      const Result blown = drape("run " + scene_with("0.004").string() + " --out " + (dir / "a").string());
+      ASSERT_EQ(blown.code, 1) << label << ": " << blown.err;
+      const std::string choice = "a stable choice is dt = ", guard = "stable below dt ~ ";
+      const std::size_t at = blown.err.find(choice), at_guard = blown.err.find(guard);
+      ASSERT_NE(at, std::string::npos) << label << ": " << blown.err;
+      ASSERT_NE(at_guard, std::string::npos) << label << ": " << blown.err;
+      const std::string suggested = blown.err.substr(at + choice.size(), blown.err.find(' ', at + choice.size()) - at - choice.size());
+      EXPECT_LE(std::stod(suggested), std::stod(blown.err.substr(at_guard + guard.size()))) << label << ": " << blown.err;
+      const Result held = drape("run " + scene_with(suggested).string() + " --out " + (dir / "b").string());
+      EXPECT_EQ(held.code, 0) << label << ", dt " << suggested << ": " << held.err;
+      EXPECT_EQ(held.err.find("warning"), std::string::npos) << label << ": " << held.err;
+    }
+  }
+}
+
 // Frames that cannot fit the disk are refused before anything is written: two billion
 // frames of a small sheet need some 100 TB (they filled the disk, a GB every ten seconds).
 TEST_F(Cli, RunWhoseFramesCannotFitTheDiskWritesNothing) {

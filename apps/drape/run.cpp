@@ -106,6 +106,15 @@ double min_gamma(const SheetDef& s) {
 }
 
 // Two sheets or more, or one colliding with itself, with the contact on: the contact may act.
+// The dt to suggest for an estimated stable step `limit`: the step the guard names when a
+// run blows up and adaptive steps take (adaptive_safety of the estimate), rounded down to
+// two significant digits, so the printed value is never above it.
+double suggested_step(const Scene& scene, double limit) {
+  const double step = scene.world.adaptive_safety * limit;
+  const double unit = std::pow(10.0, std::floor(std::log10(step)) - 1);
+  return std::floor(step / unit) * unit;
+}
+
 bool sheets_may_touch(const Scene& scene) {
   return scene.world.contact_strength > 0 &&
          (scene.sheets.size() > 1 ||
@@ -191,7 +200,8 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
       log << "drape: warning: " << scene.file << ": sheets[" << k << "] (" << scene.sheet_names[k] << "): dt = " << dt
           << " s is above the estimated stable step " << limit << " s of " << integrator_name(scene.world.integrator);
       if (limit > 0)
-        log << "; a stable choice is dt = " << std::setprecision(2) << 0.9 * limit << std::setprecision(6) << " s\n";
+        log << "; a stable choice is dt = " << std::setprecision(2) << suggested_step(scene, limit) << std::setprecision(6)
+            << " s\n";
       else
         log << "; forward_euler needs damping, or use semi_implicit_euler (stable below "
             << st.semi_implicit_euler << " s)\n";
@@ -208,7 +218,7 @@ int run_world(const Scene& scene, const RunOptions& opt, std::ostream& log) {
       log << "drape: warning: " << scene.file << ": sheets[" << lightest << "] (" << scene.sheet_names[lightest]
           << "): dt = " << dt << " s is above the estimated stable step " << limit << " s of its contact with "
           << "other sheets (contact_strength / contact_xi² against its lightest point), with any integrator; a stable "
-          << "choice is dt = " << std::setprecision(2) << 0.9 * limit << std::setprecision(6)
+          << "choice is dt = " << std::setprecision(2) << suggested_step(scene, limit) << std::setprecision(6)
           << " s, or a larger contact_xi (a smaller contact_strength softens the contact too, but lowers the barrier "
           << "that keeps fast sheets apart)\n";
   }
