@@ -302,7 +302,18 @@ TEST_F(Cli, AContactTooStiffForDtIsWarnedAboutBeforeTheRun) {
       ASSERT_NE(at, std::string::npos) << r.err;
       EXPECT_EQ(r.err.find("of its contact with other sheets", at + 1), std::string::npos) << "once: " << r.err;
       EXPECT_NE(r.err.find("sheets[1] (b)"), std::string::npos) << r.err;
-      EXPECT_NE(r.err.find("a stable choice is dt ="), std::string::npos) << r.err;
+      const std::string choice = "a stable choice is dt = ";
+      const std::size_t named = r.err.find(choice, at);
+      ASSERT_NE(named, std::string::npos) << r.err;
+      // the dt it names is below the contact's stable step: the same scene at it is not warned about
+      const std::string suggested =
+          r.err.substr(named + choice.size(), r.err.find(' ', named + choice.size()) - named - choice.size());
+      std::string text = slurp(scene);
+      text.replace(text.find("0.001"), 5, suggested);
+      const fs::path again = write("again.json", text);
+      const Result held = drape("run " + again.string() + " --out " + (dir / "again").string() + " --format obj");
+      EXPECT_EQ(held.code, 0) << held.err;
+      EXPECT_EQ(held.err.find("of its contact with other sheets"), std::string::npos) << suggested << ": " << held.err;
     } else {
       EXPECT_EQ(at, std::string::npos) << r.err;
     }
