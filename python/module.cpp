@@ -357,6 +357,14 @@ void bind_world(py::module_& m, const char* name, const char* doc) {
   w.def("contains", locked<PW>(py::overload_cast<ObstacleId>(&W::contains, py::const_)), py::arg("obstacle"));
   w.def("contains", locked<PW>(py::overload_cast<ConstraintId>(&W::contains, py::const_)), py::arg("constraint"));
   w.def_property_readonly("sheet_count", locked<PW>(&W::sheet_count));
+  w.def("__repr__", locked<PW>([name](W& self) {
+          std::ostringstream out;
+          out << "<drape." << name << ": " << self.sheet_count() << " sheet(s), " << self.obstacle_count()
+              << " obstacle(s), t = " << self.time() << " s after " << self.step_count() << " substep(s) of "
+              << integrator_name(self.def().integrator) << " at dt = " << self.def().dt << " s"
+              << (self.halted() ? ", halted by the stability guard>" : ">");
+          return out.str();
+        }));
   w.def_property_readonly("obstacle_count", locked<PW>(&W::obstacle_count));
   w.def_property_readonly("constraint_count", locked<PW>(&W::constraint_count));
   w.def("sheets", locked<PW>(&W::sheets), "Sheet ids in the order they were added.");
@@ -752,7 +760,8 @@ PYBIND11_MODULE(drape, m) {
       .def_readonly("unconverged_solves", &StabilityReport::unconverged_solves)
       .def_property_readonly("ok", &StabilityReport::ok)
       .def("__bool__", &StabilityReport::ok)
-      .def("__str__", [](const StabilityReport& r) { return describe(r); });
+      .def("__str__", [](const StabilityReport& r) { return describe(r); })
+      .def("__repr__", [](const StabilityReport& r) { return "<drape.StabilityReport: " + describe(r) + ">"; });
 
   py::class_<SheetKeeper>(m, "_SheetKeeper", "What a sheet's arrays keep alive: the world, or the removed sheet's buffers.");
   py::class_<SheetArrays>(m, "SheetArrays",

@@ -333,6 +333,23 @@ def test_unstable_world_reports_instead_of_raising():
         world.step(-1)
 
 
+def test_repr_says_what_the_world_holds_and_what_the_guard_found():
+    world = drape.WorldF(dt=0.002, threads=1)
+    assert repr(world).startswith("<drape.WorldF: 0 sheet(s), 0 obstacle(s), t = 0 s after 0 substep(s)")
+    world.add_sheet(m=4, n=4)
+    world.add_obstacle(shape="plane", center=(0, 0, -1))
+    report = world.step(5)
+    assert repr(world) == ("<drape.WorldF: 1 sheet(s), 1 obstacle(s), t = 0.01 s after 5 substep(s) of "
+                           "semi_implicit_euler at dt = 0.002 s>")
+    assert repr(report) == "<drape.StabilityReport: " + str(report) + ">"
+    blown = drape.World(dt=0.05, gravity=(0, 0, 0), integrator="forward_euler", threads=1)
+    sheet = blown.add_sheet(m=4, n=4, stiffness=1000)
+    blown.state(sheet).vz[2, 2] = 1.0
+    report = blown.step(200)
+    assert not report.ok and repr(blown).endswith(", halted by the stability guard>")
+    assert "forward_euler" in repr(report)
+
+
 def test_obstacle_penetration_is_the_depth_inside_a_sphere():
     world = drape.World(threads=1)
     ball = world.add_obstacle(shape=drape.ObstacleShape.Sphere, center=(0, 0, 0), size=(0.3, 0, 0))
