@@ -91,6 +91,22 @@ E enum_value(const py::object& value) {
   }
 }
 
+// A repr listing the named attributes, Name(a=..., b=...), for definitions and results alike.
+template <class Class>
+void fields_repr(Class cls, std::shared_ptr<const std::vector<std::string>> names) {
+  cls.def("__repr__", [names](py::object self) {
+    std::string text = py::str(self.attr("__class__").attr("__name__"));
+    text += "(";
+    for (std::size_t k = 0; k < names->size(); ++k)
+      text += (k ? ", " : "") + (*names)[k] + "=" + std::string(py::repr(self.attr((*names)[k].c_str())));
+    return text + ")";
+  });
+}
+template <class Class>
+void fields_repr(Class cls, std::vector<std::string> names) {
+  fields_repr(cls, std::make_shared<const std::vector<std::string>>(std::move(names)));
+}
+
 // A definition struct bound field by field: one line per field, and the class gets a
 // constructor taking any of them as keyword arguments (an unknown name is a TypeError) and
 // a repr listing them. A field added to SheetDef/WorldDef/ObstacleDef is one .field(...) line.
@@ -118,13 +134,7 @@ class Fields {
     auto names = names_;
     cls_.def(py::init([](const py::kwargs& kwargs) { return with_fields(T{}, kwargs); }),
              "Every field has a default; pass the ones to change as keyword arguments.");
-    cls_.def("__repr__", [names](py::object self) {
-      std::string text = py::str(self.attr("__class__").attr("__name__"));
-      text += "(";
-      for (std::size_t k = 0; k < names->size(); ++k)
-        text += (k ? ", " : "") + (*names)[k] + "=" + std::string(py::repr(self.attr((*names)[k].c_str())));
-      return text + ")";
-    });
+    fields_repr(cls_, std::shared_ptr<const std::vector<std::string>>(names));
     cls_.def("__copy__", [](const T& self) { return T(self); });
     cls_.def("__deepcopy__", [](const T& self, py::dict) { return T(self); });
     return cls_;
@@ -487,14 +497,16 @@ void bind_world(py::module_& m, const char* name, const char* doc) {
   w.def("contact_step_estimate", locked<PW>(&W::contact_step_estimate), py::arg("sheet"));
   w.attr("dtype") = py::dtype::of<Real>();
 
-  py::class_<typename W::SolverStats>(w, "SolverStats")
-      .def_readonly("iterations", &W::SolverStats::iterations)
-      .def_readonly("relative_residual", &W::SolverStats::relative_residual)
-      .def_readonly("converged", &W::SolverStats::converged)
-      .def_readonly("unconverged_solves", &W::SolverStats::unconverged_solves);
-  py::class_<typename W::FrameStats>(w, "FrameStats")
-      .def_readonly("kept", &W::FrameStats::kept)
-      .def_readonly("undone", &W::FrameStats::undone);
+  fields_repr(py::class_<typename W::SolverStats>(w, "SolverStats")
+                  .def_readonly("iterations", &W::SolverStats::iterations)
+                  .def_readonly("relative_residual", &W::SolverStats::relative_residual)
+                  .def_readonly("converged", &W::SolverStats::converged)
+                  .def_readonly("unconverged_solves", &W::SolverStats::unconverged_solves),
+              {"iterations", "relative_residual", "converged", "unconverged_solves"});
+  fields_repr(py::class_<typename W::FrameStats>(w, "FrameStats")
+                  .def_readonly("kept", &W::FrameStats::kept)
+                  .def_readonly("undone", &W::FrameStats::undone),
+              {"kept", "undone"});
 }
 
 template <class Id>
@@ -506,6 +518,7 @@ void bind_id(py::module_& m, const char* name) {
       .def(py::self == py::self)
       .def("__hash__", [](const Id& id) { return py::hash(py::make_tuple(id.index, id.generation)); })
       .def("__repr__", [name](const Id& id) {
+        if (!id.is_valid()) return std::string(name) + "(invalid)";
         return std::string(name) + "(" + std::to_string(id.index) + ", generation " + std::to_string(id.generation) + ")";
       });
 }
@@ -724,28 +737,32 @@ PYBIND11_MODULE(drape, m) {
       .field("group_points", &WorldDef::group_points, "worlds of at least this many points try frames in groups of sheets in contact (0: all)")
       .done();
 
-  py::class_<Energies>(m, "Energies", "J")
-      .def_readonly("kinetic", &Energies::kinetic)
-      .def_readonly("spring", &Energies::spring)
-      .def_readonly("bending", &Energies::bending)
-      .def_readonly("gravity", &Energies::gravity)
-      .def_readonly("anchor", &Energies::anchor)
-      .def_readonly("obstacle", &Energies::obstacle)
-      .def_property_readonly("total", &Energies::total);
-  py::class_<SheetDiagnostics>(m, "SheetDiagnostics")
-      .def_readonly("energy", &SheetDiagnostics::energy)
-      .def_readonly("max_strain", &SheetDiagnostics::max_strain)
-      .def_readonly("finite", &SheetDiagnostics::finite);
-  py::class_<ObstaclePenetration>(m, "ObstaclePenetration")
-      .def_readonly("depth", &ObstaclePenetration::depth)
-      .def_readonly("obstacle", &ObstaclePenetration::obstacle)
-      .def_readonly("point", &ObstaclePenetration::point);
-  py::class_<SheetCrossing>(m, "SheetCrossing")
-      .def_readonly("a", &SheetCrossing::a)
-      .def_readonly("b", &SheetCrossing::b)
-      .def_readonly("edges", &SheetCrossing::edges)
-      .def_readonly("point_a", &SheetCrossing::point_a)
-      .def_readonly("point_b", &SheetCrossing::point_b);
+  fields_repr(py::class_<Energies>(m, "Energies", "J")
+                  .def_readonly("kinetic", &Energies::kinetic)
+                  .def_readonly("spring", &Energies::spring)
+                  .def_readonly("bending", &Energies::bending)
+                  .def_readonly("gravity", &Energies::gravity)
+                  .def_readonly("anchor", &Energies::anchor)
+                  .def_readonly("obstacle", &Energies::obstacle)
+                  .def_property_readonly("total", &Energies::total),
+              {"kinetic", "spring", "bending", "gravity", "anchor", "obstacle", "total"});
+  fields_repr(py::class_<SheetDiagnostics>(m, "SheetDiagnostics")
+                  .def_readonly("energy", &SheetDiagnostics::energy)
+                  .def_readonly("max_strain", &SheetDiagnostics::max_strain)
+                  .def_readonly("finite", &SheetDiagnostics::finite),
+              {"energy", "max_strain", "finite"});
+  fields_repr(py::class_<ObstaclePenetration>(m, "ObstaclePenetration")
+                  .def_readonly("depth", &ObstaclePenetration::depth)
+                  .def_readonly("obstacle", &ObstaclePenetration::obstacle)
+                  .def_readonly("point", &ObstaclePenetration::point),
+              {"depth", "obstacle", "point"});
+  fields_repr(py::class_<SheetCrossing>(m, "SheetCrossing")
+                  .def_readonly("a", &SheetCrossing::a)
+                  .def_readonly("b", &SheetCrossing::b)
+                  .def_readonly("edges", &SheetCrossing::edges)
+                  .def_readonly("point_a", &SheetCrossing::point_a)
+                  .def_readonly("point_b", &SheetCrossing::point_b),
+              {"a", "b", "edges", "point_a", "point_b"});
   py::class_<StabilityReport>(m, "StabilityReport", "What the stability guard found; str() describes it.")
       .def_readonly("status", &StabilityReport::status)
       .def_readonly("sheet", &StabilityReport::sheet)

@@ -348,6 +348,13 @@ def test_repr_says_what_the_world_holds_and_what_the_guard_found():
     report = blown.step(200)
     assert not report.ok and repr(blown).endswith(", halted by the stability guard>")
     assert "forward_euler" in repr(report)
+    # results list their fields as the attributes give them
+    energies = world.energies()
+    assert repr(energies) == "Energies(" + ", ".join(
+        f"{k}={getattr(energies, k)!r}" for k in ("kinetic", "spring", "bending", "gravity", "anchor", "obstacle", "total")) + ")"
+    assert repr(world.solver_stats(world.sheets()[0])).startswith("SolverStats(iterations=0, ")
+    penetration = world.obstacle_penetration(world.sheets()[0])
+    assert repr(penetration) == f"ObstaclePenetration(depth=0.0, obstacle=ObstacleId(invalid), point={penetration.point})"
 
 
 def test_obstacle_penetration_is_the_depth_inside_a_sphere():
