@@ -166,6 +166,79 @@ TEST_F(Cli, SignalledRunStopsAfterItsFrameAndResumesBitIdentically) {
   expect_same_frames(full, part);
 }
 
+// Ctrl-C during drape sweep or batch stops it at once (the signal's own status), saying that
+// what finished is kept in the journal; the same command again runs only the rest: a sweep
+// then writes the CSV of an uninterrupted one (wall times aside), a batch every scene's row.
+TEST_F(Cli, InterruptedSweepAndBatchSayWhatIsKeptAndTheSameCommandFinishes) {
+  const fs::path scene = write("s.json", R"({"frames": 400, "dt": 0.001, "substeps": 20, "sheets": [{"grid": [40, 40],
+    "size": [1, 1], "stiffness": 20, "mass": 1, "pins": "corners", "damping": 0.01}]})");
+  // waits for the journal's first finished run, interrupts, returns the wait status
+  auto interrupted = [&](const std::vector<std::string>& args, const fs::path& journal, const fs::path& err) {
+    const pid_t pid = spawn(args, err.string());
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+    auto recorded = [&] {
+      std::error_code ec;
+      for (const auto& e : fs::directory_iterator(journal, ec))
+        if (fs::file_size(e.path(), ec) > 0) return true;
+      return false;
+    };
+    while (!recorded() && std::chrono::steady_clock::now() < deadline)
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    EXPECT_EQ(::kill(pid, SIGINT), 0);
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    return status;
+  };
+  auto without_wall_times = [](const std::string& csv) {
+    std::istringstream in(csv);
+    std::string out;
+    std::ptrdiff_t column = -1;  // wall_time_s's, from the header
+    for (std::string line; std::getline(in, line);) {
+      std::vector<std::string> fields;
+      std::istringstream cells(line);
+      for (std::string cell; std::getline(cells, cell, ',');) fields.push_back(cell);
+      if (column < 0) column = std::find(fields.begin(), fields.end(), "wall_time_s") - fields.begin();
+      if (std::size_t(column) < fields.size()) fields.erase(fields.begin() + column);
+      for (const auto& f : fields) out += f + ',';
+      out += '\n';
+    }
+    return out;
+  };
+
+  const fs::path csv = dir / "r.csv", err = dir / "sweep.err";
+  const std::string set = "sheets[*].stiffness=1,2,3,4,5,6";
+  const int status = interrupted({DRAPE_BIN, "sweep", scene.string(), "--set", set, "--out", csv.string(), "--threads", "1"},
+                                 dir / "r.csv.journal", err);
+  ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGINT) << "ended before it could be interrupted: " << slurp(err);
+  EXPECT_NE(slurp(err).find("drape sweep: interrupted; the runs already finished are kept in " + csv.string() +
+                            ".journal: the same command again runs only the others"),
+            std::string::npos)
+      << slurp(err);
+  EXPECT_FALSE(fs::exists(csv));
+  const std::string args = "sweep " + scene.string() + " --set " + set + " --threads 1 --out ";
+  const Result again = drape(args + csv.string());
+  ASSERT_EQ(again.code, 0) << again.err;
+  EXPECT_NE(again.err.find("already done by an earlier attempt"), std::string::npos) << again.err;
+  ASSERT_EQ(drape(args + (dir / "fresh.csv").string()).code, 0);
+  EXPECT_EQ(without_wall_times(slurp(csv)), without_wall_times(slurp(dir / "fresh.csv")));
+
+  const fs::path a = write("a.json", slurp(scene)), b = write("b.json", slurp(scene)), c = write("c.json", slurp(scene));
+  const fs::path out = dir / "o", batch_err = dir / "batch.err";
+  const int batch_status = interrupted({DRAPE_BIN, "batch", a.string(), b.string(), c.string(), "--threads", "1",
+                                        "--format", "vtk", "--out", out.string()},
+                                       out / "batch.csv.journal", batch_err);
+  ASSERT_TRUE(WIFSIGNALED(batch_status) && WTERMSIG(batch_status) == SIGINT) << slurp(batch_err);
+  EXPECT_NE(slurp(batch_err).find("drape batch: interrupted; the scenes already finished are kept in " +
+                                  (out / "batch.csv.journal").string()),
+            std::string::npos)
+      << slurp(batch_err);
+  const Result finished = drape("batch " + a.string() + " " + b.string() + " " + c.string() +
+                                " --threads 1 --format vtk --out " + out.string());
+  ASSERT_EQ(finished.code, 0) << finished.err;
+  EXPECT_NE(finished.err.find("already done by an earlier attempt"), std::string::npos) << finished.err;
+  EXPECT_EQ(occurrences(slurp(out / "batch.csv"), ",ok,"), 3u) << slurp(out / "batch.csv");
+}
+
 // Sheets in contact walk their kept contact sets between searches: the checkpoint holds
 // those sets, so a run resumed at frame 7 (70 substeps, between two full searches) writes
 // the frames of the uninterrupted run, byte for byte.

@@ -36,7 +36,7 @@ SCENE = {"frames": 10, "dt": 0.001, "substeps": 20,
                      "anchors": [{"at": "corners", "stiffness": 300}]}]}
 RUNS = 1024  # enough that a configuration lasts a good part of a second, and the gather is negligible
 CONFIGS = [(1, 1), (1, 2), (2, 1), (2, 2)]  # (ranks, threads per rank)
-RATE = re.compile(r"run\(s\) in (\S+) s \((\S+) scenes/s\)")
+RATE = re.compile(r"run\(s\) in (\S+) s \((\S+) runs/s\)")
 
 
 def fail(message):

@@ -6,6 +6,7 @@
 
 #include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <iostream>
 #include <memory>
 #include <sstream>
@@ -70,6 +71,29 @@ void stop_after_frame_on_signals() {
   sigemptyset(&action.sa_mask);
   sigaction(SIGINT, &action, nullptr);
   sigaction(SIGTERM, &action, nullptr);
+}
+
+// Ctrl-C (SIGINT) or SIGTERM during drape sweep or batch: the process stops at once, as
+// without a handler (a sweep's run is short, a batch's scene is run again whole), after
+// saying what is kept: the runs or scenes already finished are in the journal, which the
+// same command reads (sweep.h, RunJournal). Only the rank that writes the CSV says it.
+char interrupted_message[1024] = {};
+
+extern "C" void on_interrupt(int signal_number) {
+  [[maybe_unused]] const auto written = ::write(STDERR_FILENO, interrupted_message, std::strlen(interrupted_message));
+  std::signal(signal_number, SIG_DFL);
+  std::raise(signal_number);
+}
+
+void say_what_is_kept_on_signals(const Cluster& cluster, const char* command, const std::string& journal,
+                                 const char* finished) {
+  if (!cluster.is_root()) return;
+  std::snprintf(interrupted_message, sizeof interrupted_message,
+                "\ndrape %s: interrupted; the %s already finished are kept in %s: the same command again runs only "
+                "the others\n",
+                command, finished, journal.c_str());
+  std::signal(SIGINT, on_interrupt);
+  std::signal(SIGTERM, on_interrupt);
 }
 
 }  // namespace
@@ -207,6 +231,7 @@ int drape_main(int argc, char** argv) {
     const auto joined = join_cluster("sweep");
     if (!joined) return exit_usage;
     const Cluster& cluster = *joined;
+    say_what_is_kept_on_signals(cluster, "sweep", sweep_csv + ".journal", "runs");
     return run_sweep(sweep_options, sweep_csv, std::cerr, cluster);
   }
 
@@ -227,6 +252,7 @@ int drape_main(int argc, char** argv) {
     const auto joined = join_cluster("batch");
     if (!joined) return exit_usage;
     const Cluster& cluster = *joined;
+    say_what_is_kept_on_signals(cluster, "batch", (batch_options.out_dir / "batch.csv.journal").string(), "scenes");
     return run_batch(batch_options, std::cerr, cluster);
   }
 

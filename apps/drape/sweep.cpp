@@ -379,7 +379,7 @@ int run_sweep(const SweepOptions& options, const std::filesystem::path& csv, std
                                       [](const SweepOutcome& o) { return !o.stable && o.error.empty(); });
   // the rate of the runs made now, not of those taken from the journal
   log << "drape: " << cases.size() << " run(s) in " << seconds << " s ("
-      << double(cases.size() - done.size()) / seconds << " scenes/s), ";
+      << double(cases.size() - done.size()) / seconds << " runs/s), ";
   if (!done.empty()) log << done.size() << " of them from the journal, ";
   log << unstable << " unstable";
   if (failed) log << ", " << failed << " failed";
