@@ -105,7 +105,6 @@ double min_gamma(const SheetDef& s) {
   return gamma;
 }
 
-// Two sheets or more, or one colliding with itself, with the contact on: the contact may act.
 // The dt to suggest for an estimated stable step `limit`: the step the guard names when a
 // run blows up and adaptive steps take (adaptive_safety of the estimate), rounded down to
 // two significant digits, so the printed value is never above it.
@@ -115,6 +114,7 @@ double suggested_step(const Scene& scene, double limit) {
   return std::floor(step / unit) * unit;
 }
 
+// Two sheets or more, or one colliding with itself, with the contact on: the contact may act.
 bool sheets_may_touch(const Scene& scene) {
   return scene.world.contact_strength > 0 &&
          (scene.sheets.size() > 1 ||
