@@ -123,33 +123,35 @@ static std::vector<double> row_stiffness_bounds(const Sheet<Real>& s) {
   return k_sum;
 }
 
+// The largest over the points of ω_i = √(2Σk_i/m_i) (Gershgorin), or, with `damped`, of
+// (γ_i + √(γ_i² + 4ω_i²))/2 with eq (4)'s damping rate γ_i = c_i/m_i: semi-implicit Euler on
+// x'' = −ω²x − γx' (the damping from the step's velocity) is stable while ω²dt² + 2γdt < 4
+// (Jury's conditions on its 2×2 step), i.e. dt < 2/ω_eff: 2/ω undamped, 2/γ (= 2m/c) for
+// damping alone, which the springs' bound missed. (Measured on damping alone: velocity
+// Verlet holds beyond it; RK4, scaled to 2√2/ω_eff, holds to 2.785/γ, 1.5 % short of that.)
+template <class Real>
+static double highest_frequency(const Sheet<Real>& s, bool damped) {
+  const std::vector<double> k_sum = row_stiffness_bounds(s);
+  std::vector<bool> pinned(s.size(), false);  // a pin's damping moves nothing
+  for (std::uint32_t p : s.pins.point) pinned[p] = true;
+  const bool has_damping = damped && !s.damping.empty();
+  double omega = 0.0;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    const double omega2 = k_sum[i] / double(s.mass[i]);
+    const double g = has_damping && !pinned[i] ? double(s.damping[i]) / double(s.mass[i]) : 0.0;
+    omega = std::max(omega, g > 0 ? 0.5 * (g + std::sqrt(g * g + 4.0 * omega2)) : std::sqrt(omega2));
+  }
+  return omega;
+}
+
 template <class Real>
 double sheet_spring_frequency(const Sheet<Real>& s) {
-  // Gershgorin: ω_max² ≤ max_i 2Σk_i / m_i
-  const std::vector<double> k_sum = row_stiffness_bounds(s);
-  double omega2 = 0.0;
-  for (std::size_t i = 0; i < s.size(); ++i) omega2 = std::max(omega2, k_sum[i] / double(s.mass[i]));
-  return std::sqrt(omega2);
+  return highest_frequency(s, false);
 }
 
 template <class Real>
 double sheet_stable_step(const Sheet<Real>& s) {
-  // Per point, the bound ω_i² = 2Σk_i/m_i and the damping rate γ_i = c_i/m_i of eq (4)'s
-  // −C ẋ. Semi-implicit Euler on x'' = −ω²x − γx' (the damping from the step's velocity) is
-  // stable while ω²dt² + 2γdt < 4 (Jury's conditions on its 2×2 step), i.e. dt < 2/ω_eff with
-  // ω_eff = (γ + √(γ² + 4ω²))/2: 2/ω undamped, 2/γ (= 2m/c) for damping alone, which the
-  // springs' bound missed. (Measured on damping alone: velocity Verlet holds beyond it; RK4,
-  // scaled to 2√2/ω_eff, holds to 2.785/γ, 1.5 % short of that.)
-  const std::vector<double> k_sum = row_stiffness_bounds(s);
-  std::vector<double> gamma(s.size(), 0.0);
-  if (!s.damping.empty())
-    for (std::size_t i = 0; i < s.size(); ++i) gamma[i] = double(s.damping[i]) / double(s.mass[i]);
-  for (std::uint32_t p : s.pins.point) gamma[p] = 0.0;  // a pin's damping moves nothing
-  double omega = 0.0;
-  for (std::size_t i = 0; i < s.size(); ++i) {
-    const double omega2 = k_sum[i] / double(s.mass[i]), g = gamma[i];
-    omega = std::max(omega, g > 0 ? 0.5 * (g + std::sqrt(g * g + 4.0 * omega2)) : std::sqrt(omega2));
-  }
+  const double omega = highest_frequency(s, true);
   return omega > 0 ? 2.0 / omega : std::numeric_limits<double>::infinity();
 }
 
