@@ -102,10 +102,34 @@ void fields_repr(Class cls, std::shared_ptr<const std::vector<std::string>> name
     return text + ")";
   });
 }
-template <class Class>
-void fields_repr(Class cls, std::vector<std::string> names) {
-  fields_repr(cls, std::make_shared<const std::vector<std::string>>(std::move(names)));
-}
+
+// A result struct bound read-only, field by field, with the repr of its fields: each field
+// is named once, as Fields names a definition's.
+template <class T>
+class Readout {
+ public:
+  explicit Readout(py::class_<T> cls) : cls_(std::move(cls)) {}
+  template <class M>
+  Readout& field(const char* name, const M T::*member) {
+    cls_.def_readonly(name, member);
+    names_->push_back(name);
+    return *this;
+  }
+  template <class Getter>
+  Readout& property(const char* name, Getter getter) {
+    cls_.def_property_readonly(name, getter);
+    names_->push_back(name);
+    return *this;
+  }
+  py::class_<T>& done() {
+    fields_repr(cls_, names_);
+    return cls_;
+  }
+
+ private:
+  py::class_<T> cls_;
+  std::shared_ptr<std::vector<std::string>> names_ = std::make_shared<std::vector<std::string>>();
+};
 
 // A definition struct bound field by field: one line per field, and the class gets a
 // constructor taking any of them as keyword arguments (an unknown name is a TypeError) and
@@ -134,7 +158,7 @@ class Fields {
     auto names = names_;
     cls_.def(py::init([](const py::kwargs& kwargs) { return with_fields(T{}, kwargs); }),
              "Every field has a default; pass the ones to change as keyword arguments.");
-    fields_repr(cls_, std::shared_ptr<const std::vector<std::string>>(names));
+    fields_repr(cls_, names);
     cls_.def("__copy__", [](const T& self) { return T(self); });
     cls_.def("__deepcopy__", [](const T& self, py::dict) { return T(self); });
     return cls_;
@@ -497,16 +521,18 @@ void bind_world(py::module_& m, const char* name, const char* doc) {
   w.def("contact_step_estimate", locked<PW>(&W::contact_step_estimate), py::arg("sheet"));
   w.attr("dtype") = py::dtype::of<Real>();
 
-  fields_repr(py::class_<typename W::SolverStats>(w, "SolverStats")
-                  .def_readonly("iterations", &W::SolverStats::iterations)
-                  .def_readonly("relative_residual", &W::SolverStats::relative_residual)
-                  .def_readonly("converged", &W::SolverStats::converged)
-                  .def_readonly("unconverged_solves", &W::SolverStats::unconverged_solves),
-              {"iterations", "relative_residual", "converged", "unconverged_solves"});
-  fields_repr(py::class_<typename W::FrameStats>(w, "FrameStats")
-                  .def_readonly("kept", &W::FrameStats::kept)
-                  .def_readonly("undone", &W::FrameStats::undone),
-              {"kept", "undone"});
+  using SolverStats = typename W::SolverStats;
+  using FrameStats = typename W::FrameStats;
+  Readout<SolverStats>(py::class_<SolverStats>(w, "SolverStats"))
+      .field("iterations", &SolverStats::iterations)
+      .field("relative_residual", &SolverStats::relative_residual)
+      .field("converged", &SolverStats::converged)
+      .field("unconverged_solves", &SolverStats::unconverged_solves)
+      .done();
+  Readout<FrameStats>(py::class_<FrameStats>(w, "FrameStats"))
+      .field("kept", &FrameStats::kept)
+      .field("undone", &FrameStats::undone)
+      .done();
 }
 
 template <class Id>
@@ -737,32 +763,32 @@ PYBIND11_MODULE(drape, m) {
       .field("group_points", &WorldDef::group_points, "worlds of at least this many points try frames in groups of sheets in contact (0: all)")
       .done();
 
-  fields_repr(py::class_<Energies>(m, "Energies", "J")
-                  .def_readonly("kinetic", &Energies::kinetic)
-                  .def_readonly("spring", &Energies::spring)
-                  .def_readonly("bending", &Energies::bending)
-                  .def_readonly("gravity", &Energies::gravity)
-                  .def_readonly("anchor", &Energies::anchor)
-                  .def_readonly("obstacle", &Energies::obstacle)
-                  .def_property_readonly("total", &Energies::total),
-              {"kinetic", "spring", "bending", "gravity", "anchor", "obstacle", "total"});
-  fields_repr(py::class_<SheetDiagnostics>(m, "SheetDiagnostics")
-                  .def_readonly("energy", &SheetDiagnostics::energy)
-                  .def_readonly("max_strain", &SheetDiagnostics::max_strain)
-                  .def_readonly("finite", &SheetDiagnostics::finite),
-              {"energy", "max_strain", "finite"});
-  fields_repr(py::class_<ObstaclePenetration>(m, "ObstaclePenetration")
-                  .def_readonly("depth", &ObstaclePenetration::depth)
-                  .def_readonly("obstacle", &ObstaclePenetration::obstacle)
-                  .def_readonly("point", &ObstaclePenetration::point),
-              {"depth", "obstacle", "point"});
-  fields_repr(py::class_<SheetCrossing>(m, "SheetCrossing")
-                  .def_readonly("a", &SheetCrossing::a)
-                  .def_readonly("b", &SheetCrossing::b)
-                  .def_readonly("edges", &SheetCrossing::edges)
-                  .def_readonly("point_a", &SheetCrossing::point_a)
-                  .def_readonly("point_b", &SheetCrossing::point_b),
-              {"a", "b", "edges", "point_a", "point_b"});
+  Readout<Energies>(py::class_<Energies>(m, "Energies", "J"))
+      .field("kinetic", &Energies::kinetic)
+      .field("spring", &Energies::spring)
+      .field("bending", &Energies::bending)
+      .field("gravity", &Energies::gravity)
+      .field("anchor", &Energies::anchor)
+      .field("obstacle", &Energies::obstacle)
+      .property("total", &Energies::total)
+      .done();
+  Readout<SheetDiagnostics>(py::class_<SheetDiagnostics>(m, "SheetDiagnostics"))
+      .field("energy", &SheetDiagnostics::energy)
+      .field("max_strain", &SheetDiagnostics::max_strain)
+      .field("finite", &SheetDiagnostics::finite)
+      .done();
+  Readout<ObstaclePenetration>(py::class_<ObstaclePenetration>(m, "ObstaclePenetration"))
+      .field("depth", &ObstaclePenetration::depth)
+      .field("obstacle", &ObstaclePenetration::obstacle)
+      .field("point", &ObstaclePenetration::point)
+      .done();
+  Readout<SheetCrossing>(py::class_<SheetCrossing>(m, "SheetCrossing"))
+      .field("a", &SheetCrossing::a)
+      .field("b", &SheetCrossing::b)
+      .field("edges", &SheetCrossing::edges)
+      .field("point_a", &SheetCrossing::point_a)
+      .field("point_b", &SheetCrossing::point_b)
+      .done();
   py::class_<StabilityReport>(m, "StabilityReport", "What the stability guard found; str() describes it.")
       .def_readonly("status", &StabilityReport::status)
       .def_readonly("sheet", &StabilityReport::sheet)
